@@ -1,0 +1,35 @@
+"""Analytic response of a linear system by the matrix exponential (paper 000 Eqs. 41 and 43).
+
+Free response ``z(t) = e^{At} z0``; forced response adds ``∫ e^{A(t-τ)} B f(τ) dτ``, evaluated step
+by step with 8-point Gauss–Legendre quadrature on each interval. The quadrature is exact for
+polynomial forces up to degree 15; for a smooth force of frequency ω its relative error is of order
+``(ω h)^16``, far below double precision for the bundled scenes (ω h < 0.1).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from scipy.linalg import expm
+
+GAUSS_POINTS = 8
+
+
+def linear_response(A: np.ndarray, z0: np.ndarray, step: float, n_steps: int,
+                    B: np.ndarray | None = None, force: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
+    """States ``z(k step)`` for ``k = 0 … n_steps`` of ``z' = A z + B f(t)``, shape ``(n_steps + 1, len(z0))``."""
+    Phi = expm(A * step)
+    Z = np.empty((n_steps + 1, len(z0)))
+    Z[0] = z0
+    if force is None:
+        for k in range(n_steps):
+            Z[k + 1] = Phi @ Z[k]
+        return Z
+    nodes, weights = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+    offsets = 0.5 * step * (nodes + 1.0)
+    kernels = [0.5 * step * w * expm(A * (step - s)) @ B for s, w in zip(offsets, weights)]
+    for k in range(n_steps):
+        t = k * step
+        forced = sum(G @ np.atleast_1d(force(t + s)) for G, s in zip(kernels, offsets))
+        Z[k + 1] = Phi @ Z[k] + forced
+    return Z

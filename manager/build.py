@@ -1,0 +1,100 @@
+"""Turn a scene into runnable objects: co-simulation subsystems, the monolithic model, the linear model."""
+from __future__ import annotations
+
+import math
+from functools import reduce
+
+import numpy as np
+
+from compensation.linear_model import ForceDisplacementBond, LinearModel
+from manager.scene import Scene
+from subsystems.effects import PlacedEffect
+from subsystems.integrators import INTEGRATORS
+from subsystems.masses import MassesModel, MassesSpec
+from subsystems.models import MODELS
+from subsystems.ports import Attachments
+from subsystems.subsystem import Subsystem
+
+
+def attachments(scene: Scene) -> dict[str, Attachments]:
+    """What every coupling adds to every subsystem, in scene order."""
+    result = {name: Attachments() for name in scene.subsystems}
+    for coupling in scene.couplings.values():
+        for sub, added in coupling.attachments().items():
+            result[sub] = result[sub] + added
+    return result
+
+
+def build_subsystem(scene: Scene, name: str, attached: Attachments | None = None) -> Subsystem:
+    """The subsystem ``name`` of the scene, with only the effects the scene names."""
+    sub = scene.subsystems[name]
+    if attached is None:
+        attached = attachments(scene)[name]
+    model = MODELS[sub.settings.model](sub.spec, attached)
+    return Subsystem(name, model, INTEGRATORS[sub.settings.integrator], sub.settings.micro_step_ns)
+
+
+def build_subsystems(scene: Scene) -> dict[str, Subsystem]:
+    attached = attachments(scene)
+    return {name: build_subsystem(scene, name, attached[name]) for name in scene.subsystems}
+
+
+def monolithic_unavailable(scene: Scene) -> str | None:
+    """Why the scene has no monolithic counterpart (None when it has one)."""
+    models = {s.settings.model for s in scene.subsystems.values()}
+    if models != {MassesModel.name}:
+        return f"the monolithic model is assembled for '{MassesModel.name}' subsystems only, got {sorted(models)}"
+    integrators = {s.settings.integrator for s in scene.subsystems.values()}
+    if len(integrators) != 1:
+        return f"subsystems use different integrators {sorted(integrators)}"
+    return None
+
+
+def _qualify(sub: str, point: str | None) -> str | None:
+    return None if point is None else f"{sub}.{point}"
+
+
+def monolithic_spec(scene: Scene) -> MassesSpec:
+    """All bodies and effects of all subsystems in one model; points are named ``<subsystem>.<body>``."""
+    bodies, effects = {}, []
+    for sub in scene.subsystems.values():
+        for body_name, body in sub.spec.bodies.items():
+            bodies[_qualify(sub.name, body_name)] = body
+        for placed in sub.spec.effects:
+            effects.append(PlacedEffect(f"{sub.name}.{placed.name}", placed.effect,
+                                        tuple(_qualify(sub.name, p) for p in placed.endpoints)))
+    return MassesSpec(bodies, tuple(effects))
+
+
+def build_monolithic(scene: Scene) -> Subsystem:
+    """The monolithic system with the subsystems' integrator and the finest micro-step that divides all.
+
+    The couplings' elements act directly between the bodies; the model outputs every coupling signal.
+    """
+    reason = monolithic_unavailable(scene)
+    if reason:
+        raise ValueError(f"scene {scene.name}: no monolithic model: {reason}")
+    attached = reduce(lambda a, c: a + c.monolithic_attachments(_qualify), scene.couplings.values(), Attachments())
+    model = MassesModel(monolithic_spec(scene), attached)
+    micro_step_ns = math.gcd(*(s.settings.micro_step_ns for s in scene.subsystems.values()))
+    integrator = next(iter(scene.subsystems.values())).settings.integrator
+    return Subsystem("monolithic", model, INTEGRATORS[integrator], micro_step_ns)
+
+
+def linear_model(scene: Scene) -> LinearModel:
+    """``M, C, K`` of the monolithic system (paper 000 Eq. 11 generalised) and its force–displacement bonds."""
+    monolithic = build_monolithic(scene).model
+    names = monolithic.body_names
+    index = {name: i for i, name in enumerate(names)}
+    bonds = []
+    for coupling in scene.couplings.values():
+        K2, C2 = np.zeros((2, 2)), np.zeros((2, 2))  # the coupling element alone, between points 0 and 1
+        for placed in coupling.effects:
+            if placed.effect.kind != "linear":
+                raise ValueError(f"scene {scene.name}: coupling {coupling.name} is not linear ({placed.name})")
+            placed.effect.stamp(K2, C2, 0, 1)
+        bonds.append(ForceDisplacementBond(coupling.name, index[_qualify(coupling.force_sub, coupling.force_point)],
+                                           index[_qualify(coupling.motion_sub, coupling.motion_point)],
+                                           K2[0, 0], C2[0, 0]))
+    return LinearModel(monolithic.M, monolithic.C, monolithic.K, names, tuple(n.split(".")[0] for n in names),
+                       tuple(bonds), scene.manager.macro_step)

@@ -1,0 +1,177 @@
+"""The ``zencosim`` command line.
+
+Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error),
+2 bad input (scene, overrides, arguments), 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from manager.jacobi import SubsystemFailure
+from manager.protocol import ProtocolError
+from manager.run import BUSES, plan_scene, run_scene
+from manager.scene import SceneError, bundled_scene_names, load_scene
+from manager.zenoh_session import ZenohOptions
+
+out = Console()
+err = Console(stderr=True)
+
+
+def _add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="a bundled scene name (see 'zencosim scenes') or a path to a TOML scene")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scalar of the scene, e.g. --set manager.macro_step=0.004 (repeatable)")
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    table = Table(title="bundled scenes")
+    table.add_column("scene")
+    table.add_column("description")
+    for name in bundled_scene_names():
+        table.add_row(name, load_scene(name).description)
+    out.print(table)
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene, args.overrides)
+    plan, _ = plan_scene(scene)
+    out.print(f"[bold]scene {escape(scene.name)}[/]: valid — {escape(scene.description)}")
+    out.print(f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s, scheme {scene.manager.scheme}, "
+              f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(b.name for b in plan.bonds) or 'none'}")
+    for sub in plan.subsystems:
+        settings = scene.subsystems[sub.name].settings
+        out.print(f"[bold]{sub.name}[/]: {settings.model}, {settings.integrator}, micro-step {settings.micro_step:g} s, "
+                  f"communication step {sub.ratio * scene.manager.macro_step:g} s")
+        out.print(escape(f"  inputs:  {', '.join(f'{p.name} [{p.unit}]' for p in sub.inputs) or 'none'}"))
+        out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + (" (feedthrough)" if p.feedthrough else "")
+                                                for p in sub.outputs)))
+        out.print(escape(f"  effects: {', '.join(sub.effects) or 'none'}"))
+    return 0
+
+
+def _print_summary(summary: dict) -> None:
+    table = Table(title=f"{summary['scene']} on the {summary['bus']} bus: {summary['steps']} macro-steps of "
+                        f"{summary['macro_step']:g} s")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+
+    def row(label: str, value: str) -> None:
+        table.add_row(escape(label), escape(value))
+
+    row("stable", "yes" if summary["stable"] else "NO (energy grows)")
+    for name, entry in summary["signals"].items():
+        if entry.get("nrms") is not None:
+            mono = entry.get("nrms_monolithic")
+            row(f"NRMS {name} [{entry['unit']}]", f"{entry['nrms']:.4g}" + (f"  (monolithic {mono:.4g})" if mono is not None else ""))
+    energy = summary["energy"]
+    row("energy initial / final [J]", f"{energy['initial']:.6g} / {energy['final']:.6g}")
+    if "reference_final" in energy:
+        row("energy final, reference [J]", f"{energy['reference_final']:.6g}")
+    row("energy growth rate [1/s]", f"{energy['growth_rate_per_s']:.3g}")
+    for bond, value in summary["residual_energy"].items():
+        row(f"residual energy δE, bond {bond} [J]", f"{value:.6g}")
+    timing = summary["timing"]
+    row("wall time [s]", f"{timing['wall_s']:.3f}")
+    row("macro-steps per second", f"{timing['steps_per_s']:.0f}")
+    if "step_us_median" in timing:
+        row("step median / p99 [µs]", f"{timing['step_us_median']:.1f} / {timing['step_us_p99']:.1f}")
+    if timing.get("realtime"):
+        row("lateness median / p99 / max [µs]", f"{timing['lateness_us_median']:.1f} / "
+                      f"{timing['lateness_us_p99']:.1f} / {timing['lateness_us_max']:.1f}")
+        row("missed deadlines", str(timing["missed_deadlines"]))
+    row("active effects", ", ".join(summary["effects"]))
+    row("digest", summary["digest"][:16] + "…")
+    out.print(table)
+    if "reference_note" in summary:
+        out.print(summary["reference_note"])
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene, args.overrides)
+    options = ZenohOptions(lowlatency=not args.no_lowlatency)
+    n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
+    bus_options = {}
+    if args.bus == "zenoh":
+        bus_options = dict(zenoh_options=options, listen=args.listen, external=tuple(args.external),
+                           announce=lambda text: err.print(text, highlight=False))
+    show_progress = err.is_terminal and not args.quiet
+    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(), TimeRemainingColumn(),
+                  console=err, disable=not show_progress) as progress:
+        task = progress.add_task(f"{scene.name} ({args.bus})", total=n_steps)
+        summary = run_scene(scene, args.bus, True if args.realtime else None,
+                            lambda step: progress.update(task, completed=step), **bus_options)
+    if not args.quiet:
+        _print_summary(summary)
+    if args.summary:
+        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n")
+    return 0
+
+
+def cmd_subsystem(args: argparse.Namespace) -> int:
+    from manager.subsystem_host import serve
+    scene = load_scene(args.scene, args.overrides)
+    return serve(scene, args.name, args.connect, args.run_id, ZenohOptions(lowlatency=not args.no_lowlatency),
+                 args.wait)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="zencosim", description="Distributed real-time co-simulation over Zenoh")
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    commands.add_parser("scenes", help="list the bundled scenes").set_defaults(handler=cmd_scenes)
+
+    check = commands.add_parser("check", help="validate a scene and show what it builds")
+    _add_scene_arguments(check)
+    check.set_defaults(handler=cmd_check)
+
+    run = commands.add_parser("run", help="run a scene")
+    _add_scene_arguments(run)
+    run.add_argument("--bus", choices=BUSES, default="inproc",
+                     help="inproc: all subsystems in this process; zenoh: one process per subsystem over Zenoh")
+    run.add_argument("--summary", metavar="FILE", help="write the run summary as JSON")
+    run.add_argument("--realtime", action="store_true", help="pace macro-steps to wall-clock deadlines")
+    run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    run.add_argument("--listen", metavar="ENDPOINT", help="Zenoh endpoint of the manager (default: a free port on 127.0.0.1)")
+    run.add_argument("--external", action="append", default=[], metavar="NAME",
+                     help="do not start subsystem NAME: wait for 'zencosim subsystem' started by hand")
+    run.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
+    run.set_defaults(handler=cmd_run)
+
+    sub = commands.add_parser("subsystem", help="serve one subsystem of a scene over Zenoh (for runs across hosts)")
+    _add_scene_arguments(sub)
+    sub.add_argument("name", help="the subsystem to serve")
+    sub.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
+                     help="Zenoh endpoint of the manager, e.g. tcp/192.0.2.10:7447")
+    sub.add_argument("--run-id", help="the run to join (default: the one run that waits for this subsystem)")
+    sub.add_argument("--wait", type=float, default=30.0, metavar="SECONDS", help="how long to look for the run")
+    sub.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
+    sub.set_defaults(handler=cmd_subsystem)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except SceneError as error:
+        err.print(f"[bold red]error:[/] {escape(str(error))}", highlight=False, soft_wrap=True)
+        return 2
+    except (SubsystemFailure, ProtocolError) as error:
+        err.print(f"[bold red]run failed:[/] {escape(str(error))}", highlight=False, soft_wrap=True)
+        return 1
+    except KeyboardInterrupt:
+        err.print("interrupted")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

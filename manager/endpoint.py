@@ -1,0 +1,64 @@
+"""The subsystem side of the wire protocol: decode a command, act on the subsystem, encode the reply.
+
+The same endpoint serves the in-process bus (called directly) and a subsystem process (called from
+its Zenoh subscriber), so both buses run identical arithmetic on identical bytes.
+"""
+from __future__ import annotations
+
+from manager.protocol import Kind, ProtocolError, decode, encode, encode_error
+from subsystems.inputs import InputPolynomial
+from subsystems.subsystem import SavedState, Subsystem
+
+
+class SubsystemEndpoint:
+    """Answers manager commands for one subsystem that communicates every ``ratio`` base steps."""
+
+    def __init__(self, subsystem: Subsystem, ratio: int, base_step_ns: int) -> None:
+        self.subsystem = subsystem
+        self.ratio = ratio
+        self.comm_step_ns = ratio * base_step_ns
+        self.n_inputs = len(subsystem.inputs)
+        self.saved: dict[int, SavedState] = {}
+        self.stopped = False
+
+    def handle(self, data: bytes) -> bytes:
+        """One command in, one reply out; a failing command is answered with an ERROR message."""
+        step, time_ns = -1, -1
+        try:
+            message = decode(data, "manager")
+            step, time_ns = message.step, message.time_ns
+            return self._dispatch(message)
+        except Exception as error:  # the manager names the subsystem and stops the run
+            return encode_error(step, time_ns, f"{type(error).__name__}: {error}")
+
+    def _inputs(self, message) -> InputPolynomial:
+        rows = message.rows
+        if rows < 1 or message.values.size != rows * self.n_inputs:
+            raise ProtocolError(f"subsystem {self.subsystem.name}: expected {self.n_inputs} inputs per row, "
+                                f"got {message.values.size} values in {rows} rows")
+        return InputPolynomial(message.values.reshape(rows, self.n_inputs))
+
+    def _dispatch(self, message) -> bytes:
+        sub = self.subsystem
+        kind = message.kind
+        if kind == Kind.STEP:
+            t1 = message.time_ns + self.comm_step_ns
+            y = sub.advance(message.time_ns, t1, self._inputs(message))
+            return encode(Kind.OUTPUT, message.step + self.ratio, t1, y)
+        if kind == Kind.INIT:
+            if message.time_ns != sub.t_ns:
+                raise ProtocolError(f"subsystem {sub.name}: INIT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")
+            return encode(Kind.OUTPUT, message.step, message.time_ns, sub.output_values(self._inputs(message).at(0.0)))
+        if kind == Kind.SAVE:
+            self.saved[message.step] = sub.save()
+            return encode(Kind.ACK, message.step, sub.t_ns)
+        if kind == Kind.RESTORE:
+            if message.step not in self.saved:
+                raise ProtocolError(f"subsystem {sub.name}: no state saved at step {message.step}")
+            sub.restore(self.saved[message.step])
+            return encode(Kind.ACK, message.step, sub.t_ns)
+        if kind == Kind.STOP:
+            self.stopped = True
+            return encode(Kind.ACK, message.step, sub.t_ns)
+        raise ProtocolError(f"subsystem {sub.name}: cannot handle a {kind.name} message")
+

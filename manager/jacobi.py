@@ -1,0 +1,166 @@
+"""Explicit Jacobi co-simulation, single- and multi-rate (paper 002 Fig. 1; paper 000 §2.1).
+
+The scheme is written as a plain loop that *yields* the messages to send and the subsystems whose
+replies it needs next; a bus drives it (in-process calls, or Zenoh publications and callbacks).
+Both buses therefore execute the same arithmetic in the same order.
+
+One base macro-step [t_j, t_j+1]:
+1. every subsystem whose communication point is t_j gets its input polynomial over its own
+   communication step: for each input, the Lagrange polynomial (order ``p``) through the source's
+   last ``p + 1`` samples at or before t_j (fewer at the start of the run);
+2. subsystems integrate (in parallel on the Zenoh bus) and report outputs at their next point;
+   outputs with direct feedthrough use the received polynomial evaluated at that point;
+3. the manager commits the outputs due at t_j+1 and evaluates the residual power of every bond
+   whose two sides both communicated at t_j+1 (paper 002 Eqs. 8–9, 13).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Callable, Generator
+
+import numpy as np
+
+from manager.extrapolation import evaluate, extrapolation_matrix
+from manager.plan import Plan, SubsystemPlan
+from manager.protocol import Kind, ProtocolError, decode, encode
+from manager.residual import residual_power
+
+PROGRESS_EVERY = 500  # base steps between two progress callbacks
+
+
+class SubsystemFailure(RuntimeError):
+    """A subsystem answered with an error, died, or did not answer in time."""
+
+    def __init__(self, subsystem: str, reason: str) -> None:
+        self.subsystem = subsystem
+        super().__init__(f"subsystem {subsystem}: {reason}")
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``."""
+
+    sends: dict[str, bytes]
+    awaits: tuple[str, ...]
+
+
+@dataclass
+class RunRecord:
+    """What one run produced, on the base macro-step grid."""
+
+    plan: Plan
+    trajectories: list[np.ndarray]  # per subsystem: outputs at its communication points
+    residual_power: np.ndarray  # (n_ticks + 1, n_bonds) [W], NaN where a bond was not evaluated
+    residual_energy: np.ndarray  # (n_ticks + 1, n_bonds) [J], cumulative
+    send_time_ns: np.ndarray  # (n_ticks,) wall clock (perf_counter_ns) when step j's inputs went out
+    lateness_ns: np.ndarray | None  # (n_ticks,) real-time mode: send time minus deadline
+    missed_deadlines: int
+
+
+def _decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
+    message = decode(data, f"subsystem {sub.name}")
+    if message.kind == Kind.ERROR:
+        raise SubsystemFailure(sub.name, f"failed at step {step}: {message.text()}")
+    if message.kind != Kind.OUTPUT or message.step != step:
+        raise ProtocolError(f"subsystem {sub.name}: expected OUTPUT for step {step}, "
+                            f"got {message.kind.name} for step {message.step}")
+    if message.values.size != len(sub.outputs):
+        raise ProtocolError(f"subsystem {sub.name}: expected {len(sub.outputs)} outputs, got {message.values.size}")
+    return message.values
+
+
+def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
+    """A slice when the positions are contiguous (cheap numpy indexing), else an index array."""
+    if positions == tuple(range(positions[0], positions[-1] + 1)):
+        return slice(positions[0], positions[-1] + 1)
+    return np.array(positions)
+
+
+def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
+           ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+    """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`."""
+    subs = plan.subsystems
+    base = plan.base_step_ns
+    n_ticks = plan.n_ticks
+    order = plan.order
+    traj = [np.full((n_ticks // s.ratio + 1, len(s.outputs)), np.nan) for s in subs]
+    n_bonds = len(plan.bonds)
+    p_res = np.full((n_ticks + 1, n_bonds), np.nan)
+    e_res = np.full((n_ticks + 1, n_bonds), np.nan)
+    p_res[0], e_res[0] = 0.0, 0.0
+    last_bond_tick = [0] * n_bonds
+    send_time = np.zeros(n_ticks, dtype=np.int64)
+    sent: list[tuple[int, np.ndarray] | None] = [None] * len(subs)  # (start tick, coefficients)
+    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds] for s in subs]
+
+    def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
+        coefficients = np.zeros((order + 1, len(s.inputs)))
+        for source, ratio, outputs, inputs in feeds[s.index]:
+            newest = tick // ratio
+            if order == 0 or newest == 0:
+                coefficients[0, inputs] = traj[source][newest, outputs]
+                continue
+            points = min(order, newest) + 1
+            P = extrapolation_matrix(points, ratio * base, (tick - newest * ratio) * base)
+            coefficients[:points, inputs] = P.dot(traj[source][newest - points + 1:newest + 1, outputs])
+        return coefficients
+
+    # initial outputs, sources before the subsystems whose feedthrough outputs need them; a subsystem
+    # without feedthrough reports before its sources, with zero inputs that its outputs do not depend on
+    initialised: set[int] = set()
+    for round_ in plan.init_rounds:
+        sends = {}
+        for i in round_:
+            s = subs[i]
+            ready = all(f.source in initialised for f in s.feeds)
+            w0 = input_polynomial(s, 0)[:1] if ready else np.zeros((1, len(s.inputs)))
+            sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
+        replies = yield Exchange(sends, tuple(sends))
+        for i in round_:
+            traj[i][0] = _decode_output(replies[subs[i].name], subs[i], 0)
+        initialised.update(round_)
+
+    # what happens at each phase of the schedule, which repeats every lcm of the ratios
+    period = math.lcm(*(s.ratio for s in subs))
+    starting = [tuple(s for s in subs if phase % s.ratio == 0) for phase in range(period)]
+    due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0) for phase in range(period)]
+    due_names = [tuple(s.name for s in d) for d in due]
+    bonds_due = [tuple((b, bond) for b, bond in enumerate(plan.bonds)
+                       if (phase + 1) % subs[bond.force_side].ratio == 0
+                       and (phase + 1) % subs[bond.motion_side].ratio == 0) for phase in range(period)]
+    rows = order + 1
+    step_s = base * 1e-9
+
+    for tick in range(n_ticks):
+        phase = tick % period
+        sends = {}
+        for s in starting[phase]:
+            coefficients = input_polynomial(s, tick)
+            sent[s.index] = (tick, coefficients)
+            sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, rows)
+        next_tick = tick + 1
+        if pacer is not None:
+            pacer.wait(tick)
+        send_time[tick] = time.perf_counter_ns()
+        replies = yield Exchange(sends, due_names[phase])
+        for s in due[phase]:
+            traj[s.index][next_tick // s.ratio] = _decode_output(replies[s.name], s, next_tick)
+        for b, bond in bonds_due[phase]:
+            f_start, f_coefficients = sent[bond.force_side]
+            m_start, m_coefficients = sent[bond.motion_side]
+            delta_p = residual_power(
+                traj[bond.force_side][next_tick // subs[bond.force_side].ratio, bond.force_output],
+                evaluate(f_coefficients, bond.velocity_input, (next_tick - f_start) * step_s),
+                evaluate(m_coefficients, bond.force_input, (next_tick - m_start) * step_s),
+                traj[bond.motion_side][next_tick // subs[bond.motion_side].ratio, bond.velocity_output])
+            p_res[next_tick, b] = delta_p
+            e_res[next_tick, b] = e_res[last_bond_tick[b], b] + delta_p * (next_tick - last_bond_tick[b]) * step_s
+            last_bond_tick[b] = next_tick
+        if progress is not None and next_tick % PROGRESS_EVERY == 0:
+            progress(next_tick)
+
+    return RunRecord(plan, traj, p_res, e_res, send_time,
+                     None if pacer is None else pacer.lateness_ns,
+                     0 if pacer is None else pacer.missed)

@@ -1,0 +1,36 @@
+"""Real-time pacing: release every macro-step at an absolute wall-clock deadline.
+
+Step j is released at ``t_start + j * macro_step``. The loop sleeps until just before the deadline
+and spins for the last ``spin_ns`` (a sleeping thread wakes late, and Zenoh latency grows when the
+receiving threads have gone idle). A step whose predecessor returned after its release time is a
+missed deadline; lateness is release time minus deadline.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+class Pacer:
+    def __init__(self, macro_step_ns: int, n_steps: int, spin_ns: int = 200_000) -> None:
+        self.macro_step_ns = macro_step_ns
+        self.spin_ns = spin_ns
+        self.start_ns: int | None = None
+        self.lateness_ns = np.zeros(n_steps, dtype=np.int64)
+        self.missed = 0
+
+    def wait(self, step: int) -> None:
+        """Block until step ``step``'s deadline (the first call starts the clock)."""
+        now = time.perf_counter_ns()
+        if self.start_ns is None:
+            self.start_ns = now
+        deadline = self.start_ns + step * self.macro_step_ns
+        if now > deadline:
+            self.missed += 1
+        else:
+            if deadline - now > self.spin_ns:
+                time.sleep((deadline - now - self.spin_ns) * 1e-9)
+            while (now := time.perf_counter_ns()) < deadline:
+                pass
+        self.lateness_ns[step] = now - deadline

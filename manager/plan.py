@@ -1,0 +1,130 @@
+"""The run plan: who feeds whom, in which order subsystems initialise, and which bonds are monitored.
+
+Compiled once from a scene and the ports of its subsystems; the run loop then only does index
+arithmetic. Indices refer to ``Plan.subsystems`` and to each subsystem's port order.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from manager.scene import Scene, SceneError
+from subsystems.params import Problems
+from subsystems.ports import Port
+
+
+@dataclass(frozen=True)
+class Feed:
+    """Outputs ``outputs`` of subsystem ``source`` feed inputs ``inputs`` of one target, in that order."""
+
+    source: int
+    outputs: tuple[int, ...]
+    inputs: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class SubsystemPlan:
+    index: int
+    name: str
+    ratio: int  # communication step / base macro step
+    inputs: tuple[Port, ...]
+    outputs: tuple[Port, ...]  # coupling outputs, then the energy monitor
+    feeds: tuple[Feed, ...]
+    effects: tuple[str, ...]  # active effects, as built
+
+    @property
+    def energy_output(self) -> int:
+        return len(self.outputs) - 1
+
+
+@dataclass(frozen=True)
+class BondPlan:
+    """Indices of the four signals of a power bond (see manager.residual)."""
+
+    name: str
+    force_side: int
+    force_output: int
+    velocity_input: int
+    motion_side: int
+    velocity_output: int
+    force_input: int
+
+
+@dataclass(frozen=True)
+class Plan:
+    subsystems: tuple[SubsystemPlan, ...]
+    bonds: tuple[BondPlan, ...]
+    init_rounds: tuple[tuple[int, ...], ...]  # who reports initial outputs first (no feedthrough), then who
+    signals: dict[str, tuple[int, int]]  # coupling signal name -> (subsystem, output)
+    base_step_ns: int
+    n_ticks: int
+    order: int  # extrapolation order
+
+    def by_name(self, name: str) -> SubsystemPlan:
+        return next(s for s in self.subsystems if s.name == name)
+
+
+def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Port, ...], tuple[str, ...]]]) -> Plan:
+    """Build the plan; ``ports[name] = (inputs, outputs, effects)`` of each built subsystem.
+
+    Raises :class:`SceneError` when an input is unfed, a route joins ports of different units, or
+    outputs with direct feedthrough form an algebraic loop that an explicit scheme cannot initialise.
+    """
+    names = list(scene.subsystems)
+    index = {name: i for i, name in enumerate(names)}
+    problems = Problems()
+    routes = [r for c in scene.couplings.values() for r in c.routes()]
+    port_index = {n: ({p.name: j for j, p in enumerate(ports[n][0])}, {p.name: j for j, p in enumerate(ports[n][1])})
+                  for n in names}
+
+    fed: dict[str, dict[int, tuple[int, int]]] = {n: {} for n in names}
+    for route in routes:
+        source_port = ports[route.source][1][port_index[route.source][1][route.output]]
+        target_in = port_index[route.target][0][route.input]
+        target_port = ports[route.target][0][target_in]
+        if source_port.unit != target_port.unit:
+            problems.add(f"couplings", f"{route.source}.{route.output} [{source_port.unit}] feeds "
+                         f"{route.target}.{route.input} [{target_port.unit}]: units differ")
+        fed[route.target][target_in] = (index[route.source], port_index[route.source][1][route.output])
+
+    plans = []
+    for i, name in enumerate(names):
+        inputs, outputs, effects = ports[name]
+        for j, port in enumerate(inputs):
+            if j not in fed[name]:
+                problems.add(f"subsystems.{name}", f"input {port.name} is fed by no coupling")
+        groups: dict[int, list[tuple[int, int]]] = {}
+        for j, (source, output) in sorted(fed[name].items()):
+            groups.setdefault(source, []).append((output, j))
+        feeds = tuple(Feed(src, tuple(o for o, _ in pairs), tuple(j for _, j in pairs)) for src, pairs in groups.items())
+        plans.append(SubsystemPlan(i, name, scene.subsystems[name].settings.comm_ratio, inputs, outputs, feeds, effects))
+
+    bonds = []
+    for coupling in scene.couplings.values():
+        for b in coupling.bonds():
+            f, m = index[b.force_side], index[b.motion_side]
+            bonds.append(BondPlan(b.name, f, port_index[b.force_side][1][b.force], port_index[b.force_side][0][b.velocity_input],
+                                  m, port_index[b.motion_side][1][b.velocity], port_index[b.motion_side][0][b.force_input]))
+
+    init_rounds = _init_rounds(plans, problems)
+    if problems:
+        raise SceneError(scene.path, problems)
+    signals = {p.name: (s.index, j) for s in plans for j, p in enumerate(s.outputs) if p.quantity != "energy"}
+    return Plan(tuple(plans), tuple(bonds), init_rounds, signals, scene.manager.macro_step_ns,
+                scene.manager.duration_ns // scene.manager.macro_step_ns, scene.manager.extrapolation)
+
+
+def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[int, ...], ...]:
+    """Order the initial-output requests: a subsystem with a feedthrough output waits for its sources."""
+    waits = {s.index: ({f.source for f in s.feeds} if any(p.feedthrough for p in s.outputs) else set()) for s in plans}
+    done: set[int] = set()
+    rounds = []
+    while len(done) < len(plans):
+        ready = tuple(sorted(i for i, deps in waits.items() if i not in done and deps <= done))
+        if not ready:
+            loop = ", ".join(plans[i].name for i in sorted(set(waits) - done))
+            problems.add("couplings", f"outputs with direct feedthrough form an algebraic loop between {loop}; "
+                         "an explicit scheme cannot initialise them")
+            break
+        rounds.append(ready)
+        done.update(ready)
+    return tuple(rounds)

@@ -1,0 +1,78 @@
+"""The wire protocol: a fixed 24-byte header and little-endian float64 values. Nothing executes on decode.
+
+Header (little endian): version u8, kind u8, rows u16 (rows of a polynomial payload, else 0),
+count u32 (number of float64 values; for ERROR the number of UTF-8 bytes), step i64 (index of the
+communication point on the base macro-step grid), time i64 [ns]. The same ``encode``/``decode`` run
+on the in-process bus and over Zenoh, so a codec bug shows on both.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+VERSION = 1
+HEADER = struct.Struct("<BBHIqq")
+
+
+class Kind(IntEnum):
+    INIT = 1  # manager → subsystem: constant inputs at t0; reply OUTPUT at step 0
+    STEP = 2  # manager → subsystem: input polynomial over the next communication step; reply OUTPUT
+    SAVE = 3  # manager → subsystem: keep the state at this step; reply ACK
+    RESTORE = 4  # manager → subsystem: go back to the state saved at this step; reply ACK
+    STOP = 5  # manager → subsystem: end the process; reply ACK
+    OUTPUT = 16  # subsystem → manager: output values at a communication point
+    ACK = 17  # subsystem → manager
+    ERROR = 18  # subsystem → manager: the command failed; the payload is the reason (UTF-8)
+
+
+_KINDS = {kind.value: kind for kind in Kind}
+_ITEMSIZE = {kind: (1 if kind == Kind.ERROR else 8) for kind in Kind}
+_DTYPE = {kind: (np.dtype(np.uint8) if kind == Kind.ERROR else np.dtype("<f8")) for kind in Kind}
+
+
+class ProtocolError(ValueError):
+    """A malformed, unexpected or out-of-order message."""
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    kind: Kind
+    step: int
+    time_ns: int
+    rows: int
+    values: np.ndarray  # read-only view of the payload
+
+    def text(self) -> str:
+        return self.values.tobytes().decode("utf-8", errors="replace")
+
+
+def encode(kind: Kind, step: int, time_ns: int, values: np.ndarray | None = None, rows: int = 0) -> bytes:
+    if values is None:
+        return HEADER.pack(VERSION, kind, 0, 0, step, time_ns)
+    return HEADER.pack(VERSION, kind, rows, values.size, step, time_ns) + values.astype("<f8", copy=False).tobytes()
+
+
+def encode_error(step: int, time_ns: int, reason: str) -> bytes:
+    text = reason.encode("utf-8")
+    return HEADER.pack(VERSION, Kind.ERROR, 0, len(text), step, time_ns) + text
+
+
+def decode(data: bytes, sender: str) -> Message:
+    """Decode and validate one message from ``sender`` (named in every error)."""
+    if len(data) < HEADER.size:
+        raise ProtocolError(f"message from {sender}: {len(data)} bytes, shorter than the {HEADER.size}-byte header")
+    version, kind, rows, count, step, time_ns = HEADER.unpack_from(data)
+    if version != VERSION:
+        raise ProtocolError(f"message from {sender}: protocol version {version}, expected {VERSION}")
+    kind = _KINDS.get(kind)
+    if kind is None:
+        raise ProtocolError(f"message from {sender}: unknown kind {HEADER.unpack_from(data)[1]}")
+    expected = HEADER.size + _ITEMSIZE[kind] * count
+    if len(data) != expected:
+        raise ProtocolError(f"message from {sender}: {len(data)} bytes, expected {expected} for {count} values")
+    if rows and (count % rows):
+        raise ProtocolError(f"message from {sender}: {count} values do not fill {rows} rows")
+    return Message(kind, step, time_ns, rows, np.frombuffer(data, dtype=_DTYPE[kind], count=count, offset=HEADER.size))

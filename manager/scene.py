@@ -1,0 +1,293 @@
+"""Scenes: load a TOML scene, apply ``--set`` overrides, validate everything, and report every problem.
+
+A scene says what is simulated and nothing more: subsystems (model, integrator, micro-step,
+communication-step ratio, the model's bodies and effects), couplings (which subsystem computes the
+coupling force and which signals cross), the manager (scheme, macro-step, extrapolation, timeout,
+pacing) and outputs (signals to report, the reference to compare with). See docs/scenes.md.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal, Sequence
+
+from manager.couplings import COUPLINGS
+from subsystems.integrators import INTEGRATORS
+from subsystems.models import MODELS
+from subsystems.params import Problems, quantity, read_table
+
+SECTIONS = ("name", "description", "source", "manager", "outputs", "subsystems", "couplings")
+
+
+class SceneError(ValueError):
+    """A scene that cannot be run: every problem, each with the file and dotted key it concerns."""
+
+    def __init__(self, path: str, problems: Sequence) -> None:
+        self.path = path
+        self.problems = list(problems)
+        lines = [f"{path}: {p.key}: {p.reason}" for p in self.problems]
+        super().__init__(f"scene {path} has {len(lines)} problem(s):\n  " + "\n  ".join(lines))
+
+
+@dataclass(frozen=True)
+class ManagerSettings:
+    """The ``[manager]`` table: how the run is orchestrated."""
+
+    duration: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # simulated time [s]
+    macro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # base communication step [s]
+    scheme: Literal["jacobi"] = "jacobi"
+    extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order
+    timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
+    realtime: bool = False
+
+    @property
+    def macro_step_ns(self) -> int:
+        return round(self.macro_step * 1e9)
+
+    @property
+    def duration_ns(self) -> int:
+        return round(self.duration * 1e9)
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """The ``[outputs]`` table: which signals the summary reports and against which reference."""
+
+    signals: tuple[str, ...] = ()
+    reference: Literal["analytic", "none"] = "analytic"
+
+
+@dataclass(frozen=True)
+class SubsystemSettings:
+    """The generic keys of a ``[subsystems.<name>]`` table; the rest belongs to its model."""
+
+    model: str
+    micro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
+    integrator: str = "symplectic_euler"
+    comm_ratio: int = field(default=1, metadata=quantity("", minimum=1))  # communication step / macro step
+
+    def problems(self) -> list[tuple[str, str]]:
+        found = []
+        if self.model not in MODELS:
+            found.append(("model", f"expected one of {', '.join(sorted(MODELS))}, got {self.model!r}"))
+        if self.integrator not in INTEGRATORS:
+            found.append(("integrator", f"expected one of {', '.join(sorted(INTEGRATORS))}, got {self.integrator!r}"))
+        return found
+
+    @property
+    def micro_step_ns(self) -> int:
+        return round(self.micro_step * 1e9)
+
+
+@dataclass(frozen=True)
+class SubsystemScene:
+    """One subsystem of a scene: its generic settings and its model's own description."""
+
+    name: str
+    settings: SubsystemSettings
+    spec: Any  # what the model's ``read`` returned
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated, immutable description of a run."""
+
+    name: str
+    description: str
+    path: str  # where it was loaded from
+    overrides: tuple[str, ...]  # the ``--set`` arguments applied, in order
+    resolved: dict  # the TOML document after overrides (do not mutate)
+    manager: ManagerSettings
+    outputs: OutputSettings
+    subsystems: dict[str, SubsystemScene]
+    couplings: dict[str, Any]
+
+    @property
+    def digest(self) -> str:
+        """sha256 of the resolved scene: two processes that loaded the same run agree on it."""
+        return hashlib.sha256(json.dumps(self.resolved, sort_keys=True).encode()).hexdigest()
+
+    def comm_step_ns(self, subsystem: str) -> int:
+        return self.manager.macro_step_ns * self.subsystems[subsystem].settings.comm_ratio
+
+
+def bundled_scene_names() -> list[str]:
+    """Names of the scenes that ship with zencosim."""
+    return sorted(p.name[:-5] for p in resources.files("scenes").iterdir() if p.name.endswith(".toml"))
+
+
+def scene_path(name_or_path: str) -> Path:
+    """A bundled scene name or a path to a TOML file."""
+    candidate = Path(name_or_path)
+    if candidate.suffix == ".toml" or candidate.exists():
+        return candidate
+    bundled = resources.files("scenes") / f"{name_or_path}.toml"
+    if bundled.is_file():
+        return Path(str(bundled))
+    raise SceneError(name_or_path, [_problem("scene", "no such file and no bundled scene of that name; "
+                                             f"bundled: {', '.join(bundled_scene_names())}")])
+
+
+def _problem(key: str, reason: str):
+    problems = Problems()
+    problems.add(key, reason)
+    return problems[0]
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Split ``a.b.c=value`` into a key path and a TOML value (a bare word is taken as a string)."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip():
+        raise ValueError(f"--set {text!r}: expected key=value, e.g. manager.macro_step=0.004")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.strip().split("."), value
+
+
+def apply_overrides(document: dict, overrides: Sequence[str], problems: Problems) -> dict:
+    """Return a copy of ``document`` with each ``key=value`` set; tables cannot be overwritten by scalars."""
+    result = copy.deepcopy(document)
+    for text in overrides:
+        try:
+            path, value = parse_override(text)
+        except ValueError as error:
+            problems.add("--set", str(error))
+            continue
+        node = result
+        for depth, part in enumerate(path[:-1]):
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                problems.add(".".join(path[:depth + 1]), f"--set {text}: is a value, not a table")
+                break
+            node = child
+        else:
+            if isinstance(node.get(path[-1]), dict) or isinstance(value, dict):
+                problems.add(".".join(path), f"--set {text}: only scalars can be overridden")
+            else:
+                node[path[-1]] = value
+    return result
+
+
+def _whole_ns(seconds: float, key: str, problems: Problems) -> None:
+    if abs(seconds * 1e9 - round(seconds * 1e9)) > 1e-3:
+        problems.add(key, f"expected a whole number of nanoseconds, got {seconds!r} s")
+
+
+def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
+    """Load, override and validate a scene; raise :class:`SceneError` listing every problem."""
+    path = scene_path(name_or_path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise SceneError(str(path), [_problem("scene", f"cannot read: {error.strerror}")]) from None
+    try:
+        document = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise SceneError(str(path), [_problem("scene", f"not valid TOML: {error}")]) from None
+    problems = Problems()
+    resolved = apply_overrides(document, overrides, problems)
+    scene = _validate(resolved, str(path), tuple(overrides), problems)
+    if problems:
+        raise SceneError(str(path), problems)
+    return scene
+
+
+def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Problems) -> Scene | None:
+    for extra in sorted(set(doc) - set(SECTIONS)):
+        problems.add(extra, f"unknown key; expected one of: {', '.join(SECTIONS)}")
+    name = doc.get("name")
+    if not isinstance(name, str) or not name:
+        problems.add("name", "missing; expected the scene's name as a string")
+    description = doc.get("description", "")
+    manager = read_table(ManagerSettings, doc.get("manager"), "manager", problems)
+    outputs = read_table(OutputSettings, doc.get("outputs", {}), "outputs", problems)
+
+    subsystems: dict[str, SubsystemScene] = {}
+    tables = doc.get("subsystems")
+    if not isinstance(tables, dict) or not tables:
+        problems.add("subsystems", "expected at least one [subsystems.<name>] table")
+        tables = {}
+    generic = ("model", "integrator", "micro_step", "comm_ratio")
+    for sub_name, table in tables.items():
+        key = f"subsystems.{sub_name}"
+        if not isinstance(table, dict):
+            problems.add(key, "expected a table")
+            continue
+        settings = read_table(SubsystemSettings, {k: v for k, v in table.items() if k in generic}, key, problems)
+        if settings is None:
+            continue
+        spec = MODELS[settings.model].read({k: v for k, v in table.items() if k not in generic}, key, problems)
+        if spec is not None:
+            subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
+
+    couplings: dict[str, Any] = {}
+    coupling_tables = doc.get("couplings", {})
+    if not isinstance(coupling_tables, dict):
+        problems.add("couplings", "expected [couplings.<name>] tables")
+        coupling_tables = {}
+    for coupling_name, table in coupling_tables.items():
+        key = f"couplings.{coupling_name}"
+        kind = table.get("type") if isinstance(table, dict) else None
+        if kind not in COUPLINGS:
+            problems.add(f"{key}.type", f"expected one of {', '.join(sorted(COUPLINGS))}, got {kind!r}")
+            continue
+        coupling = COUPLINGS[kind].read(coupling_name, table, key, problems)
+        if coupling is not None:
+            couplings[coupling_name] = coupling
+
+    if manager is not None:
+        _check_timing(manager, tables, subsystems, problems)
+    _check_couplings(couplings, subsystems, tables, problems)
+    if outputs is not None:
+        signals = {s for c in couplings.values() for s in c.signals()}
+        for i, signal in enumerate(outputs.signals):
+            if signal not in signals:
+                problems.add(f"outputs.signals[{i}]", f"unknown signal {signal!r}; expected one of "
+                             f"{', '.join(sorted(signals)) or '(no coupling signals)'}")
+    if problems:
+        return None
+    return Scene(name, description, path, overrides, doc, manager, outputs, subsystems, couplings)
+
+
+def _check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
+                  problems: Problems) -> None:
+    _whole_ns(manager.macro_step, "manager.macro_step", problems)
+    _whole_ns(manager.duration, "manager.duration", problems)
+    base = manager.macro_step_ns
+    ratios = [s.settings.comm_ratio for s in subsystems.values()] or [1]
+    period = base * math.lcm(*ratios)
+    if manager.duration_ns % period:
+        problems.add("manager.duration", f"expected a multiple of {period * 1e-9:g} s (the macro step times the "
+                     f"least common multiple of the communication ratios), got {manager.duration!r} s")
+    for sub in subsystems.values():
+        key = f"subsystems.{sub.name}.micro_step"
+        _whole_ns(sub.settings.micro_step, key, problems)
+        comm = base * sub.settings.comm_ratio
+        if comm % sub.settings.micro_step_ns:
+            problems.add(key, f"expected a divisor of the communication step {comm * 1e-9:g} s, "
+                         f"got {sub.settings.micro_step!r} s")
+
+
+def _check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tables: dict,
+                     problems: Problems) -> None:
+    seen: dict[str, str] = {}
+    for coupling in couplings.values():
+        for signal, producer in coupling.producers().items():
+            if seen.setdefault(signal, producer) != producer:
+                problems.add(f"couplings.{coupling.name}", f"signal {signal!r} would be {producer} but is already "
+                             f"{seen[signal]}; name it differently")
+        for key, (sub, point) in coupling.sides().items():
+            full_key = f"couplings.{coupling.name}.{key}"
+            if sub not in tables:
+                problems.add(full_key, f"unknown subsystem {sub!r}; expected one of {', '.join(tables)}")
+            elif sub in subsystems and point not in subsystems[sub].spec.points:
+                problems.add(full_key, f"subsystem {sub!r} has no point {point!r}; expected one of "
+                             f"{', '.join(subsystems[sub].spec.points)}")

@@ -1,0 +1,127 @@
+"""The run summary: accuracy against the references, energy, residual energy, stability, timing, digest.
+
+Definitions (docs/summary.md lists every key):
+
+* NRMS (paper 000 Eq. 42): ``sqrt(mean_k (x_k - x_ref,k)^2) / (max x_ref - min x_ref)`` over the
+  signal's communication points. Reading taken: Eq. 42's ``/T`` is the number of samples (a root
+  mean square), not the duration in seconds, which would make the error depend on the units of time.
+* stable: every recorded value is finite and the mechanical energy does not grow exponentially:
+  the least-squares slope of ``ln`` of the windowed energy maximum (20 windows over the run) over the
+  second half of the run is below ``STABLE_GROWTH_RATE`` (energy doubling time above 69 s). Meant
+  for free or bounded-forcing runs.
+* digest: sha256 over every subsystem's output trajectory (scene order of subsystems, declared
+  order of outputs, each as float64 little-endian over its communication points). Equal digests
+  mean bit-identical runs.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from manager.jacobi import RunRecord
+from manager.reference import Reference
+
+STABLE_GROWTH_RATE = 0.01  # [1/s]
+ENERGY_WINDOWS = 20
+
+
+def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
+    """Normalised root-mean-square error of ``x`` against ``x_ref`` (paper 000 Eq. 42, reading above)."""
+    span = float(np.max(x_ref) - np.min(x_ref))
+    return float(np.sqrt(np.mean((x - x_ref) ** 2)) / span)
+
+
+def digest(record: RunRecord) -> str:
+    h = hashlib.sha256()
+    for trajectory in record.trajectories:
+        for j in range(trajectory.shape[1]):
+            h.update(np.ascontiguousarray(trajectory[:, j], dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
+def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
+    """Times [s] and total mechanical energy [J] where every subsystem has a sample."""
+    subs = record.plan.subsystems
+    period = math.lcm(*(s.ratio for s in subs))
+    ticks = np.arange(0, record.plan.n_ticks + 1, period)
+    energy = sum(record.trajectories[s.index][ticks // s.ratio, s.energy_output] for s in subs)
+    return ticks * record.plan.base_step_ns * 1e-9, energy
+
+
+def energy_growth_rate(t: np.ndarray, energy: np.ndarray) -> float:
+    """Exponential growth rate [1/s] of the energy envelope over the second half of the run."""
+    windows = np.array_split(np.arange(len(t)), ENERGY_WINDOWS)
+    centres = np.array([t[w].mean() for w in windows])
+    peaks = np.array([np.max(np.abs(energy[w])) for w in windows])
+    late = slice(ENERGY_WINDOWS // 2, None)
+    logs = np.log(np.maximum(peaks[late], np.finfo(float).tiny))
+    return float(np.polyfit(centres[late], logs, 1)[0])
+
+
+def _percentiles_us(values_ns: np.ndarray) -> dict[str, float]:
+    return {"median": float(np.median(values_ns)) * 1e-3, "p99": float(np.percentile(values_ns, 99)) * 1e-3,
+            "max": float(np.max(values_ns)) * 1e-3}
+
+
+def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
+              reference_note: str | None = None) -> dict:
+    plan = record.plan
+    t, energy = total_energy(record)
+    finite = all(np.isfinite(tr).all() for tr in record.trajectories)
+    growth = energy_growth_rate(t, energy) if finite else math.inf
+    signals = {}
+    analytic = references.get("analytic")
+    for name in scene.outputs.signals:
+        sub_index, output = plan.signals[name]
+        sub = plan.subsystems[sub_index]
+        x = record.trajectories[sub_index][:, output]
+        entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
+        if analytic is not None:
+            ref = analytic.signals[name][::sub.ratio]
+            entry["nrms"] = nrms(x, ref) if finite else None
+            if "monolithic" in references:
+                entry["nrms_monolithic"] = nrms(references["monolithic"].signals[name][::sub.ratio], ref)
+        signals[name] = entry
+    e0 = float(energy[0])
+    energy_summary = {
+        "initial": e0, "final": float(energy[-1]), "max": float(np.max(energy)),
+        "max_relative_drift": float(np.max(np.abs(energy - e0)) / e0) if e0 > 0 and finite else None,
+        "growth_rate_per_s": growth,
+    }
+    if analytic is not None:
+        energy_summary["reference_final"] = float(analytic.energy[-1])
+    steps = np.diff(record.send_time_ns)
+    timing = {"wall_s": wall_s, "steps_per_s": plan.n_ticks / wall_s}
+    if len(steps):
+        per_step = _percentiles_us(steps)
+        timing.update(step_us_median=per_step["median"], step_us_p99=per_step["p99"], step_us_max=per_step["max"])
+    if record.lateness_ns is not None:
+        late = _percentiles_us(record.lateness_ns)
+        timing.update(lateness_us_median=late["median"], lateness_us_p99=late["p99"], lateness_us_max=late["max"],
+                      missed_deadlines=record.missed_deadlines, realtime=True)
+    summary = {
+        "scene": scene.name,
+        "bus": bus,
+        "macro_step": scene.manager.macro_step,
+        "duration": scene.manager.duration,
+        "steps": plan.n_ticks,
+        "extrapolation": scene.manager.extrapolation,
+        "subsystems": {s.name: {"comm_step": s.ratio * scene.manager.macro_step,
+                                "micro_step": scene.subsystems[s.name].settings.micro_step,
+                                "integrator": scene.subsystems[s.name].settings.integrator}
+                       for s in plan.subsystems},
+        "effects": [f"{s.name}.{e}" for s in plan.subsystems for e in s.effects],
+        "stable": bool(finite and growth < STABLE_GROWTH_RATE),
+        "signals": signals,
+        "energy": energy_summary,
+        "residual_energy": {bond.name: float(record.residual_energy[np.isfinite(record.residual_energy[:, b]), b][-1])
+                            for b, bond in enumerate(plan.bonds)},
+        "timing": timing,
+        "digest": digest(record),
+        "overrides": list(scene.overrides),
+    }
+    if reference_note:
+        summary["reference_note"] = reference_note
+    return summary

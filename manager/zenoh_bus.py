@@ -1,0 +1,266 @@
+"""The Zenoh bus: every subsystem in its own OS process, commands and replies over Zenoh on loopback.
+
+The manager listens on one TCP endpoint (a free port on 127.0.0.1 unless told otherwise), starts a
+subsystem process per subsystem (or waits for the ones started by hand), checks that each loaded
+the same scene and ports, then drives the scheme from the Zenoh callbacks: the reply that completes
+a step runs the next step of the scheme and publishes its commands, with no thread hand-off on the
+critical path. A watchdog on the main thread names any subsystem that dies or stops answering and
+ends the run within the scene's timeout; no child process outlives the bus.
+"""
+from __future__ import annotations
+
+import ctypes
+import json
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Callable, Generator
+
+import zenoh
+
+from manager.jacobi import Exchange, RunRecord, SubsystemFailure
+from manager.plan import Plan
+from manager.protocol import Kind, encode
+from manager.scene import Scene
+from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id, peer_config
+
+STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
+STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
+
+
+def _die_with_parent() -> None:
+    """Linux: the child gets SIGTERM when the manager dies, even by SIGKILL (no orphans)."""
+    PR_SET_PDEATHSIG = 1
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+class ZenohBus:
+    """Subsystem processes joined by Zenoh sessions; use as a context manager around :meth:`drive`."""
+
+    def __init__(self, scene: Scene, plan: Plan, options: ZenohOptions = ZenohOptions(),
+                 listen: str | None = None, external: tuple[str, ...] = (), wait_external_s: float = 60.0,
+                 announce: Callable[[str], None] | None = None) -> None:
+        unknown = set(external) - set(scene.subsystems)
+        if unknown:
+            raise ValueError(f"--external names no subsystem of scene {scene.name}: {', '.join(sorted(unknown))}")
+        self.scene = scene
+        self.plan = plan
+        self.options = options
+        self.run_id = new_run_id()
+        self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
+        self.external = tuple(external)
+        self.wait_external_s = wait_external_s
+        self.announce = announce
+        self.timeout_s = scene.manager.timeout
+        self.names = [s.name for s in plan.subsystems]
+        self.children: dict[str, subprocess.Popen] = {}
+        self._logs = tempfile.TemporaryDirectory(prefix="zencosim-")
+        self._lock = threading.Lock()
+        self._joined = {name: threading.Event() for name in self.names}
+        self._lost: list[str] = []
+        self._driving = False
+        self._session: zenoh.Session | None = None
+        self._entities: list = []
+
+    # -- start-up --------------------------------------------------------------------------------
+    def __enter__(self) -> "ZenohBus":
+        try:
+            self._open()
+            self._spawn()
+            self._handshake()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        self.close()
+
+    def _open(self) -> None:
+        self._session = zenoh.open(peer_config(listen=[self.endpoint], options=self.options))
+        session = self._session
+        self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
+        self._entities.append(session.declare_subscriber(key(self.run_id, "*", "y"), self._on_reply))
+        self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "alive"), self._on_alive,
+                                                                      history=True))
+        self._entities.append(session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
+        self._publishers = {name: coupling_publisher(session, key(self.run_id, name, "u")) for name in self.names}
+
+    def _on_run_query(self, query: zenoh.Query) -> None:
+        info = {"run_id": self.run_id, "scene": self.scene.name, "scene_digest": self.scene.digest,
+                "waiting_for": [n for n in self.names if not self._joined[n].is_set()]}
+        query.reply(key(self.run_id, "manager", "run"), json.dumps(info).encode())
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).split("/")[-2]
+        if name not in self._joined:
+            return
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._joined[name].set()
+        elif self._driving:
+            self._lost.append(name)
+
+    def spawn_command(self, name: str) -> list[str]:
+        """The command line of subsystem ``name``'s process (also what a user runs by hand, plus --run-id)."""
+        command = [sys.executable, "-m", "manager.cli", "subsystem", self.scene.path, name,
+                   "--connect", self.endpoint.replace("0.0.0.0", "127.0.0.1"), "--run-id", self.run_id]
+        for override in self.scene.overrides:
+            command += ["--set", override]
+        if not self.options.lowlatency:
+            command.append("--no-lowlatency")
+        return command
+
+    def _spawn(self) -> None:
+        for name in self.names:
+            if name in self.external:
+                if self.announce is not None:
+                    command = " ".join(["zencosim"] + self.spawn_command(name)[4:-2])
+                    self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  "
+                                  f"{command.replace('127.0.0.1', '<this-host>')}")
+                continue
+            log = open(Path(self._logs.name) / f"{name}.log", "wb")
+            self.children[name] = subprocess.Popen(
+                self.spawn_command(name), stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+            log.close()
+
+    def log_tail(self, name: str, lines: int = 15) -> str:
+        path = Path(self._logs.name) / f"{name}.log"
+        text = path.read_text(errors="replace").strip() if path.exists() else ""
+        return "\n".join(text.splitlines()[-lines:])
+
+    def _exited(self, name: str) -> SubsystemFailure | None:
+        child = self.children.get(name)
+        if child is None or child.poll() is None:
+            return None
+        tail = self.log_tail(name)
+        return SubsystemFailure(name, f"process exited with code {child.returncode}" + (f":\n{tail}" if tail else ""))
+
+    def _handshake(self) -> None:
+        for name in self.names:
+            wait_s = self.wait_external_s if name in self.external else STARTUP_TIMEOUT_S
+            deadline = time.monotonic() + wait_s
+            while not self._joined[name].wait(0.05):
+                failure = self._exited(name)
+                if failure:
+                    raise failure
+                if time.monotonic() > deadline:
+                    raise SubsystemFailure(name, f"did not join run {self.run_id} within {wait_s:g} s")
+            self._check_description(name)
+
+    def _check_description(self, name: str) -> None:
+        replies = [r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=self.timeout_s) if r.ok]
+        if not replies:
+            raise SubsystemFailure(name, "did not describe itself")
+        info = json.loads(replies[0].ok.payload.to_bytes())
+        if info["scene_digest"] != self.scene.digest:
+            raise SubsystemFailure(name, f"loaded a different scene (digest {info['scene_digest'][:12]}, manager has "
+                                         f"{self.scene.digest[:12]}): start it with the same scene file and --set options")
+        sub = self.plan.by_name(name)
+        expected = ([[p.name, p.unit] for p in sub.inputs], [[p.name, p.unit] for p in sub.outputs])
+        if (info["inputs"], info["outputs"]) != expected:
+            raise SubsystemFailure(name, f"declares ports {info['inputs']} -> {info['outputs']}, expected "
+                                         f"{expected[0]} -> {expected[1]}")
+
+    # -- running ---------------------------------------------------------------------------------
+    def drive(self, scheme: Generator[Exchange, dict[str, bytes], RunRecord]) -> RunRecord:
+        """Run ``scheme`` to completion over Zenoh."""
+        self._scheme = scheme
+        self._pending: dict[str, bytes] = {}
+        self._done = threading.Event()
+        self._result: RunRecord | None = None
+        self._error: BaseException | None = None
+        self._driving = True
+        self._last_progress = time.monotonic()
+        with self._lock:
+            self._request = next(scheme)
+            self._publish(self._request.sends)
+            self._advance()
+        while not self._done.wait(0.05):
+            failure = self._watchdog()
+            if failure is not None:
+                with self._lock:
+                    self._error = self._error or failure
+                    self._done.set()
+        self._driving = False
+        if self._error is not None:
+            raise self._error
+        return self._result
+
+    def _publish(self, sends: dict[str, bytes]) -> None:
+        for name, message in sends.items():
+            self._publishers[name].put(message)
+
+    def _on_reply(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).split("/")[-2]
+        data = sample.payload.to_bytes()
+        with self._lock:
+            if not self._driving or self._done.is_set():
+                return
+            self._pending[name] = data
+            self._advance()
+
+    def _advance(self) -> None:
+        """Feed the scheme while the replies it waits for are all in (called under the lock)."""
+        while all(name in self._pending for name in self._request.awaits):
+            replies = {name: self._pending.pop(name) for name in self._request.awaits}
+            try:
+                self._request = self._scheme.send(replies)
+            except StopIteration as finished:
+                self._result = finished.value
+                self._done.set()
+                return
+            except BaseException as error:
+                self._error = error
+                self._done.set()
+                return
+            self._last_progress = time.monotonic()
+            self._publish(self._request.sends)
+
+    def _watchdog(self) -> SubsystemFailure | None:
+        for name in self.names:
+            failure = self._exited(name)
+            if failure:
+                return failure
+        if self._lost:
+            name = self._lost[0]
+            return SubsystemFailure(name, "its process is gone (liveliness token lost)")
+        if time.monotonic() - self._last_progress > self.timeout_s:
+            with self._lock:
+                missing = [n for n in self._request.awaits if n not in self._pending]
+            if missing:
+                return SubsystemFailure(missing[0], f"did not answer within the timeout of {self.timeout_s:g} s "
+                                                    f"(manager.timeout)")
+        return None
+
+    # -- shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop every subsystem process, then make sure none is left; close the session."""
+        self._driving = False
+        publishers = getattr(self, "_publishers", {})
+        if self._session is not None:
+            for publisher in publishers.values():
+                publisher.put(encode(Kind.STOP, 0, 0))
+        deadline = time.monotonic() + STOP_GRACE_S
+        for child in self.children.values():
+            try:
+                child.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                child.terminate()
+                try:
+                    child.wait(STOP_GRACE_S)
+                except subprocess.TimeoutExpired:
+                    child.kill()
+                    child.wait()
+        if self._session is not None:
+            for entity in reversed(self._entities):
+                entity.undeclare()
+            for publisher in publishers.values():
+                publisher.undeclare()
+            self._session.close()
+            self._session = None
+        self._logs.cleanup()

@@ -1,0 +1,65 @@
+"""Zenoh sessions and key expressions of a run.
+
+Every run lives under ``zencosim/<run-id>/``: ``<sub>/u`` commands to a subsystem, ``<sub>/y`` its
+replies, ``<sub>/ctl`` a queryable that describes it, ``<sub>/alive`` and ``manager/alive``
+liveliness tokens (a crashed process is seen at once), ``manager/run`` a queryable that lets a
+subsystem started by hand find the run. Sessions are peers with explicit endpoints and multicast
+scouting off, so a run never reaches beyond the endpoints it is given.
+"""
+from __future__ import annotations
+
+import json
+import secrets
+import socket
+from dataclasses import dataclass
+
+import zenoh
+
+ROOT = "zencosim"
+
+
+def new_run_id() -> str:
+    """A fresh run id: two runs on one network never share keys."""
+    return secrets.token_hex(6)
+
+
+def key(run_id: str, *parts: str) -> str:
+    return "/".join((ROOT, run_id) + parts)
+
+
+def free_tcp_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that is free right now on ``host``."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind((host, 0))
+        return probe.getsockname()[1]
+
+
+@dataclass(frozen=True)
+class ZenohOptions:
+    """Transport settings every process of a run must share.
+
+    ``lowlatency`` selects Zenoh's low-latency unicast transport (QoS off, no batching); it cannot
+    fragment, so every message must stay below 64 KiB, which coupling messages do by far.
+    """
+
+    lowlatency: bool = True
+
+
+def peer_config(listen: list[str] = (), connect: list[str] = (), options: ZenohOptions = ZenohOptions()) -> zenoh.Config:
+    """A peer-mode configuration with explicit endpoints and no multicast or gossip scouting."""
+    config = zenoh.Config()
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    if options.lowlatency:
+        config.insert_json5("transport/unicast/lowlatency", "true")
+        config.insert_json5("transport/unicast/qos/enabled", "false")
+    return config
+
+
+def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:
+    """A publisher for coupling data: sent at once, never dropped, highest priority."""
+    return session.declare_publisher(key_expr, express=True, congestion_control=zenoh.CongestionControl.BLOCK,
+                                     priority=zenoh.Priority.REAL_TIME)

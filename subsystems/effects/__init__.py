@@ -1,0 +1,43 @@
+"""Effects: the force laws a scene can name. A subsystem is the sum of the effects its scene names.
+
+Each effect is one class in its own module: its parameters as dataclass fields (with units), its
+``kind`` (``linear``: stamps into the stiffness/damping matrices; ``external``: a force of time on
+one body) and the number of points it connects. ``EFFECTS`` maps the names scenes use to classes.
+"""
+from dataclasses import dataclass
+
+from subsystems.effects.chirp_force import ChirpForce
+from subsystems.effects.damper import Damper
+from subsystems.effects.spring import Spring
+from subsystems.params import Problems, read_table
+
+EFFECTS: dict[str, type] = {
+    "spring": Spring,
+    "damper": Damper,
+    "chirp_force": ChirpForce,
+}
+
+
+@dataclass(frozen=True)
+class PlacedEffect:
+    """An effect of the scene and the points it connects (body or terminal names; None is the ground)."""
+
+    name: str
+    effect: object
+    endpoints: tuple[str | None, ...]
+
+
+def read_effect(table: object, key: str, problems: Problems) -> object | None:
+    """Read one effect table (``type`` plus the parameters of that effect class)."""
+    if not isinstance(table, dict):
+        problems.add(key, "expected a table with a 'type' key")
+        return None
+    kind = table.get("type")
+    if kind not in EFFECTS:
+        problems.add(f"{key}.type", f"expected one of {', '.join(sorted(EFFECTS))}, got {kind!r}")
+        return None
+    params = {k: v for k, v in table.items() if k not in ("type", "bodies")}
+    return read_table(EFFECTS[kind], params, key, problems)
+
+
+__all__ = ["EFFECTS", "PlacedEffect", "read_effect", "Spring", "Damper", "ChirpForce"]

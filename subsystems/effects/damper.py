@@ -1,0 +1,27 @@
+"""Linear viscous damper between two points, or between a point and the ground."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from subsystems.effects.spring import stamp_pair
+from subsystems.params import quantity
+
+
+@dataclass(frozen=True)
+class Damper:
+    """``f_a = -c (v_a - v_b)`` on point a and the opposite force on point b (paper 000 Eq. 8)."""
+
+    damping: float = field(metadata=quantity("N s/m", minimum=0.0))  # c [N s/m]
+
+    kind: ClassVar[str] = "linear"
+    endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)
+
+    def active(self) -> bool:
+        return self.damping != 0.0
+
+    def stamp(self, K: np.ndarray, C: np.ndarray, a: int, b: int | None) -> None:
+        """Add this damper to the damping matrix of the point coordinates."""
+        stamp_pair(C, a, b, self.damping)

@@ -1,0 +1,35 @@
+"""Linear spring between two points, or between a point and the ground."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from subsystems.params import quantity
+
+
+def stamp_pair(matrix: np.ndarray, a: int, b: int | None, coefficient: float) -> None:
+    """Add a two-point element ``coefficient`` between coordinates ``a`` and ``b`` (None: the ground)."""
+    matrix[a, a] += coefficient
+    if b is not None:
+        matrix[b, b] += coefficient
+        matrix[a, b] -= coefficient
+        matrix[b, a] -= coefficient
+
+
+@dataclass(frozen=True)
+class Spring:
+    """``f_a = -k (x_a - x_b)`` on point a and the opposite force on point b (paper 000 Eq. 8)."""
+
+    stiffness: float = field(metadata=quantity("N/m", minimum=0.0))  # k [N/m]
+
+    kind: ClassVar[str] = "linear"
+    endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)
+
+    def active(self) -> bool:
+        return self.stiffness != 0.0
+
+    def stamp(self, K: np.ndarray, C: np.ndarray, a: int, b: int | None) -> None:
+        """Add this spring to the stiffness matrix of the point coordinates."""
+        stamp_pair(K, a, b, self.stiffness)

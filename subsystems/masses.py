@@ -1,0 +1,190 @@
+"""Point masses on a line with springs, dampers and external forces (the papers' linear oscillators).
+
+Equations of motion (paper 000 Eq. 3, per subsystem)::
+
+    M x'' = -K_xx x - C_xx v  -  K_xt x*  -  C_xt v*  +  B_f f*  +  f_e(t)
+
+where ``x*, v*`` are the positions and velocities of the *terminals* (remote bodies whose motion
+arrives as inputs, paper 000 Fig. 2), ``f*`` the input forces and ``f_e`` the external forces. The
+stiffness and damping matrices are stamped over the point coordinates ``q = [x, x*]`` by the linear
+effects the scene names; effects it does not name, or names with a zero coefficient, are not built.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from subsystems.effects import PlacedEffect, read_effect
+from subsystems.params import Problems, quantity, read_table
+from subsystems.ports import Attachments, Port
+
+
+@dataclass(frozen=True)
+class Body:
+    """A point mass and its initial state."""
+
+    mass: float = field(metadata=quantity("kg", minimum=0.0, exclusive_minimum=True))  # m [kg]
+    x0: float = field(default=0.0, metadata=quantity("m"))  # initial position [m]
+    v0: float = field(default=0.0, metadata=quantity("m/s"))  # initial velocity [m/s]
+
+
+@dataclass(frozen=True)
+class MassesSpec:
+    """The bodies and effects one subsystem's scene table declares."""
+
+    bodies: dict[str, Body]
+    effects: tuple[PlacedEffect, ...]
+
+    @property
+    def points(self) -> tuple[str, ...]:
+        """Names couplings may attach to."""
+        return tuple(self.bodies)
+
+
+class MassesModel:
+    """A subsystem of point masses: the dynamics, outputs and energy of paper 000 Eq. 3 / paper 002 Fig. 7."""
+
+    name = "masses"
+
+    @classmethod
+    def read(cls, table: dict, key: str, problems: Problems) -> MassesSpec | None:
+        """Read ``bodies.<name>`` and ``effects.<name>`` of a subsystem table."""
+        before = len(problems)
+        bodies_table = table.get("bodies")
+        bodies: dict[str, Body] = {}
+        if not isinstance(bodies_table, dict) or not bodies_table:
+            problems.add(f"{key}.bodies", "expected a table of bodies, e.g. bodies.m1 = { mass = 1.0 }")
+        else:
+            for body_name, body_table in bodies_table.items():
+                body = read_table(Body, body_table, f"{key}.bodies.{body_name}", problems)
+                if body is not None:
+                    bodies[body_name] = body
+        effects = []
+        effects_table = table.get("effects", {})
+        if not isinstance(effects_table, dict):
+            problems.add(f"{key}.effects", "expected a table of named effects")
+            effects_table = {}
+        for effect_name, effect_table in effects_table.items():
+            effect_key = f"{key}.effects.{effect_name}"
+            effect = read_effect(effect_table, effect_key, problems)
+            if effect is None:
+                continue
+            endpoints = effect_table.get("bodies", [])
+            if (not isinstance(endpoints, list) or len(endpoints) not in effect.endpoint_counts
+                    or any(not isinstance(b, str) for b in endpoints)):
+                counts = " or ".join(str(c) for c in effect.endpoint_counts)
+                problems.add(f"{effect_key}.bodies", f"expected an array of {counts} body names, got {endpoints!r}")
+                continue
+            declared = bodies_table if isinstance(bodies_table, dict) else {}
+            for body_name in endpoints:
+                if body_name not in declared:
+                    problems.add(f"{effect_key}.bodies", f"unknown body {body_name!r}; "
+                                 f"expected one of {', '.join(declared)}")
+            padded = tuple(endpoints) + (None,) * (max(effect.endpoint_counts) - len(endpoints))
+            effects.append(PlacedEffect(effect_name, effect, padded))
+        unknown = sorted(set(table) - {"bodies", "effects"})
+        for extra in unknown:
+            problems.add(f"{key}.{extra}", "unknown key; expected bodies or effects")
+        if len(problems) != before:
+            return None
+        return MassesSpec(bodies, tuple(effects))
+
+    def __init__(self, spec: MassesSpec, attachments: Attachments = Attachments()) -> None:
+        self.body_names = tuple(spec.bodies)
+        n = len(self.body_names)
+        self.n_dof = n
+        terminals = attachments.terminals
+        point_index = {name: i for i, name in enumerate(self.body_names)}
+        point_index.update({t.name: n + j for j, t in enumerate(terminals)})
+
+        self.inputs: tuple[Port, ...] = tuple(
+            [Port(p, q) for t in terminals for p, q in ((t.position_input, "position"), (t.velocity_input, "velocity"))]
+            + [Port(f.port, "force") for f in attachments.force_inputs])
+        input_index = {p.name: j for j, p in enumerate(self.inputs)}
+        n_in = len(self.inputs)
+
+        placed = [e for e in spec.effects + tuple(PlacedEffect(*t) for t in attachments.effects) if e.effect.active()]
+        self.effects: tuple[str, ...] = tuple(e.name for e in placed)
+
+        def indices(e: PlacedEffect) -> list[int | None]:
+            return [None if p is None else point_index[p] for p in e.endpoints]
+
+        def stamped(selection: list[PlacedEffect]) -> tuple[np.ndarray, np.ndarray]:
+            size = n + len(terminals)
+            K, C = np.zeros((size, size)), np.zeros((size, size))
+            for e in selection:
+                if e.effect.kind == "linear":
+                    e.effect.stamp(K, C, *indices(e))
+            return K, C
+
+        Kq, Cq = stamped(placed)
+        self.M = np.diag([spec.bodies[b].mass for b in self.body_names])
+        self.K = Kq[:n, :n].copy()  # stiffness among the bodies [N/m]
+        self.C = Cq[:n, :n].copy()  # damping among the bodies [N s/m]
+        Minv = np.linalg.inv(self.M)
+
+        # f = A_f z + B_w w + E f_e(t)  with  z = [x, v],  w = input values
+        A_f = np.hstack((-self.K, -self.C))
+        B_w = np.zeros((n, n_in))
+        for j, t in enumerate(terminals):
+            B_w[:, input_index[t.position_input]] = -Kq[:n, n + j]
+            B_w[:, input_index[t.velocity_input]] = -Cq[:n, n + j]
+        for f in attachments.force_inputs:
+            B_w[point_index[f.body], input_index[f.port]] += f.sign
+        self._A_a = Minv @ A_f
+        self._B_a = Minv @ B_w
+        self.external = tuple((e.effect, point_index[e.endpoints[0]]) for e in placed if e.effect.kind == "external")
+        self._E_a = Minv[:, [body for _, body in self.external]]
+
+        # outputs y = C_y z + D_y w, then the energy 0.5 s^T Q s with s = [x, v, w]
+        rows_z, rows_w, ports = [], [], []
+        for m in attachments.motion_outputs:
+            i = point_index[m.body]
+            for port, column in ((m.position_port, i), (m.velocity_port, n + i)):
+                rows_z.append(np.eye(2 * n)[column])
+                rows_w.append(np.zeros(n_in))
+                ports.append(Port(port, "position" if column < n else "velocity"))
+        by_name = {e.name: e for e in placed}
+        for out in attachments.force_outputs:
+            Ke, Ce = stamped([by_name[name] for name in out.effects if name in by_name])
+            i = point_index[out.body]
+            row_z = np.concatenate((-Ke[i, :n], -Ce[i, :n]))
+            row_w = np.zeros(n_in)
+            for j, t in enumerate(terminals):
+                row_w[input_index[t.position_input]] = -Ke[i, n + j]
+                row_w[input_index[t.velocity_input]] = -Ce[i, n + j]
+            rows_z.append(row_z)
+            rows_w.append(row_w)
+            ports.append(Port(out.port, "force", feedthrough=bool(np.any(row_w != 0.0))))
+        self.outputs: tuple[Port, ...] = tuple(ports) + (Port("energy", "energy"),)
+        Q = np.zeros((2 * n + n_in, 2 * n + n_in))
+        q_index = list(range(n)) + [2 * n + input_index[t.position_input] for t in terminals]
+        Q[np.ix_(q_index, q_index)] = Kq
+        Q[n:2 * n, n:2 * n] = self.M
+        # one product gives the linear outputs and Q s:  [C_y D_y; Q/2] s
+        self._n_linear = len(ports)
+        self._G = np.vstack((np.hstack((np.array(rows_z).reshape(len(ports), 2 * n),
+                                        np.array(rows_w).reshape(len(ports), n_in))), 0.5 * Q))
+        self._z0 = np.array([spec.bodies[b].x0 for b in self.body_names] + [spec.bodies[b].v0 for b in self.body_names],
+                            dtype=np.float64)
+
+    def initial_state(self) -> np.ndarray:
+        """``z0 = [x0, v0]``."""
+        return self._z0.copy()
+
+    def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """``a = M⁻¹ (A_f z + B_w w + E f_e(t))`` at time t [s]."""
+        a = self._A_a.dot(z) + self._B_a.dot(w)
+        if self.external:
+            a = a + self._E_a.dot([effect.force(t) for effect, _ in self.external])
+        return a
+
+    def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Coupling outputs followed by the mechanical energy [J] of the subsystem (incl. its coupling springs)."""
+        s = np.concatenate((z, w))
+        r = self._G.dot(s)
+        k = self._n_linear
+        y = r[:k + 1]
+        y[k] = r[k:].dot(s)  # energy 0.5 s^T Q s [J]
+        return y
