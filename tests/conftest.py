@@ -1,0 +1,81 @@
+"""Shared helpers: run a bundled scene with overrides, and manage real child processes."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from manager.run import execute, run_scene
+from manager.scene import load_scene
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def summary_of(scene_name: str, *overrides: str, bus: str = "inproc", **options) -> dict:
+    return run_scene(load_scene(scene_name, overrides), bus, **options)
+
+
+def record_of(scene_name: str, *overrides: str, bus: str = "inproc"):
+    return execute(load_scene(scene_name, overrides), bus)[0]
+
+
+def children_of(pid: int) -> list[int]:
+    """Direct child processes of ``pid`` (Linux /proc)."""
+    found = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        children = task / "children"
+        if children.exists():
+            found += [int(p) for p in children.read_text().split()]
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except FileNotFoundError:
+        return False
+    return state != "Z"
+
+
+def cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except FileNotFoundError:
+        return ""
+
+
+@pytest.fixture
+def processes():
+    """Start real processes; whatever happens in the test, none of them (or their children) survives it."""
+    started: list[subprocess.Popen] = []
+
+    def start(*args: str, **kwargs) -> subprocess.Popen:
+        proc = subprocess.Popen([sys.executable, "-m", "manager.cli", *args], cwd=REPO, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, **kwargs)
+        started.append(proc)
+        return proc
+
+    yield start
+    for proc in started:
+        descendants = children_of(proc.pid) if alive(proc.pid) else []
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
+        for pid in descendants:
+            if alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+def wait_for(predicate, timeout_s: float, what: str):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")

@@ -1,0 +1,90 @@
+"""The Zenoh bus: real subsystem processes and real Zenoh sessions on loopback (free port, no scouting).
+
+The same scene gives bit-identical results in-process and over Zenoh; a subsystem that dies or stops
+answering is named, the run ends non-zero within the timeout, and no process is left behind.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+from manager.zenoh_session import free_tcp_port
+from tests.conftest import alive, children_of, cmdline, record_of, wait_for
+
+pytestmark = pytest.mark.multiprocess
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("scene", ["two_mass_damped", "four_mass"])
+def test_digest_is_identical_in_process_and_over_zenoh(scene):
+    inproc = record_of(scene)
+    zenoh = record_of(scene, bus="zenoh")
+    for a, b in zip(inproc.trajectories, zenoh.trajectories):
+        assert a.tobytes() == b.tobytes()
+    assert np.array_equal(inproc.residual_energy, zenoh.residual_energy, equal_nan=True)
+
+
+def _subsystem_pids(manager_pid: int) -> dict[str, int]:
+    pids = {}
+    for pid in children_of(manager_pid):
+        words = cmdline(pid).split()
+        if "subsystem" in words:
+            pids[words[words.index("subsystem") + 2]] = pid
+    return pids
+
+
+def _start_long_run(processes, timeout_s: float):
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--set", "manager.duration=600",
+                        "--set", f"manager.timeout={timeout_s}")
+    pids = wait_for(lambda: (p := _subsystem_pids(manager.pid)) and len(p) == 2 and p, 30, "two subsystem processes")
+    time.sleep(1.5)  # well into the run
+    assert manager.poll() is None, manager.communicate()
+    return manager, pids
+
+
+@pytest.mark.timeout(60)
+def test_a_killed_subsystem_is_named_and_leaves_no_orphan(processes):
+    manager, pids = _start_long_run(processes, timeout_s=5.0)
+    os.kill(pids["S2"], signal.SIGKILL)
+    started = time.monotonic()
+    _, stderr = manager.communicate(timeout=30)
+    assert manager.returncode == 1
+    assert "subsystem S2:" in stderr
+    assert time.monotonic() - started < 5.0 + 3.0  # within the timeout, plus the grace period to stop S1
+    assert not any(alive(pid) for pid in pids.values())
+
+
+@pytest.mark.timeout(60)
+def test_a_subsystem_that_stops_answering_is_named_within_the_timeout(processes):
+    manager, pids = _start_long_run(processes, timeout_s=2.0)
+    os.kill(pids["S1"], signal.SIGSTOP)  # alive but silent
+    started = time.monotonic()
+    _, stderr = manager.communicate(timeout=30)
+    assert manager.returncode == 1
+    assert "subsystem S1: did not answer within the timeout of 2 s" in stderr
+    assert time.monotonic() - started < 2.0 + 2 * 2.0 + 2.0  # timeout, then STOP grace and terminate grace
+    assert not any(alive(pid) for pid in pids.values())
+
+
+@pytest.mark.timeout(120)
+def test_a_subsystem_started_by_hand_joins_the_run(processes, tmp_path):
+    port = free_tcp_port()
+    summary = tmp_path / "summary.json"
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--listen", f"tcp/127.0.0.1:{port}",
+                        "--external", "S2", "--summary", str(summary))
+    helper = processes("subsystem", "two_mass_damped", "S2", "--connect", f"tcp/127.0.0.1:{port}")
+    _, manager_err = manager.communicate(timeout=90)
+    helper.communicate(timeout=30)
+    assert manager.returncode == 0, manager_err
+    assert helper.returncode == 0
+    assert json.loads(summary.read_text())["digest"] == _inproc_digest("two_mass_damped")
+
+
+def _inproc_digest(scene: str) -> str:
+    from tests.conftest import summary_of
+    return summary_of(scene)["digest"]

@@ -1,0 +1,79 @@
+"""The wire codec: exact float64 round trips, and clear errors for malformed or out-of-order messages."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from manager.build import build_subsystems
+from manager.bus import drive_inprocess
+from manager.endpoint import SubsystemEndpoint
+from manager.jacobi import SubsystemFailure, jacobi
+from manager.plan import compile_plan
+from manager.protocol import HEADER, Kind, ProtocolError, decode, encode
+from manager.scene import load_scene
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=64), st.integers(0, 2 ** 40),
+       st.integers(-2 ** 62, 2 ** 62))
+def test_round_trip_is_exact_to_the_bit(values, step, time_ns):
+    array = np.array(values, dtype=np.float64)
+    message = decode(encode(Kind.OUTPUT, step, time_ns, array), "test")
+    assert (message.kind, message.step, message.time_ns) == (Kind.OUTPUT, step, time_ns)
+    assert message.values.tobytes() == array.tobytes()
+
+
+@pytest.mark.parametrize("mangle,reason", [
+    (lambda b: b[:10], "shorter than the 24-byte header"),
+    (lambda b: b[:-1], "39 bytes, expected 40 for 2 values"),
+    (lambda b: bytes([9]) + b[1:], "protocol version 9"),
+    (lambda b: b[:1] + bytes([99]) + b[2:], "unknown kind 99"),
+])
+def test_malformed_messages_are_rejected(mangle, reason):
+    good = encode(Kind.OUTPUT, 1, 1000, np.array([1.0, 2.0]))
+    with pytest.raises(ProtocolError, match=reason):
+        decode(mangle(good), "subsystem S1")
+
+
+def _endpoints(scene):
+    subsystems = build_subsystems(scene)
+    plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
+    return plan, {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns) for s in plan.subsystems}
+
+
+def test_an_out_of_order_reply_is_rejected():
+    plan, endpoints = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01"]))
+    real = endpoints["S2"].handle
+
+    def stale(data):  # answers every step with the step number of the previous one
+        reply = bytearray(real(data))
+        version, kind, rows, count, step, time_ns = HEADER.unpack_from(reply)
+        if kind == Kind.OUTPUT and step > 1:
+            HEADER.pack_into(reply, 0, version, kind, rows, count, step - 1, time_ns)
+        return bytes(reply)
+
+    endpoints["S2"].handle = stale
+    with pytest.raises(ProtocolError, match="subsystem S2: expected OUTPUT for step 2, got OUTPUT for step 1"):
+        drive_inprocess(jacobi(plan), endpoints)
+
+
+def test_a_failing_subsystem_is_named_with_its_reason():
+    plan, endpoints = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01"]))
+    endpoints["S1"].subsystem.t_ns = 123  # the next STEP starts at a time S1 is not at
+    with pytest.raises(SubsystemFailure, match="subsystem S1: failed at step 0: ProtocolError: subsystem S1: INIT at t = 0 ns, but it is at 123 ns"):
+        drive_inprocess(jacobi(plan), endpoints)
+
+
+def test_save_and_restore_over_the_protocol_repeat_a_step_bit_for_bit():
+    _, endpoints = _endpoints(load_scene("two_mass_damped"))
+    s1 = endpoints["S1"]
+    inputs = np.array([[0.01, -2.0]])
+    step = lambda k: s1.handle(encode(Kind.STEP, k, k * 1_000_000, inputs, rows=1))  # noqa: E731
+    step(0)
+    assert decode(s1.handle(encode(Kind.SAVE, 1, 1_000_000)), "S1").kind == Kind.ACK
+    first = step(1)
+    assert decode(s1.handle(encode(Kind.RESTORE, 1, 1_000_000)), "S1").kind == Kind.ACK
+    assert step(1) == first
+    error = decode(s1.handle(encode(Kind.RESTORE, 7, 0)), "S1")
+    assert error.kind == Kind.ERROR and "no state saved at step 7" in error.text()
