@@ -1,0 +1,256 @@
+"""Eigenstructure assignment for co-simulation compensation (paper 000, §3.2–3.3, §4, §6.1).
+
+The compensated system must keep every monolithic eigenpair ``(λ_i, w_i)``: since
+``G_t(λ_i) w_i = 0``, Eq. 20 reduces to (Eq. 21)
+
+    (ΔG_c(λ_i) + B ΔG_R(λ_i)) w_i = 0,   i = 1..2N,
+
+linear in the gains ``k = [d; f; g]``: ``L k = n`` (Eq. 22) with, for every eigenpair and every
+row ``p`` that the interface perturbs or a force acts on, ``L[(i, p), c] = (∂(BΔG_R)/∂k_c (λ_i)
+w_i)_p`` and ``n[(i, p)] = -(ΔG_c(λ_i) w_i)_p`` (Eqs. 27–28, 48). ``D`` is evaluated exactly at
+``λ_i``.
+
+Gains must be real, so the system solved is the stacked ``[Re L; Im L] k = [Re n; Im n]``
+(Eq. 29). Its rank equals the complex rank of ``L`` because the eigenpairs are closed under
+conjugation, so the ranks reported are those of §4.3. Before any rank decision or solve the
+columns are scaled to unit norm (``λ^2``-columns are ``|λ|^2`` times larger than ``g``-columns;
+the rank is unchanged by the scaling): a singular value counts when it exceeds
+``RANK_RTOL`` times the largest. ``RANK_RTOL = 1e-8`` sits between round-off (the structural
+zero singular values of the paper's cases are ``< 1e-13``) and the smallest genuine ones (``> 1e-5``
+in the paper's cases; both are reported in ``Assignability`` so the gap can be checked).
+
+Solution (Eq. 23): ``k = k_0 + V k_r``, computed from the SVD of the column-scaled stacked
+``L``. Directions with a singular value below ``DESIGN_RTOL`` times the largest are not used to
+fit ``n``: they join ``V`` and the part of ``n`` along them is left as a ``residual``. This
+matters for the four-mass architecture of Eq. 47: ``rank L = rank [L n] = 16`` holds, but the
+16th singular value is only ``~3e-8`` at ``T_s = 3`` ms (it scales as ``T_s^2``: ``1/D(s)`` is
+nearly a quadratic polynomial over the modal band) and every exact solution has ``d_2 = -m_2``
+and makes row 2 of the compensated ``T(s)`` a multiple of row 1 — ``det T ≡ 0``, an ill-posed
+compensated system. Dropping that direction costs a relative residual ``~2e-6`` and keeps the
+system well posed. ``k_0`` is the minimum-norm solution and ``V`` an orthonormal basis, both in
+the column-scaled variables.
+
+``k_r`` leaves the assigned eigenpairs untouched and is chosen for the latent roots of the
+(Padé) compensated system: ``k_r = 0`` if it already gives ``Re s <= -margin``; otherwise the
+largest real part of the latent roots is minimised by Nelder–Mead, first from ``k_r = 0`` then
+from seeded random starts, stopping at the first ``k_r`` that meets the margin (the paper used a
+random search; its gains are not reproduced).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment, minimize
+
+from compensation.architecture import Architecture
+from compensation.dynamic_stiffness import DynamicStiffness
+from compensation.eigenstructure import Eigenstructure, monolithic_eigenstructure
+from compensation.interface import InterfaceModel
+from compensation.linear_model import LinearModel
+from compensation.perturbation import cosimulated_stiffness, interface_perturbation
+from compensation.realization import SingularMassError, realize
+
+RANK_RTOL = 1e-8
+DESIGN_RTOL = 1e-6
+
+
+class NotAssignableError(ValueError):
+    """The architecture cannot assign the monolithic eigenstructure (rank L < rank [L n], Eq. 33)."""
+
+    def __init__(self, architecture: str, assignability: Assignability):
+        self.assignability = assignability
+        super().__init__(
+            f"architecture {architecture!r} cannot assign the monolithic eigenstructure: expected "
+            f"rank L = rank [L n] (Eq. 33); got rank L = {assignability.rank_L}, "
+            f"rank [L n] = {assignability.rank_Ln}"
+        )
+
+
+@dataclass(frozen=True)
+class AssignmentSystem:
+    """``L k = n`` of Eq. 22, rows ordered eigenpair-major, then ``rows``."""
+
+    L: np.ndarray  # (2N * p, 3 * n_terms) complex
+    n: np.ndarray  # (2N * p,) complex
+    rows: tuple[int, ...]  # the p DOF rows kept (perturbed by ΔG_c or acted on by B)
+
+    def stacked(self) -> tuple[np.ndarray, np.ndarray]:
+        """Real form ``[Re L; Im L], [Re n; Im n]`` (Eq. 29)."""
+        return np.vstack([self.L.real, self.L.imag]), np.concatenate([self.n.real, self.n.imag])
+
+
+@dataclass(frozen=True)
+class Assignability:
+    """Rouché–Capelli test of Eq. 33 on the stacked real system, column-scaled."""
+
+    rank_L: int
+    rank_Ln: int
+    singular_values_L: np.ndarray  # of the column-scaled stacked L, descending
+    singular_values_Ln: np.ndarray  # of the column-scaled stacked [L n], descending
+    rtol: float
+
+    @property
+    def assignable(self) -> bool:
+        return self.rank_L == self.rank_Ln
+
+
+@dataclass(frozen=True)
+class CompensatorDesign:
+    """Gains of an assignable architecture and the latent-root margin they reach."""
+
+    architecture: Architecture
+    system: AssignmentSystem
+    assignability: Assignability
+    rank_used: int  # singular directions of L used to fit n (above DESIGN_RTOL)
+    residual: float  # ||L k - n|| / ||n|| of the stacked system
+    k0: np.ndarray  # particular solution [d; f; g]
+    V: np.ndarray  # (3 n_terms, 3 n_terms - rank_used) null-space basis of L in gain units
+    k_r: np.ndarray  # null-space coordinates chosen for the latent roots
+    k: np.ndarray  # k0 + V k_r
+    latent_abscissa: float  # max Re of the latent roots of the compensated Padé model [1/s]
+    margin: float  # requested: latent_abscissa <= -margin [1/s]
+    pade_order: int
+    seed: int
+
+    @property
+    def margin_met(self) -> bool:
+        return self.latent_abscissa <= -self.margin
+
+    @property
+    def d(self) -> np.ndarray:
+        return self.k[: self.architecture.n_terms]
+
+    @property
+    def f(self) -> np.ndarray:
+        return self.k[self.architecture.n_terms : 2 * self.architecture.n_terms]
+
+    @property
+    def g(self) -> np.ndarray:
+        return self.k[2 * self.architecture.n_terms :]
+
+    def stiffness(self, n_dof: int) -> DynamicStiffness:
+        """``B ΔG_R(s)`` with the designed gains."""
+        return self.architecture.stiffness(self.k, n_dof)
+
+
+def assignment_system(
+    model: LinearModel, interface: InterfaceModel, architecture: Architecture, monolithic: Eigenstructure
+) -> AssignmentSystem:
+    """``L`` and ``n`` of Eqs. 27–28 (two-mass) and 48 (four-mass), built for any architecture."""
+    N = model.n_dof
+    directions = architecture.gain_directions(N)
+    dG = interface_perturbation(model)
+    touched = np.any(dG.P != 0.0, axis=(0, 1, 3)) | np.any(directions != 0.0, axis=(0, 1, 2, 4))
+    rows = np.flatnonzero(touched)
+    L_blocks, n_blocks = [], []
+    for lam, w in zip(monolithic.poles, monolithic.vectors.T):
+        D = interface.D(lam)
+        L_blocks.append(np.column_stack([(DynamicStiffness(G)(lam, D) @ w)[rows] for G in directions]))
+        n_blocks.append(-(dG(lam, D) @ w)[rows])
+    return AssignmentSystem(L=np.vstack(L_blocks), n=np.concatenate(n_blocks), rows=tuple(int(r) for r in rows))
+
+
+def _column_scales(A: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(A, axis=0)
+    return np.where(norms > 0.0, norms, 1.0)
+
+
+def assess_assignability(system: AssignmentSystem, rtol: float = RANK_RTOL) -> Assignability:
+    """``rank L`` and ``rank [L n]`` (Eq. 33) with the column scaling and tolerance stated above."""
+    L, n = system.stacked()
+    Ln = np.column_stack([L, n])
+    sv_L = np.linalg.svd(L / _column_scales(L), compute_uv=False)
+    sv_Ln = np.linalg.svd(Ln / _column_scales(Ln), compute_uv=False)
+    return Assignability(
+        rank_L=int(np.sum(sv_L > rtol * sv_L[0])),
+        rank_Ln=int(np.sum(sv_Ln > rtol * sv_Ln[0])),
+        singular_values_L=sv_L,
+        singular_values_Ln=sv_Ln,
+        rtol=rtol,
+    )
+
+
+def latent_abscissa(
+    T: DynamicStiffness, interface: InterfaceModel, pade_order: int, monolithic: Eigenstructure
+) -> float:
+    """Largest real part of the latent roots of ``T`` with the Padé ``D``: all roots but the ``2N``
+    paired with the monolithic poles [1/s]. ``+inf`` when the effective mass is singular."""
+    try:
+        roots = realize(T, interface.rational(pade_order)).eigenvalues()
+    except SingularMassError:
+        return np.inf
+    _, pick = linear_sum_assignment(np.abs(monolithic.poles[:, None] - roots[None, :]))
+    latent = np.delete(roots, pick)
+    return float(np.max(latent.real)) if latent.size else -np.inf
+
+
+def design_compensator(
+    model: LinearModel,
+    interface: InterfaceModel,
+    architecture: Architecture,
+    pade_order: int = 6,
+    margin: float | None = None,
+    seed: int = 0,
+    restarts: int = 8,
+) -> CompensatorDesign:
+    """Gains ``k`` that assign the monolithic eigenstructure and keep the latent roots at ``Re s <= -margin``.
+
+    ``margin`` [1/s] defaults to ``0.1 / T_s``. Raises ``NotAssignableError`` (carrying the
+    ``Assignability`` report) when Eq. 33 fails. If no start reaches the margin, the best ``k_r``
+    found is returned and ``margin_met`` is False: the caller decides.
+    """
+    margin = 0.1 / interface.macro_step if margin is None else margin
+    monolithic = monolithic_eigenstructure(model)
+    system = assignment_system(model, interface, architecture, monolithic)
+    assignability = assess_assignability(system)
+    if not assignability.assignable:
+        raise NotAssignableError(architecture.name, assignability)
+    L, n = system.stacked()
+    scales = _column_scales(L)
+    U, S, Vt = np.linalg.svd(L / scales)
+    rank_used = int(np.sum(S > DESIGN_RTOL * S[0]))
+    k0_scaled = Vt[:rank_used].T @ ((U[:, :rank_used].T @ n) / S[:rank_used])
+    k0, V = k0_scaled / scales, Vt[rank_used:].T / scales[:, None]
+    residual = float(np.linalg.norm(L @ k0 - n) / np.linalg.norm(n))
+    base = cosimulated_stiffness(model)
+
+    def abscissa(k_r: np.ndarray) -> float:
+        T = base + architecture.stiffness(k0 + V @ k_r, model.n_dof)
+        return latent_abscissa(T, interface, pade_order, monolithic)
+
+    def objective(k_r: np.ndarray) -> float:  # flat once the margin is met
+        return max(abscissa(k_r), -margin)
+
+    def stop_at_margin(intermediate_result) -> None:
+        if intermediate_result.fun <= -margin:
+            raise StopIteration
+
+    rng = np.random.default_rng(seed)
+    spread = max(np.linalg.norm(k0_scaled), 1.0)
+    best_k_r = np.zeros(V.shape[1])
+    best = objective(best_k_r)
+    for attempt in range(restarts + 1):
+        if best <= -margin or V.shape[1] == 0:
+            break
+        start = np.zeros(V.shape[1]) if attempt == 0 else spread * rng.standard_normal(V.shape[1])
+        result = minimize(
+            objective, start, method="Nelder-Mead", callback=stop_at_margin, options={"maxfev": 400 * V.shape[1]}
+        )
+        if result.fun < best:
+            best_k_r, best = result.x, float(result.fun)
+    return CompensatorDesign(
+        architecture=architecture,
+        system=system,
+        assignability=assignability,
+        rank_used=rank_used,
+        residual=residual,
+        k0=k0,
+        V=V,
+        k_r=best_k_r,
+        k=k0 + V @ best_k_r,
+        latent_abscissa=abscissa(best_k_r),
+        margin=margin,
+        pade_order=pade_order,
+        seed=seed,
+    )
