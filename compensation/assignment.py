@@ -15,20 +15,26 @@ Gains must be real, so the system solved is the stacked ``[Re L; Im L] k = [Re n
 conjugation, so the ranks reported are those of §4.3. Before any rank decision or solve the
 columns are scaled to unit norm (``λ^2``-columns are ``|λ|^2`` times larger than ``g``-columns;
 the rank is unchanged by the scaling): a singular value counts when it exceeds
-``RANK_RTOL`` times the largest. ``RANK_RTOL = 1e-8`` sits between round-off (the structural
-zero singular values of the paper's cases are ``< 1e-13``) and the smallest genuine ones (``> 1e-5``
-in the paper's cases; both are reported in ``Assignability`` so the gap can be checked).
+``RANK_RTOL`` times the largest. ``RANK_RTOL = 1e-8`` sits above round-off (the structural
+zero singular values of the paper's cases are ``< 1e-15``) and below the smallest genuine ones
+(``>= 0.25`` for the two-mass cases, ``3e-8`` for the four-mass one, discussed below); all are
+reported in ``Assignability`` so the gap can be checked.
 
-Solution (Eq. 23): ``k = k_0 + V k_r``, computed from the SVD of the column-scaled stacked
-``L``. Directions with a singular value below ``DESIGN_RTOL`` times the largest are not used to
-fit ``n``: they join ``V`` and the part of ``n`` along them is left as a ``residual``. This
-matters for the four-mass architecture of Eq. 47: ``rank L = rank [L n] = 16`` holds, but the
-16th singular value is only ``~3e-8`` at ``T_s = 3`` ms (it scales as ``T_s^2``: ``1/D(s)`` is
-nearly a quadratic polynomial over the modal band) and every exact solution has ``d_2 = -m_2``
-and makes row 2 of the compensated ``T(s)`` a multiple of row 1 — ``det T ≡ 0``, an ill-posed
-compensated system. Dropping that direction costs a relative residual ``~2e-6`` and keeps the
-system well posed. ``k_0`` is the minimum-norm solution and ``V`` an orthonormal basis, both in
-the column-scaled variables.
+Solution (Eq. 23): ``k = k_0 + V k_r`` from the SVD of the column-scaled stacked ``L``:
+``k_0`` is the minimum-norm solution on the leading ``rank_used`` singular directions and ``V``
+an orthonormal basis of the rest, both in the column-scaled variables. ``rank_used`` starts at
+``rank L`` and drops one direction at a time while the compensated effective mass
+``M_eff = M + (collocated acceleration gains)`` keeps less than ``MIN_MASS_RATIO`` of ``M`` in
+some direction (smallest singular value of ``C^{-1} M_eff C^{-T}``, ``M = C C^T``). A singular
+``M_eff`` is what an identically singular ``det T(s)`` looks like (its leading coefficient is
+``det M_eff``), and it happens: for the four-mass architecture of Eq. 47, row 2 of Eq. 48 must
+satisfy ``r_1 w_1 + r_2 w_2 + r_3 D w_3 = -n_2`` at eight eigenpairs with nine gains, solved
+for every ``s`` by ``-(g_21, g_22, g_23)`` (row 2 of ``G_t`` with ``D`` on ``x_3``) plus the
+one-dimensional null space, row 1 of ``G_t``, which has no ``s^2 x_2`` term; so every exact
+solution has ``d_2 = -m_2`` and makes row 2 of the compensated ``T`` a multiple of row 1. The
+direction that carries it has a small singular value (``3e-8`` at 3 ms with ZOH, ``4e-6`` with
+FOH) and dropping it leaves a ``residual`` ``||L k - n|| / ||n||`` that is reported; the
+assigned poles are then approximate (``4e-7`` rad/s off at 3 ms with ZOH).
 
 ``k_r`` leaves the assigned eigenpairs untouched and is chosen for the latent roots of the
 (Padé) compensated system: ``k_r = 0`` if it already gives ``Re s <= -margin``; otherwise the
@@ -52,19 +58,19 @@ from compensation.perturbation import cosimulated_stiffness, interface_perturbat
 from compensation.realization import SingularMassError, realize
 
 RANK_RTOL = 1e-8
-DESIGN_RTOL = 1e-6
+MIN_MASS_RATIO = 0.5  # compensation may remove at most half of the inertia in any direction
 
 
 class NotAssignableError(ValueError):
-    """The architecture cannot assign the monolithic eigenstructure (rank L < rank [L n], Eq. 33)."""
+    """The architecture cannot assign the monolithic eigenstructure (Eq. 33 fails, or only with ``M_eff`` singular)."""
 
-    def __init__(self, architecture: str, assignability: Assignability):
+    def __init__(self, architecture: str, assignability: Assignability, reason: str | None = None):
         self.assignability = assignability
-        super().__init__(
-            f"architecture {architecture!r} cannot assign the monolithic eigenstructure: expected "
-            f"rank L = rank [L n] (Eq. 33); got rank L = {assignability.rank_L}, "
+        reason = reason or (
+            f"expected rank L = rank [L n] (Eq. 33); got rank L = {assignability.rank_L}, "
             f"rank [L n] = {assignability.rank_Ln}"
         )
+        super().__init__(f"architecture {architecture!r} cannot assign the monolithic eigenstructure: {reason}")
 
 
 @dataclass(frozen=True)
@@ -102,7 +108,7 @@ class CompensatorDesign:
     architecture: Architecture
     system: AssignmentSystem
     assignability: Assignability
-    rank_used: int  # singular directions of L used to fit n (above DESIGN_RTOL)
+    rank_used: int  # leading singular directions of L used to fit n
     residual: float  # ||L k - n|| / ||n|| of the stacked system
     k0: np.ndarray  # particular solution [d; f; g]
     V: np.ndarray  # (3 n_terms, 3 n_terms - rank_used) null-space basis of L in gain units
@@ -171,6 +177,13 @@ def assess_assignability(system: AssignmentSystem, rtol: float = RANK_RTOL) -> A
     )
 
 
+def mass_ratio(M: np.ndarray, M_eff: np.ndarray) -> float:
+    """Smallest singular value of ``C^{-1} M_eff C^{-T}`` with ``M = C C^T``: 1 for ``M_eff = M``."""
+    C = np.linalg.cholesky(M)
+    X = np.linalg.solve(C, np.linalg.solve(C, M_eff).T).T
+    return float(np.linalg.svd(X, compute_uv=False)[-1])
+
+
 def latent_abscissa(
     T: DynamicStiffness, interface: InterfaceModel, pade_order: int, monolithic: Eigenstructure
 ) -> float:
@@ -197,8 +210,9 @@ def design_compensator(
     """Gains ``k`` that assign the monolithic eigenstructure and keep the latent roots at ``Re s <= -margin``.
 
     ``margin`` [1/s] defaults to ``0.1 / T_s``. Raises ``NotAssignableError`` (carrying the
-    ``Assignability`` report) when Eq. 33 fails. If no start reaches the margin, the best ``k_r``
-    found is returned and ``margin_met`` is False: the caller decides.
+    ``Assignability`` report) when Eq. 33 fails or when no truncation keeps ``M_eff`` regular.
+    If no start reaches the margin, the best ``k_r`` found is returned and ``margin_met`` is
+    False: the caller decides.
     """
     margin = 0.1 / interface.macro_step if margin is None else margin
     monolithic = monolithic_eigenstructure(model)
@@ -206,18 +220,29 @@ def design_compensator(
     assignability = assess_assignability(system)
     if not assignability.assignable:
         raise NotAssignableError(architecture.name, assignability)
+    base = cosimulated_stiffness(model)
+
+    def well_posed(k: np.ndarray) -> bool:
+        M_eff = base.P[0, 2] + architecture.stiffness(k, model.n_dof).P[0, 2]
+        return mass_ratio(model.M, M_eff) >= MIN_MASS_RATIO
+
     L, n = system.stacked()
     scales = _column_scales(L)
     U, S, Vt = np.linalg.svd(L / scales)
-    rank_used = int(np.sum(S > DESIGN_RTOL * S[0]))
-    k0_scaled = Vt[:rank_used].T @ ((U[:, :rank_used].T @ n) / S[:rank_used])
-    k0, V = k0_scaled / scales, Vt[rank_used:].T / scales[:, None]
+    for rank_used in range(assignability.rank_L, 0, -1):
+        k0_scaled = Vt[:rank_used].T @ ((U[:, :rank_used].T @ n) / S[:rank_used])
+        k0, V = k0_scaled / scales, Vt[rank_used:].T / scales[:, None]
+        if well_posed(k0):
+            break
+    else:
+        raise NotAssignableError(architecture.name, assignability, "every solution removes the inertia of the system")
     residual = float(np.linalg.norm(L @ k0 - n) / np.linalg.norm(n))
-    base = cosimulated_stiffness(model)
 
     def abscissa(k_r: np.ndarray) -> float:
-        T = base + architecture.stiffness(k0 + V @ k_r, model.n_dof)
-        return latent_abscissa(T, interface, pade_order, monolithic)
+        k = k0 + V @ k_r
+        if not well_posed(k):
+            return np.inf
+        return latent_abscissa(base + architecture.stiffness(k, model.n_dof), interface, pade_order, monolithic)
 
     def objective(k_r: np.ndarray) -> float:  # flat once the margin is met
         return max(abscissa(k_r), -margin)
