@@ -8,10 +8,11 @@ Co-simulated (or compensated): roots of ``det T(s) = 0`` with ``T = G_t + ΔG_c 
    the eigenvalues of that state matrix are the roots of the rational model.
 2. Each root is polished on the exact ``D(s)`` by Newton's method on ``det T``:
    ``s ← s - 1 / tr(T(s)^{-1} T'(s))``, deflated by the roots already accepted so that it cannot
-   fall back onto them. Roots are polished in order of increasing ``|s|`` (the Padé model is most
-   accurate near the origin) and only in the closed upper half plane; the rest are conjugates.
-   A polished root is accepted when Newton converged and moved by at most
-   ``MAX_POLISH_MOVE`` of its modulus; otherwise the Padé root is kept and flagged.
+   fall back onto them. The roots nearest the monolithic poles go first, then the others by
+   increasing ``|s|`` (the Padé model is most accurate near the origin); only the closed upper
+   half plane is polished, the rest are conjugates. A polished root is accepted when Newton
+   converged without leaving a disc of radius ``MAX_POLISH_MOVE |s|`` around the Padé root;
+   otherwise the Padé root is kept and flagged.
 3. Primary roots: the ``2N`` roots paired one-to-one with the monolithic poles at least total
    distance (an assignment problem); the others are latent roots. Deep latent roots of a low
    Padé order do not correspond to roots of the exact quasi-polynomial (which has infinitely
@@ -38,7 +39,7 @@ from compensation.realization import realize
 
 NEWTON_RTOL = 1e-12  # step size, relative to max(|s|, 1), at which Newton has converged
 NEWTON_MAX_ITER = 50
-MAX_POLISH_MOVE = 0.25  # a polished root farther than this fraction of |s_pade| is rejected
+MAX_POLISH_MOVE = 0.25  # Newton may move a root by this fraction of max(|s_pade|, 1)
 
 
 @dataclass(frozen=True)
@@ -100,12 +101,16 @@ def monolithic_eigenstructure(model: LinearModel) -> Eigenstructure:
 
 
 def polish_root(
-    T: DynamicStiffness, interface: InterfaceModel, s0: complex, known: np.ndarray = np.empty(0)
+    T: DynamicStiffness, interface: InterfaceModel, s0: complex, known: np.ndarray | None = None
 ) -> tuple[complex, bool]:
     """Newton on ``det T(s)`` with the exact ``D(s)``, deflated by the roots ``known``.
 
-    Returns ``(s, converged)``. ``T(s)`` exactly singular counts as converged.
+    Returns ``(s, converged)``. The iterate must stay within ``MAX_POLISH_MOVE * max(|s0|, 1)``
+    of ``s0``; leaving that disc counts as not converged (and keeps ``e^{-s T_s}`` bounded).
+    ``T(s)`` exactly singular counts as converged.
     """
+    known = np.empty(0) if known is None else known
+    radius = MAX_POLISH_MOVE * max(abs(s0), 1.0)
     s = complex(s0)
     for _ in range(NEWTON_MAX_ITER):
         D, dD = interface.D(s), interface.dD(s)
@@ -113,9 +118,10 @@ def polish_root(
             log_derivative = np.trace(np.linalg.solve(T(s, D), T.derivative(s, D, dD)))
         except np.linalg.LinAlgError:
             return s, True
-        log_derivative -= np.sum(1.0 / (s - known)) if known.size else 0.0
-        step = 1.0 / log_derivative
+        step = 1.0 / (log_derivative - np.sum(1.0 / (s - known)))
         s -= step
+        if abs(s - s0) > radius:
+            return s, False
         if abs(step) <= NEWTON_RTOL * max(abs(s), 1.0):
             return s, True
     return s, False
@@ -155,7 +161,7 @@ def _polish_all(T: DynamicStiffness, interface: InterfaceModel, roots: np.ndarra
     for group in groups:
         s0 = roots[group[0]]
         s, converged = polish_root(T, interface, s0, np.array(known))
-        if not (converged and abs(s - s0) <= MAX_POLISH_MOVE * abs(s0)):
+        if not converged:
             continue
         if len(group) == 1:
             s = complex(s.real, 0.0)  # a real root of a real system stays real
@@ -175,9 +181,6 @@ def cosimulated_eigenstructure(
     basis of ``e_ω`` and ``e_ξ``.
     """
     roots = realize(T, interface.rational(pade_order)).eigenvalues()
-    n_primary = len(reference.poles)
-    if len(roots) < n_primary:
-        raise ValueError(f"expected at least {n_primary} roots; the realization has {len(roots)}")
     _, pade_pick = linear_sum_assignment(np.abs(reference.poles[:, None] - roots[None, :]))
     polished, accepted = _polish_all(T, interface, roots, pade_pick)
     _, pick = linear_sum_assignment(np.abs(reference.poles[:, None] - polished[None, :]))
