@@ -61,7 +61,12 @@ class WeightedMultiplier:
     """Weighted multiplier approach (§2.1.2, §2.2.2): the weighted mean of the coupling variables that
     satisfy the constraint on position, velocity and acceleration level (Eqs. 24–27, 50–53).
 
-    ``b = 0`` gives the index-2 and ``a = b = 0`` the index-3 formulation (§3.4.2, §3.5).
+    ``b = 0`` gives the index-2 and ``a = b = 0`` the index-3 formulation (§3.4.2, §3.5). Levels
+    with weight 0 are not solved (they would not change the mean).
+
+    Reading of the extracted text: Eqs. (24) and (27) show the acceleration-level derivative as
+    ``d v2'* / d lambda'*`` evaluated at ``lambda'^p``; taken as the derivative w.r.t. the coupling
+    force ``lambda*_{c,N+1}`` at ``lambda^p_{c,N+1}``, as in Eqs. (13) and (49).
     """
 
     a: float = 1.0
@@ -156,6 +161,12 @@ def corrected_coupling(
     acceleration and coupling force of mass 1 and mass 2 at T_{N+1} from the predictor run.
     ``output_sensitivity`` (2, 4, n_e): their derivatives w.r.t. ``e*_{N+1}``, the value at T_{N+1} of
     the corrector polynomial (Eqs. 13, 39, 63; constant for the linear model). Returns (n_e, ...).
+
+    The corrector polynomial through ``e*_{N+1}, e_N, ..., e_{N-k+1}`` equals the predictor polynomial
+    when ``e*_{N+1} = e^p_{N+1}``, so the predictor outputs are the conditions at ``e^p`` (Eq. 15).
+    Reading of the extracted text: Eqs. (37) and (61) mark some older sampling points of the corrector
+    polynomial with a star; they are taken as the corrected values of the previous macro-steps, as in
+    Eq. (11), since no other values exist at those points.
     """
     decomposition = resolve_decomposition(decomposition)
     coupling_history = np.asarray(coupling_history, dtype=float)

@@ -8,7 +8,8 @@ import pytest
 
 from compensation.stability_map import STABILITY_TOLERANCE, stability_map, write_stability_map
 
-# the four fixed parameter sets (alpha_m21, alpha_lambda_r21, alpha_lambda_i21) of Figs. 9–15
+# the four fixed parameter sets (alpha_m21, alpha_lambda_r21, alpha_lambda_i21) that §3.1.1 lists for
+# Fig. 9; reading: Figs. 10–15 (figures not in the extracted text) use the same four sets
 PAPER_PARAMETER_SETS = [(1.0, 1.0, 1.0), (10.0, 1.0, 1.0), (1.0, 10.0, 1.0), (1.0, 1.0, 10.0)]
 ZOOM = {"lambda_r1_range": (-0.3, 0.0), "lambda_i1_range": (0.0, 0.3), "grid_points": 16}  # step 0.02
 
