@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.linalg import expm
-from stepwise_cosimulation import StepwiseCosimulation
 
 from compensation.coupling_decompositions import DECOMPOSITIONS
 from compensation.implicit_coupling_laws import METHODS, Baumgarte, check_supported
 from compensation.implicit_recurrence import build_recurrence
 from compensation.lagrange_polynomials import extrapolation_weights
 from compensation.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
+
+from .stepwise_cosimulation import StepwiseCosimulation
 
 
 def _supported(method_class, decomposition):
