@@ -10,19 +10,19 @@ from functools import lru_cache
 
 import numpy as np
 
+from compensation.lagrange_polynomials import basis_coefficients
+
 
 def lagrange_matrix(sample_times: tuple[float, ...]) -> np.ndarray:
     """``P`` such that ``P @ samples`` are the monomial coefficients of the interpolating polynomial.
 
     ``sample_times`` [s] are relative to the start of the receiver's step (zero or negative); the
     polynomial of degree ``len(sample_times) - 1`` passes through every sample, so it reproduces any
-    polynomial of that degree exactly.
+    polynomial of that degree exactly. It is the transposed Lagrange basis of paper 003 Eq. 9.
     """
-    times = np.asarray(sample_times, dtype=np.float64)
     if len(set(sample_times)) != len(sample_times):
         raise ValueError(f"sample times must be distinct, got {sample_times}")
-    vandermonde = times[:, None] ** np.arange(len(times))[None, :]
-    return np.linalg.inv(vandermonde)
+    return basis_coefficients(np.asarray(sample_times, dtype=np.float64)).T
 
 
 @lru_cache(maxsize=256)

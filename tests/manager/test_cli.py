@@ -57,3 +57,15 @@ def test_realtime_run_is_paced_to_the_wall_clock(tmp_path, record_property):
 def test_bad_arguments_exit_2():
     assert zencosim("run", "two_mass_damped", "--bus", "carrier-pigeon").returncode == 2
     assert zencosim("run", "two_mass_damped", "--set", "novalue").returncode == 2
+
+
+def test_docker_compose_commands_are_valid_zencosim_command_lines():
+    # no Docker engine runs here; what can be checked is that every container's command parses and names a real scene
+    from manager.cli import build_parser
+    from manager.scene import load_scene
+    commands = [json.loads(line.split("command:", 1)[1]) for line in (REPO / "docker" / "compose.yaml").read_text().splitlines()
+                if line.strip().startswith("command:")]
+    assert len(commands) == 3
+    for command in commands:
+        args = build_parser().parse_args(command)
+        load_scene(args.scene, args.overrides)
