@@ -17,7 +17,8 @@ from rich.table import Table
 
 from manager.jacobi import SubsystemFailure
 from manager.protocol import ProtocolError
-from manager.run import BUSES, plan_scene, run_scene
+from manager.run import BUSES, run_scene
+from manager.schemes import plan_scene
 from manager.scene import SceneError, bundled_scene_names, load_scene
 from manager.zenoh_session import ZenohOptions
 
@@ -102,7 +103,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     bus_options = {}
     if args.bus == "zenoh":
         bus_options = dict(zenoh_options=options, listen=args.listen, external=tuple(args.external),
-                           announce=lambda text: err.print(text, highlight=False))
+                           announce=None if args.quiet else lambda text: err.print(text, highlight=False, soft_wrap=True))
     show_progress = err.is_terminal and not args.quiet
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(), TimeRemainingColumn(),
                   console=err, disable=not show_progress) as progress:
@@ -120,7 +121,7 @@ def cmd_subsystem(args: argparse.Namespace) -> int:
     from manager.subsystem_host import serve
     scene = load_scene(args.scene, args.overrides)
     return serve(scene, args.name, args.connect, args.run_id, ZenohOptions(lowlatency=not args.no_lowlatency),
-                 args.wait)
+                 args.wait, args.listen)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -151,6 +152,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_argument("name", help="the subsystem to serve")
     sub.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
                      help="Zenoh endpoint of the manager, e.g. tcp/192.0.2.10:7447")
+    sub.add_argument("--listen", default="tcp/127.0.0.1:0", metavar="ENDPOINT",
+                     help="where the other processes of the run reach this one (default: a free loopback port; "
+                          "across hosts e.g. tcp/0.0.0.0:7448)")
     sub.add_argument("--run-id", help="the run to join (default: the one run that waits for this subsystem)")
     sub.add_argument("--wait", type=float, default=30.0, metavar="SECONDS", help="how long to look for the run")
     sub.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")

@@ -5,7 +5,7 @@ its Zenoh subscriber), so both buses run identical arithmetic on identical bytes
 """
 from __future__ import annotations
 
-from manager.protocol import Kind, ProtocolError, decode, encode, encode_error
+from manager.protocol import Kind, ProtocolError, command_ref, decode, encode, encode_error
 from subsystems.inputs import InputPolynomial
 from subsystems.subsystem import SavedState, Subsystem
 
@@ -22,14 +22,15 @@ class SubsystemEndpoint:
         self.stopped = False
 
     def handle(self, data: bytes) -> bytes:
-        """One command in, one reply out; a failing command is answered with an ERROR message."""
-        step, time_ns = -1, -1
+        """One command in, one reply out (carrying the command's reference); a failing command is
+        answered with an ERROR message."""
+        step, time_ns, ref = -1, -1, command_ref(data)
         try:
             message = decode(data, "manager")
             step, time_ns = message.step, message.time_ns
-            return self._dispatch(message)
+            return self._dispatch(message, ref)
         except Exception as error:  # the manager names the subsystem and stops the run
-            return encode_error(step, time_ns, f"{type(error).__name__}: {error}")
+            return encode_error(step, time_ns, f"{type(error).__name__}: {error}", ref)
 
     def _inputs(self, message) -> InputPolynomial:
         rows = message.rows
@@ -38,27 +39,28 @@ class SubsystemEndpoint:
                                 f"got {message.values.size} values in {rows} rows")
         return InputPolynomial(message.values.reshape(rows, self.n_inputs))
 
-    def _dispatch(self, message) -> bytes:
+    def _dispatch(self, message, ref: int) -> bytes:
         sub = self.subsystem
         kind = message.kind
         if kind == Kind.STEP:
             t1 = message.time_ns + self.comm_step_ns
             y = sub.advance(message.time_ns, t1, self._inputs(message))
-            return encode(Kind.OUTPUT, message.step + self.ratio, t1, y)
+            return encode(Kind.OUTPUT, message.step + self.ratio, t1, y, ref=ref)
         if kind == Kind.INIT:
             if message.time_ns != sub.t_ns:
                 raise ProtocolError(f"subsystem {sub.name}: INIT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")
-            return encode(Kind.OUTPUT, message.step, message.time_ns, sub.output_values(self._inputs(message).at(0.0)))
+            return encode(Kind.OUTPUT, message.step, message.time_ns, sub.output_values(self._inputs(message).at(0.0)),
+                          ref=ref)
         if kind == Kind.SAVE:
             self.saved[message.step] = sub.save()
-            return encode(Kind.ACK, message.step, sub.t_ns)
+            return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
         if kind == Kind.RESTORE:
             if message.step not in self.saved:
                 raise ProtocolError(f"subsystem {sub.name}: no state saved at step {message.step}")
             sub.restore(self.saved[message.step])
-            return encode(Kind.ACK, message.step, sub.t_ns)
+            return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
         if kind == Kind.STOP:
             self.stopped = True
-            return encode(Kind.ACK, message.step, sub.t_ns)
+            return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
         raise ProtocolError(f"subsystem {sub.name}: cannot handle a {kind.name} message")
 

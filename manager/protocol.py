@@ -8,13 +8,14 @@ on the in-process bus and over Zenoh, so a codec bug shows on both.
 from __future__ import annotations
 
 import struct
+import zlib
 from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
 
-VERSION = 1
-HEADER = struct.Struct("<BBHIqq")
+VERSION = 2
+HEADER = struct.Struct("<BBHIqqI4x")
 
 
 class Kind(IntEnum):
@@ -43,28 +44,34 @@ class Message:
     step: int
     time_ns: int
     rows: int
+    ref: int  # replies: CRC-32 of the command answered
     values: np.ndarray  # read-only view of the payload
 
     def text(self) -> str:
         return self.values.tobytes().decode("utf-8", errors="replace")
 
 
-def encode(kind: Kind, step: int, time_ns: int, values: np.ndarray | None = None, rows: int = 0) -> bytes:
+def encode(kind: Kind, step: int, time_ns: int, values: np.ndarray | None = None, rows: int = 0, ref: int = 0) -> bytes:
     if values is None:
-        return HEADER.pack(VERSION, kind, 0, 0, step, time_ns)
-    return HEADER.pack(VERSION, kind, rows, values.size, step, time_ns) + values.astype("<f8", copy=False).tobytes()
+        return HEADER.pack(VERSION, kind, 0, 0, step, time_ns, ref)
+    return HEADER.pack(VERSION, kind, rows, values.size, step, time_ns, ref) + values.astype("<f8", copy=False).tobytes()
 
 
-def encode_error(step: int, time_ns: int, reason: str) -> bytes:
+def encode_error(step: int, time_ns: int, reason: str, ref: int = 0) -> bytes:
     text = reason.encode("utf-8")
-    return HEADER.pack(VERSION, Kind.ERROR, 0, len(text), step, time_ns) + text
+    return HEADER.pack(VERSION, Kind.ERROR, 0, len(text), step, time_ns, ref) + text
+
+
+def command_ref(command: bytes) -> int:
+    """The reference a reply carries for ``command``."""
+    return zlib.crc32(command)
 
 
 def decode(data: bytes, sender: str) -> Message:
     """Decode and validate one message from ``sender`` (named in every error)."""
     if len(data) < HEADER.size:
         raise ProtocolError(f"message from {sender}: {len(data)} bytes, shorter than the {HEADER.size}-byte header")
-    version, kind, rows, count, step, time_ns = HEADER.unpack_from(data)
+    version, kind, rows, count, step, time_ns, ref = HEADER.unpack_from(data)
     if version != VERSION:
         raise ProtocolError(f"message from {sender}: protocol version {version}, expected {VERSION}")
     kind = _KINDS.get(kind)
@@ -75,4 +82,5 @@ def decode(data: bytes, sender: str) -> Message:
         raise ProtocolError(f"message from {sender}: {len(data)} bytes, expected {expected} for {count} values")
     if rows and (count % rows):
         raise ProtocolError(f"message from {sender}: {count} values do not fill {rows} rows")
-    return Message(kind, step, time_ns, rows, np.frombuffer(data, dtype=_DTYPE[kind], count=count, offset=HEADER.size))
+    return Message(kind, step, time_ns, rows, ref,
+                   np.frombuffer(data, dtype=_DTYPE[kind], count=count, offset=HEADER.size))

@@ -4,26 +4,17 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from manager.build import build_subsystems, monolithic_unavailable
-from manager.bus import drive_inprocess
-from manager.endpoint import SubsystemEndpoint
-from manager.jacobi import RunRecord, jacobi
-from manager.pacing import Pacer
-from manager.plan import Plan, compile_plan
+from manager.build import monolithic_unavailable
+from manager.jacobi import RunRecord
 from manager.reference import analytic_reference, monolithic_reference
+from manager.replica import Replica
 from manager.scene import Scene
+from manager.schemes import endpoints, make_scheme, plan_scene
 from manager.summary import summarize
 from manager.zenoh_bus import ZenohBus
 from manager.zenoh_session import ZenohOptions
 
 BUSES = ("inproc", "zenoh")
-
-
-def plan_scene(scene: Scene) -> tuple[Plan, dict]:
-    """The run plan and the built subsystems (the manager builds them to know their ports)."""
-    subsystems = build_subsystems(scene)
-    plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
-    return plan, subsystems
 
 
 def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
@@ -33,18 +24,16 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
     """Run the co-simulation; return the record and the wall-clock time [s] of the stepping loop."""
     if bus not in BUSES:
         raise ValueError(f"unknown bus {bus!r}; expected one of {', '.join(BUSES)}")
+    realtime = scene.manager.realtime if realtime is None else realtime
     plan, subsystems = plan_scene(scene)
-    pacer = Pacer(plan.base_step_ns, plan.n_ticks) if (scene.manager.realtime if realtime is None else realtime) else None
-    scheme = jacobi(plan, pacer, progress)
     if bus == "inproc":
-        endpoints = {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns) for s in plan.subsystems}
+        replica = Replica(make_scheme(scene, plan, realtime, None, progress), [s.name for s in plan.subsystems],
+                          endpoints(plan, subsystems))
         start = time.perf_counter()
-        record = drive_inprocess(scheme, endpoints)
+        record = replica.run()
         return record, time.perf_counter() - start
     with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce) as zbus:
-        start = time.perf_counter()
-        record = zbus.drive(scheme)
-        return record, time.perf_counter() - start
+        return zbus.drive(realtime, progress)
 
 
 def references(scene: Scene) -> tuple[dict, str | None]:

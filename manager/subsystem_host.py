@@ -1,10 +1,10 @@
-"""A subsystem process: one subsystem of a scene, answering the manager over Zenoh.
+"""A subsystem process: one subsystem of a scene, in a run over Zenoh.
 
 Started by ``zencosim run --bus zenoh`` for every subsystem, or by hand on another host with
-``zencosim subsystem SCENE NAME --connect tcp/HOST:PORT``. Commands are handled in the Zenoh
-subscriber callback (one command at a time, in order) and answered at once, so no thread hand-off
-sits on the critical path. The process ends on STOP, on SIGINT/SIGTERM, or when the manager's
-liveliness token disappears.
+``zencosim subsystem SCENE NAME --connect tcp/HOST:PORT``. The process runs its own replica of the
+run's scheme (``manager.replica``): it executes its own commands, publishes its replies and takes the
+other subsystems' replies from the network, in the Zenoh subscriber callback, so no thread hand-off
+sits on the critical path. It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears.
 """
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ import time
 
 import zenoh
 
-from manager.build import build_subsystem
-from manager.endpoint import SubsystemEndpoint
+from manager.replica import Replica
 from manager.scene import Scene
-from manager.zenoh_session import ZenohOptions, coupling_publisher, key, peer_config
+from manager.schemes import endpoints, make_scheme, plan_scene
+from manager.zenoh_session import ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
 
 
 class HostError(RuntimeError):
@@ -43,7 +43,7 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
     deadline = time.monotonic() + wait_s
     while True:
         candidates = []
-        for reply in session.get(f"zencosim/*/manager/run", timeout=1.0):
+        for reply in session.get("zencosim/*/manager/run", timeout=1.0):
             if reply.ok is None:
                 continue
             info = json.loads(reply.ok.payload.to_bytes())
@@ -60,52 +60,97 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
         time.sleep(0.2)
 
 
+class _Host:
+    """The state of one subsystem process during a run (all callbacks take ``lock``)."""
+
+    def __init__(self, scene: Scene, name: str, run_id: str, session: zenoh.Session) -> None:
+        self.scene, self.name, self.run_id, self.session = scene, name, run_id, session
+        self.plan, subsystems = plan_scene(scene)
+        self.subsystem = subsystems[name]
+        self.local = endpoints(self.plan, subsystems, [name])
+        self.names = [s.name for s in self.plan.subsystems]
+        self.lock = threading.Lock()
+        self.finished = threading.Event()
+        self.reasons: list[str] = []
+        self.early: list[tuple[str, bytes]] = []  # replies that arrive before the start signal
+        self.replica: Replica | None = None
+        self.seen: set[str] = set()
+        self.replies = coupling_publisher(session, key(run_id, name, "y"))
+
+    def stop(self, why: str) -> None:
+        self.reasons.append(why)
+        self.finished.set()
+
+    def on_reply(self, sample: zenoh.Sample) -> None:
+        sender = str(sample.key_expr).split("/")[-2]
+        data = sample.payload.to_bytes()
+        with self.lock:
+            if self.replica is None:
+                self.early.append((sender, data))
+            else:
+                self._guarded(self.replica.deliver, sender, data)
+
+    def on_go(self, sample: zenoh.Sample) -> None:
+        go = json.loads(sample.payload.to_bytes())
+        with self.lock:
+            scheme = make_scheme(self.scene, self.plan, go["realtime"], go["start_ns"])
+            self.replica = Replica(scheme, self.names, self.local, lambda _name, reply: self.replies.put(reply))
+            self._guarded(self.replica.start)
+            for sender, data in self.early:
+                self._guarded(self.replica.deliver, sender, data)
+            self.early.clear()
+
+    def _guarded(self, action, *args) -> None:
+        """Run a replica action; an error here (a diverged or failed run) ends this process."""
+        try:
+            action(*args)
+        except Exception as error:
+            self.stop(f"{type(error).__name__}: {error}")
+
+    def on_control(self, sample: zenoh.Sample) -> None:
+        self.stop("stopped by the manager")
+
+    def on_liveliness(self, sample: zenoh.Sample) -> None:
+        who = str(sample.key_expr).split("/")[-2]
+        if sample.kind == zenoh.SampleKind.PUT:
+            self.seen.add(who)
+        elif who == "manager":
+            self.stop("the manager is gone")
+
+
 def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, options: ZenohOptions,
-          wait_s: float = 30.0) -> int:
+          wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0") -> int:
     """Serve subsystem ``name`` until the run ends; return the process exit code."""
     if name not in scene.subsystems:
         raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
-    subsystem = build_subsystem(scene, name)
-    endpoint = SubsystemEndpoint(subsystem, scene.subsystems[name].settings.comm_ratio, scene.manager.macro_step_ns)
-    finished = threading.Event()
-    reason: list[str] = []
-
-    def stop(why: str) -> None:
-        reason.append(why)
-        finished.set()
-
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda s, _f: stop(f"signal {signal.Signals(s).name}"))
-
-    with zenoh.open(peer_config(connect=connect, options=options)) as session:
+    for endpoint in connect:
+        if endpoint.startswith("tcp/"):
+            wait_for_listener(endpoint, wait_s)
+    with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:
         if run_id is None:
             run_id = find_run(session, scene, name, wait_s)
-        replies = coupling_publisher(session, key(run_id, name, "y"))
-
-        def on_command(sample: zenoh.Sample) -> None:
-            replies.put(endpoint.handle(sample.payload.to_bytes()))
-            if endpoint.stopped:
-                stop("stopped by the manager")
-
-        def on_manager(sample: zenoh.Sample) -> None:
-            if sample.kind == zenoh.SampleKind.DELETE:
-                stop("the manager is gone")
-
-        manager_seen = threading.Event()
-        commands = session.declare_subscriber(key(run_id, name, "u"), on_command)
-        description = describe(scene, name, subsystem)
-        control = session.declare_queryable(key(run_id, name, "ctl"),
-                                            lambda query: query.reply(key(run_id, name, "ctl"), description))
-        watch = session.liveliness().declare_subscriber(
-            key(run_id, "manager", "alive"),
-            lambda sample: manager_seen.set() if sample.kind == zenoh.SampleKind.PUT else on_manager(sample),
-            history=True)
-        token = session.liveliness().declare_token(key(run_id, name, "alive"))
-        if not manager_seen.wait(wait_s):
-            stop(f"no manager of run {run_id} within {wait_s:g} s")
-        finished.wait()
-        token.undeclare()
-        for entity in (watch, control, commands, replies):
+        host = _Host(scene, name, run_id, session)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda s, _f: host.stop(f"signal {signal.Signals(s).name}"))
+        entities = [
+            session.declare_subscriber(key(run_id, "*", "y"), host.on_reply, allowed_origin=zenoh.Locality.REMOTE),
+            session.declare_subscriber(key(run_id, name, "u"), host.on_control),
+            session.declare_subscriber(key(run_id, "manager", "go"), host.on_go),
+            session.declare_queryable(key(run_id, name, "ctl"), lambda query: query.reply(
+                key(run_id, name, "ctl"), describe(scene, name, host.subsystem))),
+            session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
+            session.liveliness().declare_token(key(run_id, name, "alive")),
+        ]
+        others = set(host.names) - {name} | {"manager"}
+        deadline = time.monotonic() + wait_s
+        while not others <= host.seen and not host.finished.is_set():
+            if time.monotonic() > deadline:
+                host.stop(f"not connected to {', '.join(sorted(others - host.seen))} within {wait_s:g} s")
+            time.sleep(0.01)
+        entities.append(session.liveliness().declare_token(key(run_id, name, "ready")))
+        host.finished.wait()
+        for entity in reversed(entities):
             entity.undeclare()
-    print(f"subsystem {name}: {reason[0]}", file=sys.stderr)
-    return 0 if endpoint.stopped else 1
+        host.replies.undeclare()
+    print(f"subsystem {name}: {host.reasons[0]}", file=sys.stderr)
+    return 0 if host.reasons[0] == "stopped by the manager" else 1

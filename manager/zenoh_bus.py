@@ -1,11 +1,12 @@
-"""The Zenoh bus: every subsystem in its own OS process, commands and replies over Zenoh on loopback.
+"""The Zenoh bus: every subsystem in its own OS process, replies over Zenoh on loopback.
 
 The manager listens on one TCP endpoint (a free port on 127.0.0.1 unless told otherwise), starts a
 subsystem process per subsystem (or waits for the ones started by hand), checks that each loaded
-the same scene and ports, then drives the scheme from the Zenoh callbacks: the reply that completes
-a step runs the next step of the scheme and publishes its commands, with no thread hand-off on the
-critical path. A watchdog on the main thread names any subsystem that dies or stops answering and
-ends the run within the scene's timeout; no child process outlives the bus.
+the same scene and ports and is connected to every other process, then gives the start signal. Every
+process runs a replica of the scheme (``manager.replica``); the manager's replica holds no subsystem:
+it follows the replies, checks that every subsystem executed the commands the manager computed, and
+produces the run record. A watchdog on the main thread names any subsystem that dies or stops
+answering and ends the run within the scene's timeout; no child process outlives the bus.
 """
 from __future__ import annotations
 
@@ -18,18 +19,21 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Generator
+from typing import Callable
 
 import zenoh
 
-from manager.jacobi import Exchange, RunRecord, SubsystemFailure
+from manager.jacobi import RunRecord, SubsystemFailure
 from manager.plan import Plan
 from manager.protocol import Kind, encode
+from manager.replica import Replica
 from manager.scene import Scene
+from manager.schemes import make_scheme
 from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id, peer_config
 
 STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
+START_DELAY_NS = 50_000_000  # the first step is released this long after the start signal (real time)
 
 
 def _die_with_parent() -> None:
@@ -61,6 +65,7 @@ class ZenohBus:
         self._logs = tempfile.TemporaryDirectory(prefix="zencosim-")
         self._lock = threading.Lock()
         self._joined = {name: threading.Event() for name in self.names}
+        self._ready = {name: threading.Event() for name in self.names}
         self._lost: list[str] = []
         self._driving = False
         self._session: zenoh.Session | None = None
@@ -87,8 +92,11 @@ class ZenohBus:
         self._entities.append(session.declare_subscriber(key(self.run_id, "*", "y"), self._on_reply))
         self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "alive"), self._on_alive,
                                                                       history=True))
+        self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "ready"), self._on_ready,
+                                                                      history=True))
         self._entities.append(session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
         self._publishers = {name: coupling_publisher(session, key(self.run_id, name, "u")) for name in self.names}
+        self._go = session.declare_publisher(key(self.run_id, "manager", "go"))
 
     def _on_run_query(self, query: zenoh.Query) -> None:
         info = {"run_id": self.run_id, "scene": self.scene.name, "scene_digest": self.scene.digest,
@@ -104,10 +112,23 @@ class ZenohBus:
         elif self._driving:
             self._lost.append(name)
 
-    def spawn_command(self, name: str) -> list[str]:
-        """The command line of subsystem ``name``'s process (also what a user runs by hand, plus --run-id)."""
+    def _on_ready(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).split("/")[-2]
+        if name in self._ready and sample.kind == zenoh.SampleKind.PUT:
+            self._ready[name].set()
+
+    def spawn_command(self, name: str, listen: str | None = None, peers: tuple[str, ...] = ()) -> list[str]:
+        """The command line of subsystem ``name``'s process (also what a user runs by hand, plus --run-id).
+
+        A spawned subsystem listens on ``listen`` and connects to the manager and to ``peers``, the
+        subsystems spawned before it, so that every pair of processes has a direct link."""
         command = [sys.executable, "-m", "manager.cli", "subsystem", self.scene.path, name,
-                   "--connect", self.endpoint.replace("0.0.0.0", "127.0.0.1"), "--run-id", self.run_id]
+                   "--connect", self.endpoint.replace("0.0.0.0", "127.0.0.1")]
+        for peer in peers:
+            command += ["--connect", peer]
+        if listen is not None:
+            command += ["--listen", listen]
+        command += ["--run-id", self.run_id]
         for override in self.scene.overrides:
             command += ["--set", override]
         if not self.options.lowlatency:
@@ -115,18 +136,21 @@ class ZenohBus:
         return command
 
     def _spawn(self) -> None:
+        spawned: list[str] = []
         for name in self.names:
             if name in self.external:
                 if self.announce is not None:
-                    command = " ".join(["zencosim"] + self.spawn_command(name)[4:-2])
-                    self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  "
-                                  f"{command.replace('127.0.0.1', '<this-host>')}")
+                    arguments = self.spawn_command(name, "tcp/<its-address>:<port>")[3:]
+                    command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
+                    self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
                 continue
+            listen = f"tcp/127.0.0.1:{free_tcp_port()}"
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
             self.children[name] = subprocess.Popen(
-                self.spawn_command(name), stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+                self.spawn_command(name, listen, tuple(spawned)), stdin=subprocess.DEVNULL, stdout=log,
+                stderr=subprocess.STDOUT, preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
             log.close()
+            spawned.append(listen)
 
     def log_tail(self, name: str, lines: int = 15) -> str:
         path = Path(self._logs.name) / f"{name}.log"
@@ -151,6 +175,15 @@ class ZenohBus:
                 if time.monotonic() > deadline:
                     raise SubsystemFailure(name, f"did not join run {self.run_id} within {wait_s:g} s")
             self._check_description(name)
+        for name in self.names:
+            deadline = time.monotonic() + STARTUP_TIMEOUT_S
+            while not self._ready[name].wait(0.05):
+                failure = self._exited(name)
+                if failure:
+                    raise failure
+                if time.monotonic() > deadline:
+                    raise SubsystemFailure(name, f"is not connected to every other process of run {self.run_id} "
+                                                 f"within {STARTUP_TIMEOUT_S:g} s")
 
     def _check_description(self, name: str) -> None:
         replies = [r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=self.timeout_s) if r.ok]
@@ -167,59 +200,48 @@ class ZenohBus:
                                          f"{expected[0]} -> {expected[1]}")
 
     # -- running ---------------------------------------------------------------------------------
-    def drive(self, scheme: Generator[Exchange, dict[str, bytes], RunRecord]) -> RunRecord:
-        """Run ``scheme`` to completion over Zenoh."""
-        self._scheme = scheme
-        self._pending: dict[str, bytes] = {}
+    def drive(self, realtime: bool = False, progress=None) -> tuple[RunRecord, float]:
+        """Start the run, follow it to the end; return its record and the wall-clock time [s]."""
+        start_ns = time.perf_counter_ns() + START_DELAY_NS
+        scheme = make_scheme(self.scene, self.plan, realtime, start_ns, progress)
+        self._replica = Replica(scheme, self.names, verify=True)
         self._done = threading.Event()
-        self._result: RunRecord | None = None
         self._error: BaseException | None = None
         self._driving = True
-        self._last_progress = time.monotonic()
+        self._progress = (0, time.monotonic())
+        started = time.perf_counter()
+        if self.announce is not None:
+            self.announce(f"run {self.run_id}: {len(self.names)} subsystem processes connected, starting")
         with self._lock:
-            self._request = next(scheme)
-            self._publish(self._request.sends)
-            self._advance()
+            self._go.put(json.dumps({"start_ns": start_ns, "realtime": realtime}).encode())
+            self._guarded(self._replica.start)
         while not self._done.wait(0.05):
             failure = self._watchdog()
             if failure is not None:
                 with self._lock:
                     self._error = self._error or failure
                     self._done.set()
+        wall_s = time.perf_counter() - started - (START_DELAY_NS * 1e-9 if realtime else 0.0)
         self._driving = False
         if self._error is not None:
             raise self._error
-        return self._result
-
-    def _publish(self, sends: dict[str, bytes]) -> None:
-        for name, message in sends.items():
-            self._publishers[name].put(message)
+        return self._replica.result, wall_s
 
     def _on_reply(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).split("/")[-2]
         data = sample.payload.to_bytes()
         with self._lock:
-            if not self._driving or self._done.is_set():
-                return
-            self._pending[name] = data
-            self._advance()
+            if self._driving and not self._done.is_set():
+                self._guarded(self._replica.deliver, name, data)
 
-    def _advance(self) -> None:
-        """Feed the scheme while the replies it waits for are all in (called under the lock)."""
-        while all(name in self._pending for name in self._request.awaits):
-            replies = {name: self._pending.pop(name) for name in self._request.awaits}
-            try:
-                self._request = self._scheme.send(replies)
-            except StopIteration as finished:
-                self._result = finished.value
-                self._done.set()
-                return
-            except BaseException as error:
-                self._error = error
-                self._done.set()
-                return
-            self._last_progress = time.monotonic()
-            self._publish(self._request.sends)
+    def _guarded(self, action, *args) -> None:
+        """Advance the manager's replica (under the lock); the end or any error finishes the run."""
+        try:
+            action(*args)
+        except BaseException as error:
+            self._error = error
+        if self._error is not None or self._replica.finished:
+            self._done.set()
 
     def _watchdog(self) -> SubsystemFailure | None:
         for name in self.names:
@@ -229,12 +251,13 @@ class ZenohBus:
         if self._lost:
             name = self._lost[0]
             return SubsystemFailure(name, "its process is gone (liveliness token lost)")
-        if time.monotonic() - self._last_progress > self.timeout_s:
-            with self._lock:
-                missing = [n for n in self._request.awaits if n not in self._pending]
-            if missing:
-                return SubsystemFailure(missing[0], f"did not answer within the timeout of {self.timeout_s:g} s "
-                                                    f"(manager.timeout)")
+        with self._lock:
+            steps, missing = self._replica.steps_done, self._replica.waiting_for()
+        if steps != self._progress[0]:
+            self._progress = (steps, time.monotonic())
+        elif missing and time.monotonic() - self._progress[1] > self.timeout_s:
+            return SubsystemFailure(missing[0], f"did not answer within the timeout of {self.timeout_s:g} s "
+                                                f"(manager.timeout)")
         return None
 
     # -- shutdown --------------------------------------------------------------------------------
@@ -261,6 +284,7 @@ class ZenohBus:
                 entity.undeclare()
             for publisher in publishers.values():
                 publisher.undeclare()
+            self._go.undeclare()
             self._session.close()
             self._session = None
         self._logs.cleanup()

@@ -1,16 +1,20 @@
 """Zenoh sessions and key expressions of a run.
 
-Every run lives under ``zencosim/<run-id>/``: ``<sub>/u`` commands to a subsystem, ``<sub>/y`` its
-replies, ``<sub>/ctl`` a queryable that describes it, ``<sub>/alive`` and ``manager/alive``
-liveliness tokens (a crashed process is seen at once), ``manager/run`` a queryable that lets a
-subsystem started by hand find the run. Sessions are peers with explicit endpoints and multicast
-scouting off, so a run never reaches beyond the endpoints it is given.
+Every run lives under ``zencosim/<run-id>/``: ``<sub>/y`` a subsystem's replies (read by every other
+process), ``<sub>/u`` control from the manager (STOP), ``<sub>/ctl`` a queryable that describes it,
+``<sub>/alive`` and ``manager/alive`` liveliness tokens (a crashed process is seen at once),
+``<sub>/ready`` a token declared once the subsystem is connected to every other process,
+``manager/go`` the start signal, ``manager/run`` a queryable that lets a subsystem started by hand
+find the run. Sessions are peers with explicit endpoints and multicast scouting off; gossip over the
+links they already have connects the subsystems to each other directly, so that a reply reaches
+every process in one hop.
 """
 from __future__ import annotations
 
 import json
 import secrets
 import socket
+import time
 from dataclasses import dataclass
 
 import zenoh
@@ -25,6 +29,21 @@ def new_run_id() -> str:
 
 def key(run_id: str, *parts: str) -> str:
     return "/".join((ROOT, run_id) + parts)
+
+
+def wait_for_listener(endpoint: str, timeout_s: float) -> None:
+    """Block until a ``tcp/HOST:PORT`` endpoint accepts connections (Zenoh peers do not reliably retry
+    a connect endpoint that was not listening when the session opened)."""
+    host, _, port = endpoint.removeprefix("tcp/").rpartition(":")
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            with socket.create_connection((host.strip("[]"), int(port)), timeout=0.5):
+                return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"nothing listens on {endpoint} after {timeout_s:g} s") from None
+            time.sleep(0.02)
 
 
 def free_tcp_port(host: str = "127.0.0.1") -> int:
@@ -46,11 +65,12 @@ class ZenohOptions:
 
 
 def peer_config(listen: list[str] = (), connect: list[str] = (), options: ZenohOptions = ZenohOptions()) -> zenoh.Config:
-    """A peer-mode configuration with explicit endpoints and no multicast or gossip scouting."""
+    """A peer-mode configuration with explicit endpoints, multicast scouting off and gossip on (peers
+    learn of each other over existing links and connect directly; Zenoh peers do not forward)."""
     config = zenoh.Config()
     config.insert_json5("mode", '"peer"')
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("scouting/gossip/enabled", "true")
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     if options.lowlatency:

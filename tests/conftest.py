@@ -5,6 +5,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -69,6 +70,24 @@ def processes():
         for pid in descendants:
             if alive(pid):
                 os.kill(pid, signal.SIGKILL)
+
+
+def read_until(stream, text: str, timeout_s: float) -> list[str]:
+    """Lines of ``stream`` up to the first that contains ``text`` (in a thread: readline blocks)."""
+    lines: list[str] = []
+    found = threading.Event()
+
+    def reader() -> None:
+        for line in stream:
+            lines.append(line)
+            if text in line:
+                found.set()
+                return
+
+    threading.Thread(target=reader, daemon=True).start()
+    if not found.wait(timeout_s):
+        raise AssertionError(f"no line with {text!r} within {timeout_s} s; got {lines}")
+    return lines
 
 
 def wait_for(predicate, timeout_s: float, what: str):

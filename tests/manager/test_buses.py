@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from manager.zenoh_session import free_tcp_port
-from tests.conftest import alive, children_of, cmdline, record_of, wait_for
+from tests.conftest import alive, children_of, cmdline, read_until, record_of
 
 pytestmark = pytest.mark.multiprocess
 
@@ -39,10 +39,12 @@ def _subsystem_pids(manager_pid: int) -> dict[str, int]:
 
 
 def _start_long_run(processes, timeout_s: float):
-    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--set", "manager.duration=600",
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--set", "manager.duration=600",
                         "--set", f"manager.timeout={timeout_s}")
-    pids = wait_for(lambda: (p := _subsystem_pids(manager.pid)) and len(p) == 2 and p, 30, "two subsystem processes")
-    time.sleep(1.5)  # well into the run
+    read_until(manager.stderr, "starting", 60)
+    pids = _subsystem_pids(manager.pid)
+    assert set(pids) == {"S1", "S2"}
+    time.sleep(0.5)  # into the run
     assert manager.poll() is None, manager.communicate()
     return manager, pids
 

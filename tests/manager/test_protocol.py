@@ -7,9 +7,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from manager.build import build_subsystems
-from manager.bus import drive_inprocess
-from manager.endpoint import SubsystemEndpoint
 from manager.jacobi import SubsystemFailure, jacobi
+from manager.replica import Replica
+from manager.schemes import endpoints
 from manager.plan import compile_plan
 from manager.protocol import HEADER, Kind, ProtocolError, decode, encode
 from manager.scene import load_scene
@@ -25,9 +25,9 @@ def test_round_trip_is_exact_to_the_bit(values, step, time_ns):
 
 
 @pytest.mark.parametrize("mangle,reason", [
-    (lambda b: b[:10], "shorter than the 24-byte header"),
-    (lambda b: b[:-1], "39 bytes, expected 40 for 2 values"),
-    (lambda b: bytes([9]) + b[1:], "protocol version 9"),
+    (lambda b: b[:10], "shorter than the 32-byte header"),
+    (lambda b: b[:-1], "47 bytes, expected 48 for 2 values"),
+    (lambda b: bytes([9]) + b[1:], "protocol version 9, expected 2"),
     (lambda b: b[:1] + bytes([99]) + b[2:], "unknown kind 99"),
 ])
 def test_malformed_messages_are_rejected(mangle, reason):
@@ -39,7 +39,11 @@ def test_malformed_messages_are_rejected(mangle, reason):
 def _endpoints(scene):
     subsystems = build_subsystems(scene)
     plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
-    return plan, {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns) for s in plan.subsystems}
+    return plan, endpoints(plan, subsystems)
+
+
+def _run(plan, local):
+    return Replica(jacobi(plan), list(local), local).run()
 
 
 def test_an_out_of_order_reply_is_rejected():
@@ -48,21 +52,21 @@ def test_an_out_of_order_reply_is_rejected():
 
     def stale(data):  # answers every step with the step number of the previous one
         reply = bytearray(real(data))
-        version, kind, rows, count, step, time_ns = HEADER.unpack_from(reply)
+        version, kind, rows, count, step, time_ns, ref = HEADER.unpack_from(reply)
         if kind == Kind.OUTPUT and step > 1:
-            HEADER.pack_into(reply, 0, version, kind, rows, count, step - 1, time_ns)
+            HEADER.pack_into(reply, 0, version, kind, rows, count, step - 1, time_ns, ref)
         return bytes(reply)
 
     endpoints["S2"].handle = stale
     with pytest.raises(ProtocolError, match="subsystem S2: expected OUTPUT for step 2, got OUTPUT for step 1"):
-        drive_inprocess(jacobi(plan), endpoints)
+        _run(plan, endpoints)
 
 
 def test_a_failing_subsystem_is_named_with_its_reason():
     plan, endpoints = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01"]))
     endpoints["S1"].subsystem.t_ns = 123  # the next STEP starts at a time S1 is not at
     with pytest.raises(SubsystemFailure, match="subsystem S1: failed at step 0: ProtocolError: subsystem S1: INIT at t = 0 ns, but it is at 123 ns"):
-        drive_inprocess(jacobi(plan), endpoints)
+        _run(plan, endpoints)
 
 
 def test_save_and_restore_over_the_protocol_repeat_a_step_bit_for_bit():
@@ -77,3 +81,23 @@ def test_save_and_restore_over_the_protocol_repeat_a_step_bit_for_bit():
     assert step(1) == first
     error = decode(s1.handle(encode(Kind.RESTORE, 7, 0)), "S1")
     assert error.kind == Kind.ERROR and "no state saved at step 7" in error.text()
+
+
+def test_the_manager_names_a_subsystem_whose_replica_executed_another_command():
+    plan, local = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01"]))
+    names = [s.name for s in plan.subsystems]
+    published = []  # what a subsystem process would publish
+    executor = Replica(jacobi(plan), names, local, publish=lambda name, reply: published.append((name, reply)))
+    follower = Replica(jacobi(load_plan_with_other_extrapolation()), names, verify=True)  # the manager's copy
+    executor.start()
+    follower.start()
+    with pytest.raises(ProtocolError, match="subsystem S\\d executed a command that differs from the manager's"):
+        for name, reply in published:
+            follower.deliver(name, reply)
+    assert follower.steps_done == 2  # both initialisation rounds agree; the first STEP (1 row vs 2 rows) does not
+
+
+def load_plan_with_other_extrapolation():
+    # the same scene but first-order extrapolation: from the second step on, the commands differ
+    plan, _ = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01", "manager.extrapolation=1"]))
+    return plan

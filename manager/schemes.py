@@ -1,0 +1,32 @@
+"""Build a run's scheme from its scene — the same way in every process that runs a replica of it."""
+from __future__ import annotations
+
+from typing import Callable
+
+from manager.build import build_subsystems
+from manager.endpoint import SubsystemEndpoint
+from manager.jacobi import jacobi
+from manager.pacing import Pacer
+from manager.plan import Plan, compile_plan
+from manager.scene import Scene
+
+
+def plan_scene(scene: Scene) -> tuple[Plan, dict]:
+    """The run plan and the built subsystems (the manager builds them too, to know their ports)."""
+    subsystems = build_subsystems(scene)
+    plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
+    return plan, subsystems
+
+
+def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
+                progress: Callable[[int], None] | None = None):
+    """The scheme generator of a run; paced to deadlines ``start_ns + j * macro_step`` when ``realtime``
+    (``start_ns`` on the shared monotonic clock; None: the first step starts the clock)."""
+    pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns) if realtime else None
+    return jacobi(plan, pacer, progress)
+
+
+def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:
+    """Protocol endpoints of the built subsystems (all of them, or ``names``)."""
+    return {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns)
+            for s in plan.subsystems if names is None or s.name in names}
