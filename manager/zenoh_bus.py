@@ -34,6 +34,7 @@ from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_por
 STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
 START_DELAY_NS = 50_000_000  # the first step is released this long after the start signal (real time)
+PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
 
 
 def _die_with_parent() -> None:
@@ -256,9 +257,18 @@ class ZenohBus:
         if steps != self._progress[0]:
             self._progress = (steps, time.monotonic())
         elif missing and time.monotonic() - self._progress[1] > self.timeout_s:
-            return SubsystemFailure(missing[0], f"did not answer within the timeout of {self.timeout_s:g} s "
-                                                f"(manager.timeout)")
+            # every replica waits when one subsystem stalls: name the ones whose process does not respond
+            frozen = self._unresponsive()
+            name = frozen[0] if frozen else missing[0]
+            return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
+                                          + ("; its process does not respond" if frozen else ""))
         return None
+
+    def _unresponsive(self) -> list[str]:
+        """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together)."""
+        pending = {name: self._session.get(key(self.run_id, name, "ctl"), timeout=PROBE_TIMEOUT_S)
+                   for name in self.names}
+        return [name for name, replies in pending.items() if not any(reply.ok for reply in replies)]
 
     # -- shutdown --------------------------------------------------------------------------------
     def close(self) -> None:
