@@ -3,8 +3,9 @@ the same run (zenoh-python ping-pong between two processes, raw loopback UDP rou
 
     python benchmarks/bench_runtime.py [--repeats 5] [--json out.json]
 
-Reports medians over repeats and the ratios the targets are stated in:
-zenoh step / ping-pong round trip (target <= 1.2) and in-process steps/s (target >= 13 000).
+Reports medians over repeats and the ratios the targets are stated in: the Zenoh macro-step of
+two_mass_damped (2 subsystem processes + manager, as fast as possible) over the zenoh-python ping-pong
+round trip (target <= 1.2), and in-process macro-steps per second (target >= 13 000).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from rich.table import Table  # noqa: E402
 import pingpong  # noqa: E402
 from manager.run import execute  # noqa: E402
 from manager.scene import load_scene  # noqa: E402
+from manager.zenoh_session import ZenohOptions  # noqa: E402
 
 SCENE = "two_mass_damped"
 
@@ -36,16 +38,14 @@ def inprocess_steps_per_s(repeats: int) -> float:
     return statistics.median(rates)
 
 
-def zenoh_step_s(repeats: int, lowlatency: bool) -> tuple[float, float]:
-    """Median over repeats of (median step time [s], steps per second)."""
-    from manager.zenoh_session import ZenohOptions
+def zenoh_step_s(repeats: int, lowlatency: bool) -> float:
+    """Median over repeats of the mean macro-step time [s] (wall time / steps) of a 5 s run."""
     scene = load_scene(SCENE, ["manager.duration=5.0"])
-    steps, rates = [], []
+    steps = []
     for _ in range(repeats):
         record, wall = execute(scene, "zenoh", zenoh_options=ZenohOptions(lowlatency))
-        steps.append(statistics.median((record.send_time_ns[1:] - record.send_time_ns[:-1]) * 1e-9))
-        rates.append(record.plan.n_ticks / wall)
-    return statistics.median(steps), statistics.median(rates)
+        steps.append(wall / record.plan.n_ticks)
+    return statistics.median(steps)
 
 
 def main() -> None:
@@ -54,27 +54,32 @@ def main() -> None:
     parser.add_argument("--round-trips", type=int, default=5000)
     parser.add_argument("--json", help="write the figures as JSON")
     args = parser.parse_args()
-    figures = {"scene": SCENE, "repeats": args.repeats, "cpus": os.cpu_count(),
-               "inprocess_steps_per_s": inprocess_steps_per_s(args.repeats)}
-    for lowlatency in (True, False):
-        label = "lowlatency" if lowlatency else "default"
-        step, rate = zenoh_step_s(args.repeats, lowlatency)
-        rtt = statistics.median(pingpong.zenoh_round_trips(args.round_trips, lowlatency))
-        figures[label] = {"zenoh_step_us": step * 1e6, "zenoh_steps_per_s": rate, "pingpong_rtt_us": rtt * 1e6,
-                          "ratio_step_to_pingpong": step / rtt}
-    figures["udp_rtt_us"] = statistics.median(pingpong.udp_round_trips(args.round_trips)) * 1e6
+    n = args.round_trips
+    figures = {
+        "scene": SCENE, "repeats": args.repeats, "cpus": os.cpu_count(),
+        "inprocess_steps_per_s": inprocess_steps_per_s(args.repeats),
+        "zenoh_step_us_lowlatency": zenoh_step_s(args.repeats, True) * 1e6,
+        "zenoh_step_us_default_transport": zenoh_step_s(args.repeats, False) * 1e6,
+        "pingpong_rtt_us_official": statistics.median(pingpong.zenoh_round_trips(n, official=True)) * 1e6,
+        "pingpong_rtt_us_bus_settings": statistics.median(pingpong.zenoh_round_trips(n, official=False)) * 1e6,
+        "udp_rtt_us": statistics.median(pingpong.udp_round_trips(n)) * 1e6,
+    }
+    figures["ratio_step_to_official_pingpong"] = figures["zenoh_step_us_lowlatency"] / figures["pingpong_rtt_us_official"]
+    figures["ratio_step_to_pingpong_same_settings"] = (figures["zenoh_step_us_lowlatency"]
+                                                       / figures["pingpong_rtt_us_bus_settings"])
 
-    table = Table(title=f"{SCENE}: medians over {args.repeats} runs, {args.round_trips} round trips")
+    table = Table(title=f"{SCENE}: medians over {args.repeats} runs and {n} round trips, {os.cpu_count()} CPUs")
     table.add_column("measure")
     table.add_column("value", justify="right")
     table.add_column("target", justify="right")
     table.add_row("in-process macro-steps/s", f"{figures['inprocess_steps_per_s']:.0f}", ">= 13000")
-    for label in ("lowlatency", "default"):
-        f = figures[label]
-        table.add_row(f"zenoh ({label} transport) macro-step [µs]", f"{f['zenoh_step_us']:.1f}", "")
-        table.add_row(f"zenoh-python ping-pong RTT ({label}) [µs]", f"{f['pingpong_rtt_us']:.1f}", "")
-        table.add_row(f"ratio macro-step / ping-pong ({label})", f"{f['ratio_step_to_pingpong']:.2f}", "<= 1.2")
+    table.add_row("Zenoh macro-step, low-latency transport [µs]", f"{figures['zenoh_step_us_lowlatency']:.1f}", "")
+    table.add_row("Zenoh macro-step, default transport [µs]", f"{figures['zenoh_step_us_default_transport']:.1f}", "")
+    table.add_row("zenoh-python ping-pong RTT, z_ping/z_pong [µs]", f"{figures['pingpong_rtt_us_official']:.1f}", "")
+    table.add_row("ping-pong RTT with the bus's settings [µs]", f"{figures['pingpong_rtt_us_bus_settings']:.1f}", "")
     table.add_row("raw loopback UDP RTT [µs]", f"{figures['udp_rtt_us']:.1f}", "")
+    table.add_row("macro-step / z_ping RTT", f"{figures['ratio_step_to_official_pingpong']:.2f}", "<= 1.2")
+    table.add_row("macro-step / ping-pong with the same settings", f"{figures['ratio_step_to_pingpong_same_settings']:.2f}", "")
     Console().print(table)
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")

@@ -1,11 +1,15 @@
-"""Baselines for the distributed benchmark: zenoh-python ping-pong and a raw loopback UDP round trip.
+"""Baselines for the distributed benchmark, each against an echo process started here.
 
-Run as a module by bench_runtime.py; each function starts its echo process and returns round-trip
-times [s]. The ping-pong mirrors zenoh-python's z_ping/z_pong examples (pong echoes from its
-subscriber callback, ping waits on a FIFO subscriber) with the same session configuration as the bus.
+* ``zenoh_round_trips(n, official=True)``: zenoh-python's own z_ping/z_pong examples (default
+  configuration, CongestionControl.BLOCK, no express; ping waits on a FIFO subscriber, pong echoes
+  from its callback), as peers on loopback with multicast scouting off;
+* ``zenoh_round_trips(n, official=False)``: the same pattern with the bus's transport settings
+  (low-latency transport, express, real-time priority);
+* ``udp_round_trips(n)``: a raw loopback UDP round trip from Python.
 """
 from __future__ import annotations
 
+import json
 import socket
 import subprocess
 import sys
@@ -15,27 +19,45 @@ import zenoh
 
 from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, peer_config
 
-PAYLOAD = bytes(64)  # a STEP message of two_mass_damped is 24 + 2 * 8 = 40 bytes; an OUTPUT 48
+PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
 
 
-def _pong(endpoint: str, lowlatency: bool) -> None:
-    with zenoh.open(peer_config(connect=[endpoint], options=ZenohOptions(lowlatency))) as session:
-        publisher = coupling_publisher(session, "bench/pong")
+def _config(endpoint: str, listen: bool, official: bool) -> zenoh.Config:
+    if not official:
+        return peer_config(listen=[endpoint] if listen else [], connect=[] if listen else [endpoint],
+                           options=ZenohOptions(lowlatency=True))
+    config = zenoh.Config()  # the examples' defaults, plus explicit loopback endpoints and no multicast
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("listen/endpoints" if listen else "connect/endpoints", json.dumps([endpoint]))
+    return config
+
+
+def _publisher(session: zenoh.Session, key_expr: str, official: bool) -> zenoh.Publisher:
+    if official:
+        return session.declare_publisher(key_expr, congestion_control=zenoh.CongestionControl.BLOCK)
+    return coupling_publisher(session, key_expr)
+
+
+def _pong(endpoint: str, official: bool) -> None:
+    with zenoh.open(_config(endpoint, False, official)) as session:
+        publisher = _publisher(session, "bench/pong", official)
         session.declare_subscriber("bench/ping", lambda sample: publisher.put(sample.payload))
         time.sleep(3600)
 
 
-def zenoh_round_trips(n: int, lowlatency: bool) -> list[float]:
+def zenoh_round_trips(n: int, official: bool = True) -> list[float]:
+    """Round-trip times [s] of ``n`` ping-pongs after 200 of warm-up."""
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    with zenoh.open(peer_config(listen=[endpoint], options=ZenohOptions(lowlatency))) as session:
-        publisher = coupling_publisher(session, "bench/ping")
+    with zenoh.open(_config(endpoint, True, official)) as session:
+        publisher = _publisher(session, "bench/ping", official)
         replies = session.declare_subscriber("bench/pong")
-        child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(lowlatency))])
+        child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(official))])
         try:
             deadline = time.monotonic() + 30
             while not publisher.matching_status.matching:
                 if time.monotonic() > deadline:
-                    raise RuntimeError("pong did not start")
+                    raise RuntimeError("the pong process did not start")
                 time.sleep(0.05)
             times = []
             for _ in range(n + 200):
@@ -58,6 +80,7 @@ def _udp_echo(port: int) -> None:
 
 
 def udp_round_trips(n: int) -> list[float]:
+    """Round-trip times [s] of ``n`` UDP datagrams to an echo process after 200 of warm-up."""
     port = free_tcp_port()
     child = subprocess.Popen([sys.executable, __file__, "udp", str(port)])
     try:
@@ -68,7 +91,7 @@ def udp_round_trips(n: int) -> list[float]:
                     sock.sendto(PAYLOAD, ("127.0.0.1", port))
                     sock.recvfrom(2048)
                     break
-                except (ConnectionRefusedError, TimeoutError, OSError):
+                except OSError:
                     time.sleep(0.05)
             times = []
             for _ in range(n + 200):
