@@ -47,6 +47,11 @@ def monolithic_unavailable(scene: Scene) -> str | None:
     integrators = {s.settings.integrator for s in scene.subsystems.values()}
     if len(integrators) != 1:
         return f"subsystems use different integrators {sorted(integrators)}"
+    nonlinear = sorted(f"{s.name}.{e.name}" for s in scene.subsystems.values() for e in s.spec.effects
+                       if e.effect.kind == "nonlinear")
+    nonlinear += sorted(e.name for c in scene.couplings.values() for e in c.effects if e.effect.kind == "nonlinear")
+    if nonlinear:
+        return f"nonlinear effects {', '.join(nonlinear)}"
     return None
 
 

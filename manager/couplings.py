@@ -5,6 +5,9 @@ the coupling element's effects), the routes of the signals between them and the 
 residual power the manager monitors. The run loop only sees routes and bonds, so a new coupling type
 (displacement–displacement, force–force) is one new class here. ``COUPLINGS`` maps scene names to
 classes.
+
+A signal is a scalar (one name) or a vector of scalar components (a list of names, e.g. the x and y
+components of a point in the plane); every signal of one coupling has the same number of components.
 """
 from __future__ import annotations
 
@@ -31,26 +34,37 @@ class Bond:
     """A power bond across the interface: a force and the velocity it works on, as seen by each side.
 
     ``force`` is computed by ``force_side`` from the received ``velocity_input``; ``motion_side``
-    applies the received ``force_input`` (as a reaction, sign −1) and outputs ``velocity``.
+    applies the received ``force_input`` (as a reaction, sign −1) and outputs ``velocity``. Each is a
+    tuple of component signal names (one for a scalar bond); the power is their dot product.
     """
 
     name: str
     force_side: str
-    force: str
-    velocity_input: str
+    force: tuple[str, ...]
+    velocity_input: tuple[str, ...]
     motion_side: str
-    velocity: str
-    force_input: str
+    velocity: tuple[str, ...]
+    force_input: tuple[str, ...]
+
+
+def components(signal: str | tuple[str, ...]) -> tuple[str, ...]:
+    """The component names of a scalar (one name) or vector (list of names) signal."""
+    return (signal,) if isinstance(signal, str) else signal
+
+
+def starred(names: tuple[str, ...]) -> tuple[str, ...]:
+    """Input port names of received signals: ``x2`` arrives as ``x2*``."""
+    return tuple(f"{n}*" for n in names)
 
 
 @dataclass(frozen=True)
 class ForceDisplacementSettings:
     type: Literal["force_displacement"]
-    force_side: str  # "<subsystem>.<point>": owns the coupling element, outputs the force (direct feedthrough)
+    force_side: str  # "<subsystem>.<point>": computes the force (direct feedthrough)
     motion_side: str  # "<subsystem>.<point>": applies the force, outputs displacement and velocity
-    force: str  # name of the force signal [N]: force of the coupling element on the force-side point
-    displacement: str  # name of the displacement signal [m]
-    velocity: str  # name of the velocity signal [m/s]
+    force: str | tuple[str, ...]  # force signal [N]: force of the coupling element on the force-side point
+    displacement: str | tuple[str, ...]  # displacement signal [m] of the motion-side point
+    velocity: str | tuple[str, ...]  # velocity signal [m/s] of the motion-side point
 
     def problems(self) -> list[tuple[str, str]]:
         found = []
@@ -60,19 +74,27 @@ class ForceDisplacementSettings:
                 found.append((key, f"expected '<subsystem>.<point>', got {value!r}"))
         if not found and self.force_side.split(".")[0] == self.motion_side.split(".")[0]:
             found.append(("motion_side", "expected a different subsystem than force_side"))
-        names = (self.force, self.displacement, self.velocity)
-        if len(set(names)) != 3:
+        signals = {key: components(getattr(self, key)) for key in ("force", "displacement", "velocity")}
+        sizes = {key: len(names) for key, names in signals.items()}
+        if 0 in sizes.values() or len(set(sizes.values())) != 1:
+            found.append(("force", "force, displacement and velocity need the same number of components "
+                                   f"(one name, or a list of names), got {sizes}"))
+        names = [n for group in signals.values() for n in group]
+        if len(set(names)) != len(names):
             found.append(("force", f"signal names must differ, got {names}"))
         return found
 
 
 class ForceDisplacement:
-    """Force–displacement coupling (paper 000 Fig. 2, paper 002 Fig. 8).
+    """Force–displacement coupling (paper 000 Fig. 2, paper 002 Figs. 8, 16, 19).
 
-    The force side holds the coupling spring–damper between its point and a terminal that moves with
-    the received displacement and velocity ``x*, v*`` of the motion side; it outputs
+    The force side holds the coupling element (spring–damper) between its point and a terminal that
+    moves with the received displacement and velocity ``x*, v*`` of the motion side; it outputs
     ``fc = -k (x_f - x*) - c (v_f - v*)`` (for linear elements), which depends on its inputs (direct
     feedthrough). The motion side applies ``-fc*`` and outputs its displacement and velocity.
+    A coupling without effects has a force-side model that computes the force itself from its own
+    state and the received motion (the hydraulic actuator of paper 002 Eq. 25); it still outputs the
+    force on its own side, so the motion side applies ``-fc*`` in every case.
     """
 
     kind = "force_displacement"
@@ -89,8 +111,8 @@ class ForceDisplacement:
         before = len(problems)
         settings = read_table(ForceDisplacementSettings, table, key, problems, skip=("effects",))
         effects = []
-        effect_tables = table.get("effects")
-        if not isinstance(effect_tables, dict) or not effect_tables:
+        effect_tables = table.get("effects", {})
+        if not isinstance(effect_tables, dict):
             problems.add(f"{key}.effects", "expected the coupling element as named effects, "
                          "e.g. effects.kc = { type = \"spring\", stiffness = 100.0 }")
             effect_tables = {}
@@ -112,32 +134,46 @@ class ForceDisplacement:
     def sides(self) -> dict[str, tuple[str, str]]:
         return {"force_side": (self.force_sub, self.force_point), "motion_side": (self.motion_sub, self.motion_point)}
 
-    def signals(self) -> tuple[str, str, str]:
-        s = self.settings
-        return (s.force, s.displacement, s.velocity)
+    @property
+    def force(self) -> tuple[str, ...]:
+        return components(self.settings.force)
+
+    @property
+    def displacement(self) -> tuple[str, ...]:
+        return components(self.settings.displacement)
+
+    @property
+    def velocity(self) -> tuple[str, ...]:
+        return components(self.settings.velocity)
+
+    @property
+    def dimension(self) -> int:
+        """Number of components of each signal (1 on a line, 2 in the plane)."""
+        return len(self.force)
+
+    def signals(self) -> tuple[str, ...]:
+        return self.force + self.displacement + self.velocity
 
     def producers(self) -> dict[str, str]:
         """Each signal and what produces it; couplings sharing a motion side share its signals."""
         s = self.settings
-        return {s.force: f"the force of coupling {self.name!r}",
-                s.displacement: f"the displacement of {s.motion_side}",
-                s.velocity: f"the velocity of {s.motion_side}"}
+        return ({n: f"the force of coupling {self.name!r}" for n in self.force}
+                | {n: f"the displacement of {s.motion_side}" for n in self.displacement}
+                | {n: f"the velocity of {s.motion_side}" for n in self.velocity})
 
     def _terminal(self) -> Terminal:
-        s = self.settings
-        return Terminal(f"{self.name}:{self.settings.motion_side}", f"{s.displacement}*", f"{s.velocity}*")
+        return Terminal(f"{self.name}:{self.settings.motion_side}", starred(self.displacement), starred(self.velocity))
 
     def attachments(self) -> dict[str, Attachments]:
-        s = self.settings
         terminal = self._terminal()
         return {
             self.force_sub: Attachments(
                 terminals=(terminal,),
-                force_outputs=(EffectForceOutput(s.force, self.force_point, tuple(e.name for e in self.effects)),),
+                force_outputs=(EffectForceOutput(self.force, self.force_point, tuple(e.name for e in self.effects)),),
                 effects=tuple((e.name, e.effect, (self.force_point, terminal.name)) for e in self.effects)),
             self.motion_sub: Attachments(
-                force_inputs=(ForceInput(f"{s.force}*", self.motion_point, -1.0),),
-                motion_outputs=(MotionOutput(self.motion_point, s.displacement, s.velocity),)),
+                force_inputs=(ForceInput(starred(self.force), self.motion_point, -1.0),),
+                motion_outputs=(MotionOutput(self.motion_point, self.displacement, self.velocity),)),
         }
 
     def monolithic_attachments(self, qualify) -> Attachments:
@@ -145,23 +181,21 @@ class ForceDisplacement:
 
         ``qualify(subsystem, point)`` gives the monolithic name of a point.
         """
-        s = self.settings
         force_point = qualify(self.force_sub, self.force_point)
         motion_point = qualify(self.motion_sub, self.motion_point)
         return Attachments(
-            force_outputs=(EffectForceOutput(s.force, force_point, tuple(e.name for e in self.effects)),),
-            motion_outputs=(MotionOutput(motion_point, s.displacement, s.velocity),),
+            force_outputs=(EffectForceOutput(self.force, force_point, tuple(e.name for e in self.effects)),),
+            motion_outputs=(MotionOutput(motion_point, self.displacement, self.velocity),),
             effects=tuple((e.name, e.effect, (force_point, motion_point)) for e in self.effects))
 
     def routes(self) -> tuple[Route, ...]:
-        s = self.settings
-        return (Route(self.motion_sub, s.displacement, self.force_sub, f"{s.displacement}*"),
-                Route(self.motion_sub, s.velocity, self.force_sub, f"{s.velocity}*"),
-                Route(self.force_sub, s.force, self.motion_sub, f"{s.force}*"))
+        received = ((self.motion_sub, self.displacement, self.force_sub), (self.motion_sub, self.velocity, self.force_sub),
+                    (self.force_sub, self.force, self.motion_sub))
+        return tuple(Route(source, name, target, f"{name}*") for source, names, target in received for name in names)
 
     def bonds(self) -> tuple[Bond, ...]:
-        s = self.settings
-        return (Bond(self.name, self.force_sub, s.force, f"{s.velocity}*", self.motion_sub, s.velocity, f"{s.force}*"),)
+        return (Bond(self.name, self.force_sub, self.force, starred(self.velocity), self.motion_sub, self.velocity,
+                     starred(self.force)),)
 
 
 COUPLINGS: dict[str, type] = {cls.kind: cls for cls in (ForceDisplacement,)}

@@ -12,13 +12,18 @@ One base macro-step [t_j, t_j+1]:
    outputs with direct feedthrough use the received polynomial evaluated at that point;
 3. the manager commits the outputs due at t_j+1 and evaluates the residual power of every bond
    whose two sides both communicated at t_j+1 (paper 002 Eqs. 8–9, 13).
+
+Correctors (``manager.correction``) hook into both ends: before a subsystem's input polynomial is
+sent, each corrector that targets it may return an adjusted copy (the residual power is still
+evaluated with the polynomial the extrapolation produced); after step 3, every corrector observes
+the committed outputs and residual energies at t_j+1.
 """
 from __future__ import annotations
 
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable, Generator
+from typing import Callable, Generator, Protocol
 
 import numpy as np
 
@@ -46,6 +51,21 @@ class Exchange:
     awaits: tuple[str, ...]
 
 
+class Corrector(Protocol):
+    """What the manager adds to inputs each step (DESIGN: energy correction, compensator terms)."""
+
+    targets: frozenset[int]  # subsystems whose input polynomials it adjusts
+
+    def adjust(self, sub: int, tick: int, coefficients: np.ndarray) -> np.ndarray:
+        """The polynomial subsystem ``sub`` receives at base step ``tick`` (a copy; the argument is kept)."""
+
+    def observe(self, tick: int, trajectories: list[np.ndarray], residual_energy: np.ndarray) -> None:
+        """Outputs due at ``tick`` are committed and the residuals of the bonds due there evaluated."""
+
+    def log(self):
+        """What the corrector did, for the run record."""
+
+
 @dataclass
 class RunRecord:
     """What one run produced, on the base macro-step grid."""
@@ -57,6 +77,7 @@ class RunRecord:
     send_time_ns: np.ndarray  # (n_ticks,) wall clock (perf_counter_ns) when step j's inputs went out
     lateness_ns: np.ndarray | None  # (n_ticks,) real-time mode: send time minus deadline
     missed_deadlines: int
+    corrections: tuple = ()  # each corrector's log (manager.correction.CorrectionLog)
 
 
 def _decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
@@ -78,13 +99,12 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
     return np.array(positions)
 
 
-def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
-           ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
+           correctors: tuple[Corrector, ...] = ()) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
-    order = plan.order
     traj = [np.full((n_ticks // s.ratio + 1, len(s.outputs)), np.nan) for s in subs]
     n_bonds = len(plan.bonds)
     p_res = np.full((n_ticks + 1, n_bonds), np.nan)
@@ -95,7 +115,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     sent: list[tuple[int, np.ndarray] | None] = [None] * len(subs)  # (start tick, coefficients)
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds] for s in subs]
 
+    adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
+
     def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
+        order = s.order
         coefficients = np.zeros((order + 1, len(s.inputs)))
         for source, ratio, outputs, inputs in feeds[s.index]:
             newest = tick // ratio
@@ -127,10 +150,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     starting = [tuple(s for s in subs if phase % s.ratio == 0) for phase in range(period)]
     due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0) for phase in range(period)]
     due_names = [tuple(s.name for s in d) for d in due]
-    bonds_due = [tuple((b, bond) for b, bond in enumerate(plan.bonds)
+    bonds_due = [tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
                        if (phase + 1) % subs[bond.force_side].ratio == 0
                        and (phase + 1) % subs[bond.motion_side].ratio == 0) for phase in range(period)]
-    rows = order + 1
     step_s = base * 1e-9
 
     for tick in range(n_ticks):
@@ -139,7 +161,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for s in starting[phase]:
             coefficients = input_polynomial(s, tick)
             sent[s.index] = (tick, coefficients)
-            sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, rows)
+            for corrector in adjusters[s.index]:
+                coefficients = corrector.adjust(s.index, tick, coefficients)
+            sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
         next_tick = tick + 1
         if pacer is not None:
             pacer.wait(tick)
@@ -147,20 +171,24 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         replies = yield Exchange(sends, due_names[phase])
         for s in due[phase]:
             traj[s.index][next_tick // s.ratio] = _decode_output(replies[s.name], s, next_tick)
-        for b, bond in bonds_due[phase]:
+        for b, bond, components in bonds_due[phase]:
             f_start, f_coefficients = sent[bond.force_side]
             m_start, m_coefficients = sent[bond.motion_side]
-            delta_p = residual_power(
-                traj[bond.force_side][next_tick // subs[bond.force_side].ratio, bond.force_output],
-                evaluate(f_coefficients, bond.velocity_input, (next_tick - f_start) * step_s),
-                evaluate(m_coefficients, bond.force_input, (next_tick - m_start) * step_s),
-                traj[bond.motion_side][next_tick // subs[bond.motion_side].ratio, bond.velocity_output])
+            f_row = traj[bond.force_side][next_tick // subs[bond.force_side].ratio]
+            m_row = traj[bond.motion_side][next_tick // subs[bond.motion_side].ratio]
+            f_tau, m_tau = (next_tick - f_start) * step_s, (next_tick - m_start) * step_s
+            delta_p = 0.0  # a vector bond's residual power is the dot product: the sum over its components
+            for force, velocity_input, force_input, velocity in components:
+                delta_p += residual_power(f_row[force], evaluate(f_coefficients, velocity_input, f_tau),
+                                          evaluate(m_coefficients, force_input, m_tau), m_row[velocity])
             p_res[next_tick, b] = delta_p
             e_res[next_tick, b] = e_res[last_bond_tick[b], b] + delta_p * (next_tick - last_bond_tick[b]) * step_s
             last_bond_tick[b] = next_tick
+        for corrector in correctors:
+            corrector.observe(next_tick, traj, e_res)
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
 
     return RunRecord(plan, traj, p_res, e_res, send_time,
                      None if pacer is None else pacer.lateness_ns,
-                     0 if pacer is None else pacer.missed)
+                     0 if pacer is None else pacer.missed, tuple(c.log() for c in correctors))

@@ -30,6 +30,7 @@ class SubsystemPlan:
     outputs: tuple[Port, ...]  # coupling outputs, then the energy monitor
     feeds: tuple[Feed, ...]
     effects: tuple[str, ...]  # active effects, as built
+    order: int  # Lagrange order of the input polynomials this subsystem receives (0 ZOH, 1 FOH, 2 SOH)
 
     @property
     def energy_output(self) -> int:
@@ -38,15 +39,20 @@ class SubsystemPlan:
 
 @dataclass(frozen=True)
 class BondPlan:
-    """Indices of the four signals of a power bond (see manager.residual)."""
+    """Indices of the four signals of a power bond (see manager.residual), one per component."""
 
     name: str
     force_side: int
-    force_output: int
-    velocity_input: int
+    force_output: tuple[int, ...]
+    velocity_input: tuple[int, ...]
     motion_side: int
-    velocity_output: int
-    force_input: int
+    velocity_output: tuple[int, ...]
+    force_input: tuple[int, ...]
+
+    @property
+    def components(self) -> tuple[tuple[int, int, int, int], ...]:
+        """(force output, velocity input, force input, velocity output) of each component."""
+        return tuple(zip(self.force_output, self.velocity_input, self.force_input, self.velocity_output))
 
 
 @dataclass(frozen=True)
@@ -57,7 +63,7 @@ class Plan:
     signals: dict[str, tuple[int, int]]  # coupling signal name -> (subsystem, output)
     base_step_ns: int
     n_ticks: int
-    order: int  # extrapolation order
+    order: int  # extrapolation order of the scene (``SubsystemPlan.order`` may differ per subsystem)
 
     def by_name(self, name: str) -> SubsystemPlan:
         return next(s for s in self.subsystems if s.name == name)
@@ -96,14 +102,18 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
         for j, (source, output) in sorted(fed[name].items()):
             groups.setdefault(source, []).append((output, j))
         feeds = tuple(Feed(src, tuple(o for o, _ in pairs), tuple(j for _, j in pairs)) for src, pairs in groups.items())
-        plans.append(SubsystemPlan(i, name, scene.subsystems[name].settings.comm_ratio, inputs, outputs, feeds, effects))
+        settings = scene.subsystems[name].settings
+        order = scene.manager.extrapolation if settings.extrapolation is None else settings.extrapolation
+        plans.append(SubsystemPlan(i, name, settings.comm_ratio, inputs, outputs, feeds, effects, order))
 
     bonds = []
     for coupling in scene.couplings.values():
         for b in coupling.bonds():
-            f, m = index[b.force_side], index[b.motion_side]
-            bonds.append(BondPlan(b.name, f, port_index[b.force_side][1][b.force], port_index[b.force_side][0][b.velocity_input],
-                                  m, port_index[b.motion_side][1][b.velocity], port_index[b.motion_side][0][b.force_input]))
+            f_in, f_out = port_index[b.force_side]
+            m_in, m_out = port_index[b.motion_side]
+            bonds.append(BondPlan(b.name, index[b.force_side], tuple(f_out[n] for n in b.force),
+                                  tuple(f_in[n] for n in b.velocity_input), index[b.motion_side],
+                                  tuple(m_out[n] for n in b.velocity), tuple(m_in[n] for n in b.force_input)))
 
     init_rounds = _init_rounds(plans, problems)
     if problems:

@@ -8,6 +8,7 @@ pacing) and outputs (signals to report, the reference to compare with). See docs
 from __future__ import annotations
 
 import copy
+import dataclasses
 import hashlib
 import json
 import math
@@ -36,6 +37,29 @@ class SceneError(ValueError):
 
 
 @dataclass(frozen=True)
+class CorrectionSettings:
+    """The ``[manager.correction]`` table: energy correction (paper 002 Eqs. 13–17, see manager.correction).
+
+    No table, or ``enabled = false``: no corrector is built.
+    """
+
+    enabled: bool = True
+    mu: float | Literal["auto"] = field(default="auto", metadata=quantity("", minimum=0.0, maximum=1.0))  # μ, Eq. 13
+    nu: float = field(default=0.0, metadata=quantity("", minimum=0.0, maximum=1.0))  # ν, weight of 𝒰 in Eq. 17
+    cap_fraction: float | None = field(default=1.0, metadata=quantity("", minimum=0.0))  # |f_corr| <= cap_fraction |f|
+    cap_force: float | None = field(default=None, metadata=quantity("N", minimum=0.0))  # |f_corr| <= cap_force [N]
+
+
+@dataclass(frozen=True)
+class SpikeSettings:
+    """The ``[manager.spikes]`` table: the residual-power spike detector (see manager.monitor)."""
+
+    window: float = field(default=1.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # trailing window [s]
+    threshold: float = field(default=20.0, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # x trailing scale
+    merge_gap: float = field(default=0.1, metadata=quantity("s", minimum=0.0))  # flagged points closer than this join [s]
+
+
+@dataclass(frozen=True)
 class ManagerSettings:
     """The ``[manager]`` table: how the run is orchestrated."""
 
@@ -45,6 +69,13 @@ class ManagerSettings:
     extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order
     timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
     realtime: bool = False
+    correction: CorrectionSettings | None = None  # [manager.correction]
+    spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
+
+    @property
+    def corrects(self) -> bool:
+        """True when the scene asks for energy correction."""
+        return self.correction is not None and self.correction.enabled
 
     @property
     def macro_step_ns(self) -> int:
@@ -60,7 +91,7 @@ class OutputSettings:
     """The ``[outputs]`` table: which signals the summary reports and against which reference."""
 
     signals: tuple[str, ...] = ()
-    reference: Literal["analytic", "none"] = "analytic"
+    reference: Literal["analytic", "solve_ivp", "none"] = "analytic"
 
 
 @dataclass(frozen=True)
@@ -71,6 +102,7 @@ class SubsystemSettings:
     micro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
     integrator: str = "symplectic_euler"
     comm_ratio: int = field(default=1, metadata=quantity("", minimum=1))  # communication step / macro step
+    extrapolation: int | None = field(default=None, metadata=quantity("", minimum=0, maximum=2))  # of its inputs
 
     def problems(self) -> list[tuple[str, str]]:
         found = []
@@ -78,6 +110,10 @@ class SubsystemSettings:
             found.append(("model", f"expected one of {', '.join(sorted(MODELS))}, got {self.model!r}"))
         if self.integrator not in INTEGRATORS:
             found.append(("integrator", f"expected one of {', '.join(sorted(INTEGRATORS))}, got {self.integrator!r}"))
+        elif self.model in MODELS and INTEGRATORS[self.integrator].second_order_only and not MODELS[self.model].second_order:
+            usable = sorted(n for n, i in INTEGRATORS.items() if not i.second_order_only)
+            found.append(("integrator", f"{self.integrator} needs a state of positions and velocities; model "
+                                        f"{self.model} is first order: expected one of {', '.join(usable)}"))
         return found
 
     @property
@@ -207,7 +243,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     if not isinstance(name, str) or not name:
         problems.add("name", "missing; expected the scene's name as a string")
     description = doc.get("description", "")
-    manager = read_table(ManagerSettings, doc.get("manager"), "manager", problems)
+    manager = _read_manager(doc.get("manager"), problems)
     outputs = read_table(OutputSettings, doc.get("outputs", {}), "outputs", problems)
 
     subsystems: dict[str, SubsystemScene] = {}
@@ -215,7 +251,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     if not isinstance(tables, dict) or not tables:
         problems.add("subsystems", "expected at least one [subsystems.<name>] table")
         tables = {}
-    generic = ("model", "integrator", "micro_step", "comm_ratio")
+    generic = ("model", "integrator", "micro_step", "comm_ratio", "extrapolation")
     for sub_name, table in tables.items():
         key = f"subsystems.{sub_name}"
         if not isinstance(table, dict):
@@ -257,6 +293,19 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     return Scene(name, description, path, overrides, doc, manager, outputs, subsystems, couplings)
 
 
+def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
+    """``[manager]`` with its ``correction`` and ``spikes`` sub-tables."""
+    parts = ("correction", "spikes")
+    manager = read_table(ManagerSettings, table, "manager", problems, skip=parts)
+    if manager is None:
+        return None
+    settings = {}
+    for part, cls in zip(parts, (CorrectionSettings, SpikeSettings)):
+        if part in table:
+            settings[part] = read_table(cls, table[part], f"manager.{part}", problems)
+    return dataclasses.replace(manager, **{k: v for k, v in settings.items() if v is not None})
+
+
 def _check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
                   problems: Problems) -> None:
     _whole_ns(manager.macro_step, "manager.macro_step", problems)
@@ -291,3 +340,33 @@ def _check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tab
             elif sub in subsystems and point not in subsystems[sub].spec.points:
                 problems.add(full_key, f"subsystem {sub!r} has no point {point!r}; expected one of "
                              f"{', '.join(subsystems[sub].spec.points)}")
+        if all(sub in subsystems for sub, _ in coupling.sides().values()):
+            _check_coupled_models(coupling, subsystems, problems)
+
+
+def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """The models on both sides can play their role with signals of this many components."""
+    key = f"couplings.{coupling.name}"
+    models = {}
+    for side, (sub, _) in coupling.sides().items():
+        role = side.removesuffix("_side")
+        model = models[role] = MODELS[subsystems[sub].settings.model]
+        if role not in model.coupling_roles:
+            problems.add(f"{key}.{side}", f"model {model.name} cannot be the {role} side of a coupling")
+        if coupling.dimension != model.point_dimension:
+            problems.add(f"{key}.force", f"model {model.name} of {sub} exchanges {model.point_dimension}-component "
+                         f"signals, got {coupling.dimension} (one name, or a list of names per signal)")
+    force_model = models["force"]
+    if not coupling.effects and not force_model.provides_force:
+        problems.add(f"{key}.effects", "expected the coupling element as named effects, e.g. effects.kc = "
+                     f"{{ type = \"spring\", stiffness = 100.0 }} (model {force_model.name} computes no coupling force itself)")
+    if coupling.effects and force_model.provides_force:
+        problems.add(f"{key}.effects", f"model {force_model.name} computes the coupling force itself; remove effects")
+    if force_model.starts_at_rest and not hasattr(models["motion"], "rest_state"):
+        problems.add(f"{key}.motion_side", f"model {force_model.name} starts in equilibrium with its load; model "
+                     f"{models['motion'].name} cannot state the load at rest")
+    if coupling.dimension == 1:
+        for placed in coupling.effects:
+            if placed.effect.free_length != 0.0:
+                problems.add(f"{key}.effects.{placed.name.split('.', 1)[1]}.free_length",
+                             "expected 0 for points on a line (a free length needs points in the plane)")

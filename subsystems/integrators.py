@@ -1,13 +1,22 @@
 """Fixed-step integrators. One class per method; ``INTEGRATORS`` maps scene names to classes.
 
-An integrator is bound to one model and one state vector ``z = [x, v]`` (updated in place) and
-advances it by one micro-step ``h`` with the inputs evaluated where the method needs them.
+An integrator is bound to one model and one state vector ``z`` (updated in place) and advances it by
+one micro-step ``h`` with the inputs evaluated where the method needs them. Second-order models
+(``model.second_order``) have ``z = [x, v]`` and give the acceleration; first-order models (a
+hydraulic circuit) give ``ż`` itself. Symplectic Euler needs the second-order form.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from subsystems.inputs import InputPolynomial
+
+
+def state_derivative(model, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``ż`` at time t [s] with input values ``w``: ``[v, a]`` for a second-order model."""
+    if model.second_order:
+        return np.concatenate((z[model.n_dof:], model.acceleration(t, z, w)))
+    return model.derivative(t, z, w)
 
 
 class SymplecticEuler:
@@ -17,6 +26,7 @@ class SymplecticEuler:
     """
 
     name = "symplectic_euler"
+    second_order_only = True
 
     def __init__(self, model, z: np.ndarray) -> None:
         n = model.n_dof
@@ -32,17 +42,17 @@ class SymplecticEuler:
 
 
 class RungeKutta4:
-    """Classical fourth-order Runge–Kutta on ``z' = [v, a(t, x, v, u(t))]``; inputs at t, t + h/2, t + h."""
+    """Classical fourth-order Runge–Kutta on ``ż = f(t, z, u(t))``; inputs at t, t + h/2, t + h."""
 
     name = "rk4"
+    second_order_only = False
 
     def __init__(self, model, z: np.ndarray) -> None:
         self.model = model
         self.z = z
-        self.n = model.n_dof
 
     def _derivative(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        return np.concatenate((z[self.n:], self.model.acceleration(t, z, w)))
+        return state_derivative(self.model, t, z, w)
 
     def step(self, t: float, tau: float, h: float, inputs: InputPolynomial) -> None:
         z = self.z

@@ -1,13 +1,15 @@
-"""Point masses on a line with springs, dampers and external forces (the papers' linear oscillators).
+"""Point masses on a line with springs, dampers and external forces (the papers' oscillators).
 
 Equations of motion (paper 000 Eq. 3, per subsystem)::
 
-    M x'' = -K_xx x - C_xx v  -  K_xt x*  -  C_xt v*  +  B_f f*  +  f_e(t)
+    M x'' = -K_xx x - C_xx v  -  K_xt x*  -  C_xt v*  +  B_f f*  +  f_e(t)  +  f_nl(x, v, x*, v*)
 
 where ``x*, v*`` are the positions and velocities of the *terminals* (remote bodies whose motion
 arrives as inputs, paper 000 Fig. 2), ``f*`` the input forces and ``f_e`` the external forces. The
 stiffness and damping matrices are stamped over the point coordinates ``q = [x, x*]`` by the linear
-effects the scene names; effects it does not name, or names with a zero coefficient, are not built.
+effects the scene names; nonlinear two-point effects (paper 002 Eqs. 22–23) add ``f_nl``, evaluated
+from their force laws only when the scene names one, so a linear scene runs the matrix products
+alone. Effects the scene does not name, or names with a zero coefficient, are not built.
 """
 from __future__ import annotations
 
@@ -46,6 +48,11 @@ class MassesModel:
     """A subsystem of point masses: the dynamics, outputs and energy of paper 000 Eq. 3 / paper 002 Fig. 7."""
 
     name = "masses"
+    second_order = True  # the state is z = [x, v]
+    point_dimension = 1  # points move on a line: coupling signals are scalars
+    coupling_roles = frozenset({"force", "motion"})
+    provides_force = False  # a coupling force needs a coupling element (effects)
+    starts_at_rest = False
 
     @classmethod
     def read(cls, table: dict, key: str, problems: Problems) -> MassesSpec | None:
@@ -69,6 +76,10 @@ class MassesModel:
             effect_key = f"{key}.effects.{effect_name}"
             effect = read_effect(effect_table, effect_key, problems)
             if effect is None:
+                continue
+            if getattr(effect, "free_length", 0.0) != 0.0:
+                problems.add(f"{effect_key}.free_length", "expected 0 for points on a line (a free length "
+                             "needs points in the plane)")
                 continue
             endpoints = effect_table.get("bodies", [])
             if (not isinstance(endpoints, list) or len(endpoints) not in effect.endpoint_counts
@@ -98,14 +109,36 @@ class MassesModel:
         point_index = {name: i for i, name in enumerate(self.body_names)}
         point_index.update({t.name: n + j for j, t in enumerate(terminals)})
 
+        scalar = [t.position_inputs for t in terminals] + [f.ports for f in attachments.force_inputs]
+        scalar += [m.position_ports for m in attachments.motion_outputs] + [o.ports for o in attachments.force_outputs]
+        if any(len(ports) != 1 for ports in scalar):
+            raise ValueError(f"the {self.name} model moves on a line: coupling signals must be scalars, got {scalar}")
+        if any(not o.effects for o in attachments.force_outputs):
+            raise ValueError(f"the {self.name} model computes a coupling force only from coupling effects")
         self.inputs: tuple[Port, ...] = tuple(
-            [Port(p, q) for t in terminals for p, q in ((t.position_input, "position"), (t.velocity_input, "velocity"))]
-            + [Port(f.port, "force") for f in attachments.force_inputs])
+            [Port(p[0], q) for t in terminals for p, q in ((t.position_inputs, "position"), (t.velocity_inputs, "velocity"))]
+            + [Port(f.ports[0], "force") for f in attachments.force_inputs])
         input_index = {p.name: j for j, p in enumerate(self.inputs)}
         n_in = len(self.inputs)
 
         placed = [e for e in spec.effects + tuple(PlacedEffect(*t) for t in attachments.effects) if e.effect.active()]
         self.effects: tuple[str, ...] = tuple(e.name for e in placed)
+
+        def coordinates(point: str | None) -> tuple[int, int] | None:
+            """Indices of a point's position and velocity in ``s = [x, v, w]`` (None: the ground)."""
+            if point is None:
+                return None
+            i = point_index[point]
+            if i < n:
+                return i, n + i
+            t = terminals[i - n]
+            return 2 * n + input_index[t.position_inputs[0]], 2 * n + input_index[t.velocity_inputs[0]]
+
+        # nonlinear two-point elements: (effect, coordinates of a, of b, body index of a, of b)
+        self._nonlinear = tuple(
+            (e.effect, coordinates(e.endpoints[0]), coordinates(e.endpoints[1]),
+             *(point_index[p] if p is not None and point_index[p] < n else None for p in e.endpoints))
+            for e in placed if e.effect.kind == "nonlinear")
 
         def indices(e: PlacedEffect) -> list[int | None]:
             return [None if p is None else point_index[p] for p in e.endpoints]
@@ -128,38 +161,47 @@ class MassesModel:
         A_f = np.hstack((-self.K, -self.C))
         B_w = np.zeros((n, n_in))
         for j, t in enumerate(terminals):
-            B_w[:, input_index[t.position_input]] = -Kq[:n, n + j]
-            B_w[:, input_index[t.velocity_input]] = -Cq[:n, n + j]
+            B_w[:, input_index[t.position_inputs[0]]] = -Kq[:n, n + j]
+            B_w[:, input_index[t.velocity_inputs[0]]] = -Cq[:n, n + j]
         for f in attachments.force_inputs:
-            B_w[point_index[f.body], input_index[f.port]] += f.sign
+            B_w[point_index[f.point], input_index[f.ports[0]]] += f.sign
         self._A_a = Minv @ A_f
         self._B_a = Minv @ B_w
+        self._inverse_mass = np.diag(Minv).copy()
         self.external = tuple((e.effect, point_index[e.endpoints[0]]) for e in placed if e.effect.kind == "external")
         self._E_a = Minv[:, [body for _, body in self.external]]
 
         # outputs y = C_y z + D_y w, then the energy 0.5 s^T Q s with s = [x, v, w]
         rows_z, rows_w, ports = [], [], []
         for m in attachments.motion_outputs:
-            i = point_index[m.body]
-            for port, column in ((m.position_port, i), (m.velocity_port, n + i)):
+            i = point_index[m.point]
+            for port, column in ((m.position_ports[0], i), (m.velocity_ports[0], n + i)):
                 rows_z.append(np.eye(2 * n)[column])
                 rows_w.append(np.zeros(n_in))
                 ports.append(Port(port, "position" if column < n else "velocity"))
         by_name = {e.name: e for e in placed}
+        nonlinear_index = {e.name: k for k, e in enumerate(e for e in placed if e.effect.kind == "nonlinear")}
+        self._nonlinear_outputs = []  # (output row, nonlinear element, sign of its force on the output's point)
         for out in attachments.force_outputs:
             Ke, Ce = stamped([by_name[name] for name in out.effects if name in by_name])
-            i = point_index[out.body]
+            i = point_index[out.point]
             row_z = np.concatenate((-Ke[i, :n], -Ce[i, :n]))
             row_w = np.zeros(n_in)
             for j, t in enumerate(terminals):
-                row_w[input_index[t.position_input]] = -Ke[i, n + j]
-                row_w[input_index[t.velocity_input]] = -Ce[i, n + j]
+                row_w[input_index[t.position_inputs[0]]] = -Ke[i, n + j]
+                row_w[input_index[t.velocity_inputs[0]]] = -Ce[i, n + j]
+            feedthrough = bool(np.any(row_w != 0.0))
+            for name in out.effects:
+                if name in nonlinear_index:
+                    endpoints = by_name[name].endpoints
+                    self._nonlinear_outputs.append((len(ports), nonlinear_index[name], 1.0 if endpoints[0] == out.point else -1.0))
+                    feedthrough |= any(p is not None and point_index[p] >= n for p in endpoints)
             rows_z.append(row_z)
             rows_w.append(row_w)
-            ports.append(Port(out.port, "force", feedthrough=bool(np.any(row_w != 0.0))))
+            ports.append(Port(out.ports[0], "force", feedthrough=feedthrough))
         self.outputs: tuple[Port, ...] = tuple(ports) + (Port("energy", "energy"),)
         Q = np.zeros((2 * n + n_in, 2 * n + n_in))
-        q_index = list(range(n)) + [2 * n + input_index[t.position_input] for t in terminals]
+        q_index = list(range(n)) + [2 * n + input_index[t.position_inputs[0]] for t in terminals]
         Q[np.ix_(q_index, q_index)] = Kq
         Q[n:2 * n, n:2 * n] = self.M
         # one product gives the linear outputs and Q s:  [C_y D_y; Q/2] s
@@ -173,12 +215,33 @@ class MassesModel:
         """``z0 = [x0, v0]``."""
         return self._z0.copy()
 
+    @property
+    def nonlinear(self) -> bool:
+        """True when a nonlinear effect is built (the matrices M, C, K then do not describe the model)."""
+        return bool(self._nonlinear)
+
     def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """``a = M⁻¹ (A_f z + B_w w + E f_e(t))`` at time t [s]."""
+        """``a = M⁻¹ (A_f z + B_w w + E f_e(t) + f_nl)`` at time t [s]."""
         a = self._A_a.dot(z) + self._B_a.dot(w)
         if self.external:
             a = a + self._E_a.dot([effect.force(t) for effect, _ in self.external])
+        if self._nonlinear:
+            f = np.zeros(self.n_dof)
+            for (effect, _, _, body_a, body_b), force in zip(self._nonlinear, self._element_forces(np.concatenate((z, w)))):
+                if body_a is not None:
+                    f[body_a] += force
+                if body_b is not None:
+                    f[body_b] -= force
+            a = a + self._inverse_mass * f
         return a
+
+    def _element_forces(self, s: np.ndarray) -> list[float]:
+        """Force law of every nonlinear element at ``s = [x, v, w]`` (on its point a)."""
+        forces = []
+        for effect, a, b, _, _ in self._nonlinear:
+            elongation, rate = (s[a[0]] - s[b[0]], s[a[1]] - s[b[1]]) if b is not None else (s[a[0]], s[a[1]])
+            forces.append(effect.force(float(elongation), float(rate)))
+        return forces
 
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Coupling outputs followed by the mechanical energy [J] of the subsystem (incl. its coupling springs)."""
@@ -187,4 +250,10 @@ class MassesModel:
         k = self._n_linear
         y = r[:k + 1]
         y[k] = r[k:].dot(s)  # energy 0.5 s^T Q s [J]
+        if self._nonlinear:
+            forces = self._element_forces(s)
+            for row, element, sign in self._nonlinear_outputs:
+                y[row] += sign * forces[element]
+            for effect, a, b, _, _ in self._nonlinear:
+                y[k] += effect.potential(float(s[a[0]] - (s[b[0]] if b is not None else 0.0)))
         return y

@@ -1,9 +1,10 @@
 """Ports: the named, unit-carrying signals a subsystem exchanges, and how couplings attach to a model.
 
 Sign convention of power through a port (the one place it is stated): a force port carries the force
-that a coupling element exerts on the body it acts on; the power that flows *into* a subsystem
-through a force input is ``force * velocity`` of the body the force is applied to. Residual power is
-computed from these ports by :func:`manager.residual.residual_power` only.
+that a coupling element exerts on the point it acts on; the power that flows *into* a subsystem
+through a force input is ``force · velocity`` of the point the force is applied to (a dot product
+for a point in the plane, whose signals have one port per component). Residual power is computed
+from these ports by :func:`manager.residual.residual_power` only.
 """
 from __future__ import annotations
 
@@ -30,42 +31,59 @@ class Port:
 
 @dataclass(frozen=True)
 class Terminal:
-    """A remote body seen from inside a subsystem: its exchanged position and velocity inputs.
+    """A remote point seen from inside a subsystem: its exchanged position and velocity inputs.
 
-    Effects can act between a local body and a terminal (the coupling element of a force–displacement
-    coupling, paper 000 Fig. 2); the terminal moves as the extrapolated inputs say.
+    Effects can act between a local point and a terminal (the coupling element of a force–displacement
+    coupling, paper 000 Fig. 2); the terminal moves as the extrapolated inputs say. A vector signal
+    (a point in the plane) has one port per component, in the order the scene lists them.
     """
 
     name: str
-    position_input: str
-    velocity_input: str
+    position_inputs: tuple[str, ...]
+    velocity_inputs: tuple[str, ...]
 
 
 @dataclass(frozen=True)
 class ForceInput:
-    """An input force applied to a local body, multiplied by ``sign`` (−1 for the reaction of a coupling force)."""
+    """An input force (one port per component) applied to a local point, multiplied by ``sign``
+    (−1 for the reaction of a coupling force)."""
 
-    port: str
-    body: str
+    ports: tuple[str, ...]
+    point: str
     sign: float
 
 
 @dataclass(frozen=True)
 class MotionOutput:
-    """Outputs the position and velocity of a local body."""
+    """Outputs the position and velocity (one port per component) of a local point."""
 
-    body: str
-    position_port: str
-    velocity_port: str
+    point: str
+    position_ports: tuple[str, ...]
+    velocity_ports: tuple[str, ...]
 
 
 @dataclass(frozen=True)
 class EffectForceOutput:
-    """Outputs the total force that the named effects exert on a local body."""
+    """Outputs the total force (one port per component) that the named effects exert on a local point.
 
-    port: str
-    body: str
+    With no effects named, the model itself provides the force at the point (a force-side model whose
+    coupling force is part of its own physics, e.g. a hydraulic actuator)."""
+
+    ports: tuple[str, ...]
+    point: str
     effects: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class RestState:
+    """The state of a coupling point of the motion side when the whole system starts at rest: its
+    position (one value per component) and the coupling force (our sign convention: the force-side
+    output) that holds the motion side in static equilibrium there. Given to force-side models that
+    start in equilibrium with their load (``starts_at_rest``)."""
+
+    point: str
+    position: tuple[float, ...]
+    force: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -77,10 +95,12 @@ class Attachments:
     motion_outputs: tuple[MotionOutput, ...] = ()
     force_outputs: tuple[EffectForceOutput, ...] = ()
     effects: tuple = ()  # (name, effect, endpoints) triples added by couplings; endpoints name bodies/terminals
+    rest_states: tuple[RestState, ...] = ()
 
     def __add__(self, other: "Attachments") -> "Attachments":
         """Both sets of attachments; an output two couplings share (one motion side) appears once."""
         return Attachments(*(a + tuple(x for x in b if x not in a) for a, b in zip(self._parts(), other._parts())))
 
     def _parts(self) -> tuple:
-        return (self.terminals, self.force_inputs, self.motion_outputs, self.force_outputs, self.effects)
+        return (self.terminals, self.force_inputs, self.motion_outputs, self.force_outputs, self.effects,
+                self.rest_states)

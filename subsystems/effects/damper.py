@@ -18,6 +18,7 @@ class Damper:
 
     kind: ClassVar[str] = "linear"
     endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)
+    free_length: ClassVar[float] = 0.0
 
     def active(self) -> bool:
         return self.damping != 0.0
@@ -25,3 +26,10 @@ class Damper:
     def stamp(self, K: np.ndarray, C: np.ndarray, a: int, b: int | None) -> None:
         """Add this damper to the damping matrix of the point coordinates."""
         stamp_pair(C, a, b, self.damping)
+
+    def force(self, elongation: float, rate: float) -> float:
+        """Force [N] on point a along the elongation, for elongation [m] and its rate [m/s]."""
+        return -self.damping * rate
+
+    def potential(self, elongation: float) -> float:
+        return 0.0
