@@ -62,8 +62,8 @@ class Corrector(Protocol):
     def observe(self, tick: int, trajectories: list[np.ndarray], residual_energy: np.ndarray) -> None:
         """Outputs due at ``tick`` are committed and the residuals of the bonds due there evaluated."""
 
-    def log(self):
-        """What the corrector did, for the run record."""
+    def log(self) -> tuple:
+        """What the corrector did, for the run record (one entry per corrected point)."""
 
 
 @dataclass
@@ -77,7 +77,7 @@ class RunRecord:
     send_time_ns: np.ndarray  # (n_ticks,) wall clock (perf_counter_ns) when step j's inputs went out
     lateness_ns: np.ndarray | None  # (n_ticks,) real-time mode: send time minus deadline
     missed_deadlines: int
-    corrections: tuple = ()  # each corrector's log (manager.correction.CorrectionLog)
+    corrections: tuple = ()  # the correctors' logs (manager.correction.CorrectionLog), one per corrected point
 
 
 def _decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
@@ -191,4 +191,4 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
     return RunRecord(plan, traj, p_res, e_res, send_time,
                      None if pacer is None else pacer.lateness_ns,
-                     0 if pacer is None else pacer.missed, tuple(c.log() for c in correctors))
+                     0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))

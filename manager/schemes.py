@@ -4,6 +4,7 @@ from __future__ import annotations
 from typing import Callable
 
 from manager.build import build_subsystems
+from manager.correction import build_correctors
 from manager.endpoint import SubsystemEndpoint
 from manager.jacobi import jacobi
 from manager.pacing import Pacer
@@ -20,10 +21,11 @@ def plan_scene(scene: Scene) -> tuple[Plan, dict]:
 
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
                 progress: Callable[[int], None] | None = None):
-    """The scheme generator of a run; paced to deadlines ``start_ns + j * macro_step`` when ``realtime``
-    (``start_ns`` on the shared monotonic clock; None: the first step starts the clock)."""
+    """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
+    ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on the shared monotonic clock; None: the
+    first step starts the clock)."""
     pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns) if realtime else None
-    return jacobi(plan, pacer, progress)
+    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction))
 
 
 def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:

@@ -122,6 +122,23 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
         "digest": digest(record),
         "overrides": list(scene.overrides),
     }
+    summary["correction"] = correction_summary(scene, record)
     if reference_note:
         summary["reference_note"] = reference_note
     return summary
+
+
+def correction_summary(scene, record: RunRecord) -> dict | None:
+    """The energy correction's settings and, per corrected point, the work it injected (None: no correction)."""
+    if not record.corrections:
+        return None
+    settings = scene.manager.correction
+    groups = {}
+    for log in record.corrections:
+        norms = np.linalg.norm(log.force, axis=1)
+        groups[log.name] = {"subsystem": log.subsystem, "mu": dict(zip(log.bonds, log.mu)),
+                            "work_injected": float(log.work[np.isfinite(log.work)][-1]),
+                            "uncorrected_energy": float(log.uncorrected_energy[np.isfinite(log.uncorrected_energy)][-1]),
+                            "max_force": float(norms.max()), "capped_steps": log.capped_steps, "steps": log.steps}
+    return {"mu": settings.mu, "nu": settings.nu, "cap_fraction": settings.cap_fraction, "cap_force": settings.cap_force,
+            "work_injected": sum(g["work_injected"] for g in groups.values()), "points": groups}
