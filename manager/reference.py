@@ -1,19 +1,30 @@
-"""References a run is compared with: the analytic solution and the monolithic run of the same scene.
+"""References a run is compared with: the analytic solution and the monolithic run of a linear
+point-mass scene, and for any scene the coupled equations integrated by scipy ``solve_ivp``.
 
-Both are expressed through the monolithic model (``manager.build.build_monolithic``), whose outputs
-are every coupling signal and the energy, so a signal is computed by the same output equations in
-the co-simulation, the monolithic run and the analytic reference.
+The analytic and monolithic references are expressed through the monolithic model
+(``manager.build.build_monolithic``), whose outputs are every coupling signal and the energy; the
+``solve_ivp`` reference resolves the couplings of the subsystems themselves. Either way a signal is
+computed by the same output equations as in the co-simulation.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 from compensation.analytic import linear_response
-from manager.build import build_monolithic
+from manager.build import build_monolithic, build_subsystems
+from manager.plan import compile_plan
 from manager.scene import Scene
 from subsystems.inputs import InputPolynomial
+from subsystems.integrators import state_derivative
+
+# LSODA switches between Adams (non-stiff) and BDF (stiff) by itself: the hydraulic crane is stiff (valve
+# flow ~4000 1/s), DOP853 needs 114 s there and LSODA 3 s for the same result (docs/numerics.md, "References")
+SOLVE_IVP_METHOD = "LSODA"
+SOLVE_IVP_RTOL = 1e-10  # relative tolerance of the solve_ivp reference
+SOLVE_IVP_ATOL = 1e-10  # absolute tolerance, in the units of each state (m, m/s, rad, rad/s, Pa)
 
 
 @dataclass(frozen=True)
@@ -66,3 +77,66 @@ def monolithic_reference(scene: Scene) -> Reference:
     for k in range(n_ticks):
         outputs[k + 1] = mono.advance(k * base, (k + 1) * base, no_inputs)
     return _reference("monolithic", outputs, mono.outputs)
+
+
+class CoupledSystem:
+    """Every subsystem of a scene as one ODE, the couplings resolved exactly at every evaluation.
+
+    At time t the outputs are evaluated in the plan's initialisation order (subsystems without
+    feedthrough first, then those whose feedthrough outputs need them), so every input is the exact
+    current value of its source output: the continuous system the co-simulation approximates,
+    without a hand-written monolithic model.
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        subsystems = build_subsystems(scene)
+        self.plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
+        self.models = [subsystems[s.name].model for s in self.plan.subsystems]
+        states = [m.initial_state() for m in self.models]
+        bounds = np.cumsum([0] + [len(z) for z in states])
+        self.slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        self.z0 = np.concatenate(states)
+
+    def _inputs(self, i: int, outputs: list) -> np.ndarray:
+        s = self.plan.subsystems[i]
+        w = np.zeros(len(s.inputs))
+        for feed in s.feeds:
+            if outputs[feed.source] is not None:
+                w[list(feed.inputs)] = outputs[feed.source][list(feed.outputs)]
+        return w
+
+    def resolve(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
+        """Every subsystem's input values at time t [s] and state ``Z``."""
+        outputs: list = [None] * len(self.models)
+        for round_ in self.plan.init_rounds:
+            for i in round_:
+                outputs[i] = self.models[i].outputs_at(t, Z[self.slices[i]], self._inputs(i, outputs))
+        return [self._inputs(i, outputs) for i in range(len(self.models))]
+
+    def derivative(self, t: float, Z: np.ndarray) -> np.ndarray:
+        inputs = self.resolve(t, Z)
+        return np.concatenate([state_derivative(m, t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)])
+
+    def outputs(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
+        """Every subsystem's outputs (energy included) with the exact inputs."""
+        inputs = self.resolve(t, Z)
+        return [m.outputs_at(t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)]
+
+
+def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL) -> Reference:
+    """The scene's coupled equations (:class:`CoupledSystem`) integrated by scipy ``solve_ivp`` (LSODA,
+    tolerances ``rtol``, ``atol``), sampled on the base macro-step grid."""
+    system = CoupledSystem(scene)
+    base = scene.manager.macro_step_ns
+    n_ticks = scene.manager.duration_ns // base
+    t = np.arange(n_ticks + 1) * (base * 1e-9)
+    # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
+    # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
+    solution = solve_ivp(system.derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
+                         rtol=rtol, atol=atol, first_step=t[1])
+    if not solution.success:
+        raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
+    samples = [system.outputs(tk, Z) for tk, Z in zip(t, solution.y.T)]
+    signals = {name: np.array([y[sub][j] for y in samples]) for name, (sub, j) in system.plan.signals.items()}
+    energy = np.array([sum(y_i[-1] for y_i in y) for y in samples])
+    return Reference("solve_ivp", signals, energy)

@@ -6,7 +6,7 @@ from typing import Callable
 
 from manager.build import monolithic_unavailable
 from manager.jacobi import RunRecord
-from manager.reference import analytic_reference, monolithic_reference
+from manager.reference import analytic_reference, monolithic_reference, solve_ivp_reference
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
@@ -40,6 +40,8 @@ def references(scene: Scene) -> tuple[dict, str | None]:
     """The references the scene asks for, or why there are none."""
     if scene.outputs.reference == "none":
         return {}, None
+    if scene.outputs.reference == "solve_ivp":
+        return {"solve_ivp": solve_ivp_reference(scene)}, None
     reason = monolithic_unavailable(scene)
     if reason:
         return {}, f"no analytic reference: {reason}"

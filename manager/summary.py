@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from manager.jacobi import RunRecord
+from manager.monitor import residual_power_spikes
 from manager.reference import Reference
 
 STABLE_GROWTH_RATE = 0.01  # [1/s]
@@ -72,14 +73,14 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
     finite = all(np.isfinite(tr).all() for tr in record.trajectories)
     growth = energy_growth_rate(t, energy) if finite else math.inf
     signals = {}
-    analytic = references.get("analytic")
+    reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
     for name in scene.outputs.signals:
         sub_index, output = plan.signals[name]
         sub = plan.subsystems[sub_index]
         x = record.trajectories[sub_index][:, output]
         entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
-        if analytic is not None:
-            ref = analytic.signals[name][::sub.ratio]
+        if reference is not None:
+            ref = reference.signals[name][::sub.ratio]
             entry["nrms"] = nrms(x, ref) if finite else None
             if "monolithic" in references:
                 entry["nrms_monolithic"] = nrms(references["monolithic"].signals[name][::sub.ratio], ref)
@@ -90,8 +91,8 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
         "max_relative_drift": float(np.max(np.abs(energy - e0)) / e0) if e0 > 0 and finite else None,
         "growth_rate_per_s": growth,
     }
-    if analytic is not None:
-        energy_summary["reference_final"] = float(analytic.energy[-1])
+    if reference is not None:
+        energy_summary["reference_final"] = float(reference.energy[-1])
     steps = np.diff(record.send_time_ns)
     timing = {"wall_s": wall_s, "steps_per_s": plan.n_ticks / wall_s}
     if len(steps):
@@ -108,9 +109,10 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
         "duration": scene.manager.duration,
         "steps": plan.n_ticks,
         "extrapolation": scene.manager.extrapolation,
+        "reference": None if reference is None else reference.kind,
         "subsystems": {s.name: {"comm_step": s.ratio * scene.manager.macro_step,
                                 "micro_step": scene.subsystems[s.name].settings.micro_step,
-                                "integrator": scene.subsystems[s.name].settings.integrator}
+                                "integrator": scene.subsystems[s.name].settings.integrator, "extrapolation": s.order}
                        for s in plan.subsystems},
         "effects": [f"{s.name}.{e}" for s in plan.subsystems for e in s.effects],
         "stable": bool(finite and growth < STABLE_GROWTH_RATE),
@@ -122,6 +124,9 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
         "digest": digest(record),
         "overrides": list(scene.overrides),
     }
+    spikes = residual_power_spikes(record, scene.manager.spikes)
+    summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}
+    summary["reliable"] = not any(spikes.values())
     summary["correction"] = correction_summary(scene, record)
     if reference_note:
         summary["reference_note"] = reference_note
