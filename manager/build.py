@@ -1,6 +1,7 @@
 """Turn a scene into runnable objects: co-simulation subsystems, the monolithic model, the linear model."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from functools import reduce
 
@@ -17,21 +18,34 @@ from subsystems.subsystem import Subsystem
 
 
 def attachments(scene: Scene) -> dict[str, Attachments]:
-    """What every coupling adds to every subsystem, in scene order."""
+    """What every coupling adds to every subsystem, in scene order.
+
+    A force-side model that starts in equilibrium with its load (``starts_at_rest``) also gets the
+    motion side's rest state: its point's initial position and the coupling force that holds it.
+    """
     result = {name: Attachments() for name in scene.subsystems}
     for coupling in scene.couplings.values():
         for sub, added in coupling.attachments().items():
             result[sub] = result[sub] + added
+    for coupling in scene.couplings.values():
+        if MODELS[scene.subsystems[coupling.force_sub].settings.model].starts_at_rest:
+            motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])
+            rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
+            result[coupling.force_sub] = result[coupling.force_sub] + Attachments(rest_states=(rest,))
     return result
+
+
+def _model(scene: Scene, name: str, attached: Attachments):
+    sub = scene.subsystems[name]
+    return MODELS[sub.settings.model](sub.spec, attached)
 
 
 def build_subsystem(scene: Scene, name: str, attached: Attachments | None = None) -> Subsystem:
     """The subsystem ``name`` of the scene, with only the effects the scene names."""
-    sub = scene.subsystems[name]
     if attached is None:
         attached = attachments(scene)[name]
-    model = MODELS[sub.settings.model](sub.spec, attached)
-    return Subsystem(name, model, INTEGRATORS[sub.settings.integrator], sub.settings.micro_step_ns)
+    settings = scene.subsystems[name].settings
+    return Subsystem(name, _model(scene, name, attached), INTEGRATORS[settings.integrator], settings.micro_step_ns)
 
 
 def build_subsystems(scene: Scene) -> dict[str, Subsystem]:

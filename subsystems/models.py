@@ -9,7 +9,9 @@ signals), ``coupling_roles`` (force and/or motion side), ``provides_force`` (com
 force itself, without a coupling element) and ``starts_at_rest`` (starts in equilibrium with the
 load of its coupling: needs the motion side's ``rest_state``).
 """
+from subsystems.crane_arm import CraneArmModel
+from subsystems.hydraulic_cylinder import HydraulicCylinderModel
 from subsystems.masses import MassesModel
 from subsystems.pendulum import PendulumModel
 
-MODELS: dict[str, type] = {cls.name: cls for cls in (MassesModel, PendulumModel)}
+MODELS: dict[str, type] = {cls.name: cls for cls in (MassesModel, PendulumModel, CraneArmModel, HydraulicCylinderModel)}
