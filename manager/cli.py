@@ -80,6 +80,12 @@ def _print_summary(summary: dict) -> None:
     row("energy growth rate [1/s]", f"{energy['growth_rate_per_s']:.3g}")
     for bond, value in summary["residual_energy"].items():
         row(f"residual energy δE, bond {bond} [J]", f"{value:.6g}")
+    for bond, intervals in summary["residual_power_spikes"].items():
+        if intervals:
+            row(f"δP spikes, bond {bond} [s]", ", ".join(f"{i['start']:.3f}–{i['end']:.3f}" for i in intervals))
+    row("reliable (no δP spike)", "yes" if summary["reliable"] else "NO")
+    if summary["correction"] is not None:
+        row("work injected by correction [J]", f"{summary['correction']['work_injected']:.6g}")
     timing = summary["timing"]
     row("wall time [s]", f"{timing['wall_s']:.3f}")
     row("macro-steps per second", f"{timing['steps_per_s']:.0f}")

@@ -54,8 +54,8 @@ class CorrectionSettings:
 class SpikeSettings:
     """The ``[manager.spikes]`` table: the residual-power spike detector (see manager.monitor)."""
 
-    window: float = field(default=1.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # trailing window [s]
-    threshold: float = field(default=20.0, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # x trailing scale
+    window: float = field(default=2.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # trailing window [s]
+    threshold: float = field(default=50.0, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # x baseline
     merge_gap: float = field(default=0.1, metadata=quantity("s", minimum=0.0))  # flagged points closer than this join [s]
 
 

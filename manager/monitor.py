@@ -1,0 +1,85 @@
+"""Monitoring of the residual power: spikes that mark unreliable intervals (paper 002 §3.1, Fig. 37).
+
+The paper reads a co-simulation as unreliable where the residual power δP of a bond changes suddenly
+("the presence of sudden changes in the indicator can be a symptom of unstable behaviour"). The
+detector makes that reading mechanical, per bond and causally (it uses only past points, so the
+manager could run it while stepping):
+
+* the *baseline* at a communication point is the median of |δP| over the preceding ``window``
+  seconds, over the points that were not themselves flagged (a burst does not raise its own
+  baseline, so the whole burst is flagged, not only its onset);
+* a point is flagged when ``|δP| > threshold × baseline``; no point is flagged before a full window
+  of history exists (a run that starts at rest has no meaningful baseline at first);
+* flagged points closer than ``merge_gap`` seconds form one interval.
+
+The parameters are the scene's ``[manager.spikes]``. Defaults: a 2 s window (longer than the beats
+of the four-mass chain's residual power, whose quiet phases make a 1 s baseline flag the next beat)
+and a threshold of 50: over the regular runs of every bundled scene the largest ratio of |δP| to its
+baseline is 17 (two_mass_chirp passing resonance), over the 11.5 ms hydraulic crane 1.7·10³
+(docs/numerics.md, "Residual-power spikes").
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SpikeInterval:
+    """An interval of flagged residual power on one bond."""
+
+    start: float  # [s] first flagged point
+    end: float  # [s] last flagged point
+    peak_time: float  # [s]
+    peak: float  # [W] δP at the largest |δP| of the interval
+    points: int  # flagged communication points in the interval
+
+    def as_dict(self) -> dict:
+        return {"start": self.start, "end": self.end, "peak_time": self.peak_time, "peak_w": self.peak,
+                "points": self.points}
+
+
+def flag_spikes(t: np.ndarray, p_res: np.ndarray, window: float, threshold: float) -> np.ndarray:
+    """Boolean mask of the flagged points of one bond's δP series ``p_res`` [W] at times ``t`` [s]."""
+    flagged = np.zeros(len(t), dtype=bool)
+    history: deque[tuple[float, float]] = deque()  # (time, |δP|) of unflagged points in the window
+    for i, (time, magnitude) in enumerate(zip(t.tolist(), np.abs(p_res).tolist())):
+        while history and history[0][0] < time - window:
+            history.popleft()
+        if time - t[0] >= window and history:
+            baseline = float(np.median([m for _, m in history]))
+            flagged[i] = magnitude > threshold * baseline
+        if not flagged[i]:
+            history.append((time, magnitude))
+    return flagged
+
+
+def spike_intervals(t: np.ndarray, p_res: np.ndarray, window: float, threshold: float,
+                    merge_gap: float) -> list[SpikeInterval]:
+    """The flagged intervals of one bond, in time order."""
+    flagged = np.flatnonzero(flag_spikes(t, p_res, window, threshold))
+    intervals: list[SpikeInterval] = []
+    groups: list[list[int]] = []
+    for i in flagged:
+        if groups and t[i] - t[groups[-1][-1]] <= merge_gap:
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    for group in groups:
+        peak = group[int(np.argmax(np.abs(p_res[group])))]
+        intervals.append(SpikeInterval(float(t[group[0]]), float(t[group[-1]]), float(t[peak]), float(p_res[peak]),
+                                       len(group)))
+    return intervals
+
+
+def residual_power_spikes(record, settings) -> dict[str, list[SpikeInterval]]:
+    """Flagged intervals of every bond of a run (``settings``: the scene's ``SpikeSettings``)."""
+    step = record.plan.base_step_ns * 1e-9
+    result = {}
+    for b, bond in enumerate(record.plan.bonds):
+        ticks = np.flatnonzero(np.isfinite(record.residual_power[:, b]))[1:]  # t0 carries no residual
+        result[bond.name] = spike_intervals(ticks * step, record.residual_power[ticks, b], settings.window,
+                                            settings.threshold, settings.merge_gap)
+    return result
