@@ -122,13 +122,14 @@ def check_value(annotation: Any, value: Any, key: str, problems: Problems, meta:
         options = [a for a in get_args(annotation) if a is not type(None)]
         if value is None and len(options) < len(get_args(annotation)):
             return None
+        if len(options) == 1:
+            return check_value(options[0], value, key, problems, meta)
         for option in options:
             trial = Problems()
             converted = check_value(option, value, key, trial, meta)
             if not trial:
                 return converted
-        problems.add(key, f"expected {' or '.join(getattr(o, '__name__', str(o)) for o in options)}, "
-                          f"got {_type_name(value)}")
+        problems.add(key, f"expected{' or'.join(_expected(o, meta) for o in options)}, got {_type_name(value)}")
         return None
     raise TypeError(f"unsupported parameter annotation {annotation!r} for {key}")
 
@@ -176,6 +177,10 @@ def _expected(annotation: Any, meta: Any) -> str:
         return f" a number{_bounds_text(dict(meta))}"
     if get_origin(annotation) is Literal:
         return " one of " + ", ".join(repr(a) for a in get_args(annotation))
+    if annotation is str:
+        return " a string"
+    if get_origin(annotation) is tuple:
+        return " an array"
     return " " + getattr(annotation, "__name__", str(annotation))
 
 
