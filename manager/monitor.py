@@ -20,6 +20,7 @@ baseline is 17 (two_mass_chirp passing resonance), over the 11.5 ms hydraulic cr
 """
 from __future__ import annotations
 
+import bisect
 from collections import deque
 from dataclasses import dataclass
 
@@ -44,15 +45,19 @@ class SpikeInterval:
 def flag_spikes(t: np.ndarray, p_res: np.ndarray, window: float, threshold: float) -> np.ndarray:
     """Boolean mask of the flagged points of one bond's δP series ``p_res`` [W] at times ``t`` [s]."""
     flagged = np.zeros(len(t), dtype=bool)
-    history: deque[tuple[float, float]] = deque()  # (time, |δP|) of unflagged points in the window
+    history: deque[tuple[float, float]] = deque()  # (time, |δP|) of the unflagged points in the window
+    ordered: list[float] = []  # the same magnitudes, sorted (a running median in O(log n) + memmove)
+    start = float(t[0]) if len(t) else 0.0
     for i, (time, magnitude) in enumerate(zip(t.tolist(), np.abs(p_res).tolist())):
         while history and history[0][0] < time - window:
-            history.popleft()
-        if time - t[0] >= window and history:
-            baseline = float(np.median([m for _, m in history]))
+            del ordered[bisect.bisect_left(ordered, history.popleft()[1])]
+        if time - start >= window and ordered:
+            middle = len(ordered) // 2
+            baseline = ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
             flagged[i] = magnitude > threshold * baseline
         if not flagged[i]:
             history.append((time, magnitude))
+            bisect.insort(ordered, magnitude)
     return flagged
 
 
