@@ -1,0 +1,33 @@
+"""The residual-power spike detector on synthetic series: what it flags and what it leaves alone."""
+from __future__ import annotations
+
+import numpy as np
+
+from manager.monitor import flag_spikes, spike_intervals
+
+T = np.arange(1, 10_001) * 1e-3  # 10 s of 1 ms points
+
+
+def _oscillating(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return 5.0 * np.sin(2 * np.pi * 3.0 * T) * (1.0 + 0.2 * rng.standard_normal(T.size))
+
+
+def test_regular_residual_power_is_not_flagged():
+    assert not flag_spikes(T, _oscillating(1), window=2.0, threshold=50.0).any()
+
+
+def test_a_burst_is_flagged_as_one_interval_from_onset_to_end():
+    p = _oscillating(2)
+    burst = (T >= 4.0) & (T < 5.0)
+    p[burst] *= 1e4  # a sustained burst: it must not become its own baseline
+    (interval,) = spike_intervals(T, p, window=2.0, threshold=50.0, merge_gap=0.1)
+    assert 4.0 <= interval.start < 4.1 and 4.9 < interval.end < 5.0
+    assert abs(interval.peak) == np.max(np.abs(p))
+
+
+def test_nothing_is_flagged_before_a_full_window_of_history():
+    p = _oscillating(3)
+    p[T < 1.0] *= 1e-6  # a run that starts at rest
+    p[500] = 1e6
+    assert not flag_spikes(T, p, window=2.0, threshold=50.0)[T < 2.0].any()
