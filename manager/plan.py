@@ -63,7 +63,6 @@ class Plan:
     signals: dict[str, tuple[int, int]]  # coupling signal name -> (subsystem, output)
     base_step_ns: int
     n_ticks: int
-    order: int  # extrapolation order of the scene (``SubsystemPlan.order`` may differ per subsystem)
 
     def by_name(self, name: str) -> SubsystemPlan:
         return next(s for s in self.subsystems if s.name == name)
@@ -120,7 +119,7 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
         raise SceneError(scene.path, problems)
     signals = {p.name: (s.index, j) for s in plans for j, p in enumerate(s.outputs) if p.quantity != "energy"}
     return Plan(tuple(plans), tuple(bonds), init_rounds, signals, scene.manager.macro_step_ns,
-                scene.manager.duration_ns // scene.manager.macro_step_ns, scene.manager.extrapolation)
+                scene.manager.duration_ns // scene.manager.macro_step_ns)
 
 
 def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[int, ...], ...]:
