@@ -11,7 +11,7 @@ import pytest
 from compensation.energy_correction import EnergyCorrection, correction_coefficient
 from manager.correction import EnergyCorrector
 from manager.reference import analytic_reference
-from manager.run import plan_scene
+from manager.schemes import plan_scene
 from manager.scene import load_scene
 from manager.summary import total_energy
 from tests.conftest import record_of, summary_of

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from manager.run import plan_scene
+from manager.schemes import plan_scene
 from manager.scene import SceneError, load_scene
 
 
