@@ -61,15 +61,14 @@ class EnergyCorrection:
     nu: float  # ν in [0, 1], Eq. 17
     cap_fraction: float | None  # |f_corr| <= cap_fraction |f|
     cap_force: float | None  # |f_corr| <= cap_force [N]
-    dimension: int = 1
-    uncorrected: float = 0.0  # 𝒰 [J], Eq. 16
-    zeta: float = 0.0  # ζ of the step whose correction is being applied [J]
-    force: np.ndarray = field(default=None)  # f_corr being applied [N]
-    capped: bool = False  # whether a cap limited the force being applied
+    dimension: int = 1  # components of f and v
+    uncorrected: float = field(default=0.0, init=False)  # 𝒰 [J], Eq. 16
+    zeta: float = field(default=0.0, init=False)  # ζ of the step whose correction is being applied [J]
+    force: np.ndarray = field(init=False)  # f_corr being applied [N]
+    capped: bool = field(default=False, init=False)  # whether a cap limited the force being applied
 
     def __post_init__(self) -> None:
-        if self.force is None:
-            self.force = np.zeros(self.dimension)
+        self.force = np.zeros(self.dimension)
 
     def limit(self, coupling_force: np.ndarray) -> float:
         """Largest admissible |f_corr| [N] for the uncorrected coupling force ``f``."""
