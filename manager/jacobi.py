@@ -31,6 +31,7 @@ from manager.extrapolation import evaluate, extrapolation_matrix
 from manager.plan import Plan, SubsystemPlan
 from manager.protocol import Kind, ProtocolError, decode, encode
 from manager.residual import residual_power
+from manager.status import StatusReport
 
 PROGRESS_EVERY = 500  # base steps between two progress callbacks
 
@@ -45,10 +46,12 @@ class SubsystemFailure(RuntimeError):
 
 @dataclass(frozen=True)
 class Exchange:
-    """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``."""
+    """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``; ``status``, when
+    the run reports it, is the manager's STATUS message of the macro-step that has just ended."""
 
     sends: dict[str, bytes]
     awaits: tuple[str, ...]
+    status: bytes | None = None
 
 
 class Corrector(Protocol):
@@ -100,8 +103,12 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 
 
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
-           correctors: tuple[Corrector, ...] = ()) -> Generator[Exchange, dict[str, bytes], RunRecord]:
-    """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`."""
+           correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None
+           ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+    """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
+
+    With ``status``, every exchange after the first step carries the status of the step before it, and
+    a last exchange without commands carries the status of the last step."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
@@ -154,6 +161,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                        if (phase + 1) % subs[bond.force_side].ratio == 0
                        and (phase + 1) % subs[bond.motion_side].ratio == 0) for phase in range(period)]
     step_s = base * 1e-9
+    step_status = None
 
     for tick in range(n_ticks):
         phase = tick % period
@@ -167,8 +175,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         next_tick = tick + 1
         if pacer is not None:
             pacer.wait(tick)
-        send_time[tick] = time.perf_counter_ns()
-        replies = yield Exchange(sends, due_names[phase])
+        send_time[tick] = released_ns = time.perf_counter_ns()
+        replies = yield Exchange(sends, due_names[phase], step_status)
         for s in due[phase]:
             traj[s.index][next_tick // s.ratio] = _decode_output(replies[s.name], s, next_tick)
         for b, bond, components in bonds_due[phase]:
@@ -186,8 +194,14 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             last_bond_tick[b] = next_tick
         for corrector in correctors:
             corrector.observe(next_tick, traj, e_res)
+        if status is not None:
+            step_status = status.encode(next_tick, next_tick * base, p_res[next_tick], e_res[next_tick],
+                                        int(send_time[0]), released_ns, time.perf_counter_ns(),
+                                        None if pacer is None else int(pacer.lateness_ns[tick]))
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
+    if step_status is not None:
+        yield Exchange({}, (), step_status)
 
     return RunRecord(plan, traj, p_res, e_res, send_time,
                      None if pacer is None else pacer.lateness_ns,

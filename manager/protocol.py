@@ -27,6 +27,7 @@ class Kind(IntEnum):
     OUTPUT = 16  # subsystem → manager: output values at a communication point
     ACK = 17  # subsystem → manager
     ERROR = 18  # subsystem → manager: the command failed; the payload is the reason (UTF-8)
+    STATUS = 32  # manager → observers: the status after a macro-step, fields named by manager.status
 
 
 _KINDS = {kind.value: kind for kind in Kind}
@@ -67,8 +68,20 @@ def command_ref(command: bytes) -> int:
     return zlib.crc32(command)
 
 
+def encode_floats(kind: Kind, step: int, time_ns: int, values: list[float]) -> bytes:
+    """``encode`` for a short list of Python floats, without numpy (the manager's status, every step)."""
+    return HEADER.pack(VERSION, kind, 0, len(values), step, time_ns, 0) + struct.pack(f"<{len(values)}d", *values)
+
+
 def decode(data: bytes, sender: str) -> Message:
     """Decode and validate one message from ``sender`` (named in every error)."""
+    kind, rows, count, step, time_ns, ref = decode_header(data, sender)
+    return Message(kind, step, time_ns, rows, ref,
+                   np.frombuffer(data, dtype=_DTYPE[kind], count=count, offset=HEADER.size))
+
+
+def decode_header(data: bytes, sender: str) -> tuple[Kind, int, int, int, int, int]:
+    """Validate one message from ``sender``; return ``(kind, rows, count, step, time_ns, ref)`` of its header."""
     if len(data) < HEADER.size:
         raise ProtocolError(f"message from {sender}: {len(data)} bytes, shorter than the {HEADER.size}-byte header")
     version, kind, rows, count, step, time_ns, ref = HEADER.unpack_from(data)
@@ -82,5 +95,4 @@ def decode(data: bytes, sender: str) -> Message:
         raise ProtocolError(f"message from {sender}: {len(data)} bytes, expected {expected} for {count} values")
     if rows and (count % rows):
         raise ProtocolError(f"message from {sender}: {count} values do not fill {rows} rows")
-    return Message(kind, step, time_ns, rows, ref,
-                   np.frombuffer(data, dtype=_DTYPE[kind], count=count, offset=HEADER.size))
+    return kind, rows, count, step, time_ns, ref

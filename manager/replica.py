@@ -11,6 +11,11 @@ every command. So every process of a run runs the *same* scheme:
   reply, that the subsystem executed exactly the command the manager's replica computed (CRC-32 in
   the reply header). A replica that diverged (different software, different arithmetic) is named at
   the first reply that shows it.
+
+A ``tap(source, channel, message)`` sees what a replica produces: every command (``<sub>,
+"commands"``), every reply of a local subsystem (``<sub>, "y"``) and, when the scheme reports it,
+the status after every macro-step (``"manager", "status"``). A recorded run taps the in-process
+replica, or the manager's replica on the Zenoh bus.
 """
 from __future__ import annotations
 
@@ -26,11 +31,12 @@ class Replica:
 
     def __init__(self, scheme: Generator[Exchange, dict[str, bytes], RunRecord], names: list[str],
                  local: dict | None = None, publish: Callable[[str, bytes], None] | None = None,
-                 verify: bool = False) -> None:
+                 verify: bool = False, tap: Callable[[str, str, bytes], None] | None = None) -> None:
         self.scheme = scheme
         self.local = local or {}
         self.publish = publish
         self.verify = verify
+        self.tap = tap
         self.replies: dict[str, deque[bytes]] = {name: deque() for name in names}
         self.expected: dict[str, deque[int]] = {name: deque() for name in names}
         self.request: Exchange | None = None
@@ -66,14 +72,21 @@ class Replica:
         return self.result
 
     def _execute(self) -> None:
+        tap = self.tap
+        if tap is not None and self.request.status is not None:
+            tap("manager", "status", self.request.status)
         for name, command in self.request.sends.items():
             if self.verify:
                 self.expected[name].append(command_ref(command))
+            if tap is not None:
+                tap(name, "commands", command)
             endpoint = self.local.get(name)
             if endpoint is not None:
                 reply = endpoint.handle(command)
                 if self.publish is not None:
                     self.publish(name, reply)
+                if tap is not None:
+                    tap(name, "y", reply)
                 self.replies[name].append(reply)
 
     def _advance(self) -> None:

@@ -10,6 +10,7 @@ from manager.jacobi import jacobi
 from manager.pacing import Pacer
 from manager.plan import Plan, compile_plan
 from manager.scene import Scene
+from manager.status import StatusReport
 
 
 def plan_scene(scene: Scene) -> tuple[Plan, dict]:
@@ -20,12 +21,13 @@ def plan_scene(scene: Scene) -> tuple[Plan, dict]:
 
 
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
-                progress: Callable[[int], None] | None = None):
+                progress: Callable[[int], None] | None = None, status: StatusReport | None = None):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on the shared monotonic clock; None: the
-    first step starts the clock)."""
+    first step starts the clock); reporting its status after every macro-step with ``status`` (a
+    recorded run)."""
     pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns) if realtime else None
-    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction))
+    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction), status)
 
 
 def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:
