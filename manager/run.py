@@ -1,39 +1,104 @@
-"""One run of a scene: build, plan, drive the scheme on a bus, compare with the references, summarise."""
+"""One run of a scene: build, plan, drive the scheme on a bus, compare with the references, summarise.
+
+A run may be recorded: the caller passes a recorder (``recordings.recorder.Recorder``; the manager
+only knows the :class:`RunRecorder` interface), the scheme then reports its status after every
+macro-step, and the recorder sees every message — through a tap on the in-process replica, or by
+subscribing to the run's keys on the Zenoh bus.
+"""
 from __future__ import annotations
 
 import time
-from typing import Callable
+from typing import Callable, Protocol
 
 from manager.build import monolithic_unavailable
 from manager.jacobi import RunRecord
+from manager.plan import Plan
 from manager.reference import analytic_reference, monolithic_reference, solve_ivp_reference
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
+from manager.status import StatusReport
 from manager.summary import summarize
 from manager.zenoh_bus import ZenohBus
-from manager.zenoh_session import ZenohOptions
+from manager.zenoh_session import ZenohOptions, new_run_id
 
 BUSES = ("inproc", "zenoh")
+
+
+class RunRecorder(Protocol):
+    """What a run needs from a recorder."""
+
+    result: dict | None  # the recorder's end record, once finished
+
+    def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool,
+              options: ZenohOptions, host: str) -> str | None:
+        """Start recording; return the Zenoh endpoint the manager and subsystems connect to (None in process)."""
+
+    def tap(self, source: str, channel: str, message: bytes) -> None:
+        """A message of the in-process replica (see ``manager.replica``)."""
+
+    def finish(self, outcome: str, published: dict[str, int] | None = None) -> dict:
+        """Close the recording; ``published``: what the manager published and received per key (Zenoh bus)."""
+
+    def close(self) -> None:
+        """Release the recorder, finished or not."""
+
+
+def _outcome(error: BaseException) -> str:
+    return "interrupted" if isinstance(error, KeyboardInterrupt) else f"failed: {error}"
+
+
+def _listen_host(listen: str | None) -> str:
+    """The host part of a ``tcp/HOST:PORT`` endpoint (the recorder listens beside the manager)."""
+    return listen.split("/", 1)[-1].rsplit(":", 1)[0] if listen else "127.0.0.1"
 
 
 def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             progress: Callable[[int], None] | None = None, zenoh_options: ZenohOptions = ZenohOptions(),
             listen: str | None = None, external: tuple[str, ...] = (),
-            announce: Callable[[str], None] | None = None) -> tuple[RunRecord, float]:
-    """Run the co-simulation; return the record and the wall-clock time [s] of the stepping loop."""
+            announce: Callable[[str], None] | None = None,
+            recorder: RunRecorder | None = None) -> tuple[RunRecord, float]:
+    """Run the co-simulation; return the record and the wall-clock time [s] of the stepping loop.
+
+    With ``recorder``, the recording is finished before this returns or raises (its ``result`` says
+    how the run ended) and released in any case."""
     if bus not in BUSES:
         raise ValueError(f"unknown bus {bus!r}; expected one of {', '.join(BUSES)}")
     realtime = scene.manager.realtime if realtime is None else realtime
     plan, subsystems = plan_scene(scene)
-    if bus == "inproc":
-        replica = Replica(make_scheme(scene, plan, realtime, None, progress), [s.name for s in plan.subsystems],
-                          endpoints(plan, subsystems))
-        start = time.perf_counter()
-        record = replica.run()
-        return record, time.perf_counter() - start
-    with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce) as zbus:
-        return zbus.drive(realtime, progress)
+    status = StatusReport(plan, realtime) if recorder is not None else None
+    run_id = new_run_id()
+    started, zbus = False, None
+    try:
+        endpoint = None
+        if recorder is not None:
+            endpoint = recorder.start(scene, plan, status, bus, run_id, realtime, zenoh_options, _listen_host(listen))
+            started = True
+        if bus == "inproc":
+            replica = Replica(make_scheme(scene, plan, realtime, None, progress, status), [s.name for s in plan.subsystems],
+                              endpoints(plan, subsystems), tap=None if recorder is None else recorder.tap)
+            start = time.perf_counter()
+            record = replica.run()
+            wall_s = time.perf_counter() - start
+            if recorder is not None:
+                recorder.finish("completed")
+            return record, wall_s
+        with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id,
+                      recorder=endpoint) as zbus:
+            record, wall_s = zbus.drive(realtime, progress, status)
+            if recorder is not None:
+                recorder.finish("completed", zbus.counts)  # before the bus stops the subsystems
+            return record, wall_s
+    except BaseException as error:
+        if started and recorder.result is None:
+            try:
+                recorder.finish(_outcome(error), None if zbus is None else zbus.counts)
+            except Exception as failure:  # the run's own error matters more
+                error.add_note(f"the recording could not be finished: {failure}")
+        raise
+    finally:
+        if recorder is not None:
+            recorder.close()
 
 
 def references(scene: Scene) -> tuple[dict, str | None]:
@@ -49,8 +114,9 @@ def references(scene: Scene) -> tuple[dict, str | None]:
 
 
 def run_scene(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
-              progress: Callable[[int], None] | None = None, **bus_options) -> dict:
+              progress: Callable[[int], None] | None = None, recorder: RunRecorder | None = None,
+              **bus_options) -> dict:
     """Run a scene and return its summary (see manager.summary)."""
-    record, wall_s = execute(scene, bus, realtime, progress, **bus_options)
+    record, wall_s = execute(scene, bus, realtime, progress, recorder=recorder, **bus_options)
     refs, note = references(scene)
-    return summarize(scene, record, bus, wall_s, refs, note)
+    return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)

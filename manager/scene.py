@@ -69,6 +69,7 @@ class ManagerSettings:
     extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order
     timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
     realtime: bool = False
+    record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
     correction: CorrectionSettings | None = None  # [manager.correction]
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
 
@@ -224,15 +225,20 @@ def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
         text = path.read_text()
     except OSError as error:
         raise SceneError(str(path), [_problem("scene", f"cannot read: {error.strerror}")]) from None
+    return scene_from_text(text, str(path), overrides)
+
+
+def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scene:
+    """Parse, override and validate a scene's TOML ``text``; ``path`` names it in errors and in ``Scene.path``."""
     try:
         document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
-        raise SceneError(str(path), [_problem("scene", f"not valid TOML: {error}")]) from None
+        raise SceneError(path, [_problem("scene", f"not valid TOML: {error}")]) from None
     problems = Problems()
     resolved = apply_overrides(document, overrides, problems)
-    scene = _validate(resolved, str(path), tuple(overrides), problems)
+    scene = _validate(resolved, path, tuple(overrides), problems)
     if problems:
-        raise SceneError(str(path), problems)
+        raise SceneError(path, problems)
     return scene
 
 

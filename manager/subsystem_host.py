@@ -4,7 +4,9 @@ Started by ``zencosim run --bus zenoh`` for every subsystem, or by hand on anoth
 ``zencosim subsystem SCENE NAME --connect tcp/HOST:PORT``. The process runs its own replica of the
 run's scheme (``manager.replica``): it executes its own commands, publishes its replies and takes the
 other subsystems' replies from the network, in the Zenoh subscriber callback, so no thread hand-off
-sits on the critical path. It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears.
+sits on the critical path. It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears. In a
+recorded run it also connects to the recorder, and is ready only once it sees the recorder's token
+(declared after the recorder subscribed): then the recorder has every reply from the first one.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import zenoh
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.zenoh_session import ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
+from manager.zenoh_session import RECORDER, ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
 
 
 class HostError(RuntimeError):
@@ -119,10 +121,11 @@ class _Host:
 
 
 def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, options: ZenohOptions,
-          wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0") -> int:
+          wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0", recorder: str | None = None) -> int:
     """Serve subsystem ``name`` until the run ends; return the process exit code."""
     if name not in scene.subsystems:
         raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
+    connect = connect + ([recorder] if recorder else [])
     for endpoint in connect:
         if endpoint.startswith("tcp/"):
             wait_for_listener(endpoint, wait_s)
@@ -141,7 +144,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
             session.liveliness().declare_token(key(run_id, name, "alive")),
         ]
-        others = set(host.names) - {name} | {"manager"}
+        others = set(host.names) - {name} | {"manager"} | ({RECORDER} if recorder else set())
         deadline = time.monotonic() + wait_s
         while not others <= host.seen and not host.finished.is_set():
             if time.monotonic() > deadline:

@@ -67,7 +67,7 @@ def _percentiles_us(values_ns: np.ndarray) -> dict[str, float]:
 
 
 def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
-              reference_note: str | None = None) -> dict:
+              reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
     t, energy = total_energy(record)
     finite = all(np.isfinite(tr).all() for tr in record.trajectories)
@@ -130,6 +130,8 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
     summary["correction"] = correction_summary(scene, record)
     if reference_note:
         summary["reference_note"] = reference_note
+    if recording is not None:
+        summary["recording"] = recording  # the recorder's end record (recordings.writer)
     return summary
 
 

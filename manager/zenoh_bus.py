@@ -7,6 +7,11 @@ process runs a replica of the scheme (``manager.replica``); the manager's replic
 it follows the replies, checks that every subsystem executed the commands the manager computed, and
 produces the run record. A watchdog on the main thread names any subsystem that dies or stops
 answering and ends the run within the scene's timeout; no child process outlives the bus.
+
+A recorded run names the recorder's endpoint: the manager and every subsystem connect to it (Zenoh
+peers do not forward), wait for its liveliness token before the start signal, and the manager's
+replica publishes what only it computes — every command (``<sub>/commands``) and the status after
+every macro-step (``manager/status``) — counting, per key, what it published and received.
 """
 from __future__ import annotations
 
@@ -18,6 +23,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Callable
 
@@ -29,7 +35,9 @@ from manager.protocol import Kind, encode
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import make_scheme
-from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id, peer_config
+from manager.status import StatusReport
+from manager.zenoh_session import (RECORDER, ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id,
+                                   peer_config, token_seen, wait_for_listener)
 
 STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
@@ -37,7 +45,7 @@ START_DELAY_NS = 50_000_000  # the first step is released this long after the st
 PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
     """Linux: the child gets SIGTERM when the manager dies, even by SIGKILL (no orphans)."""
     PR_SET_PDEATHSIG = 1
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
@@ -48,14 +56,17 @@ class ZenohBus:
 
     def __init__(self, scene: Scene, plan: Plan, options: ZenohOptions = ZenohOptions(),
                  listen: str | None = None, external: tuple[str, ...] = (), wait_external_s: float = 60.0,
-                 announce: Callable[[str], None] | None = None) -> None:
+                 announce: Callable[[str], None] | None = None, run_id: str | None = None,
+                 recorder: str | None = None) -> None:
         unknown = set(external) - set(scene.subsystems)
         if unknown:
             raise ValueError(f"--external names no subsystem of scene {scene.name}: {', '.join(sorted(unknown))}")
         self.scene = scene
         self.plan = plan
         self.options = options
-        self.run_id = new_run_id()
+        self.run_id = run_id or new_run_id()
+        self.recorder = recorder  # Zenoh endpoint of the run's recorder, if it is recorded
+        self.counts: Counter[str] = Counter()  # messages the manager published or received, per key under the run
         self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
         self.external = tuple(external)
         self.wait_external_s = wait_external_s
@@ -87,7 +98,10 @@ class ZenohBus:
         self.close()
 
     def _open(self) -> None:
-        self._session = zenoh.open(peer_config(listen=[self.endpoint], options=self.options))
+        if self.recorder:
+            wait_for_listener(self.recorder, STARTUP_TIMEOUT_S)
+        self._session = zenoh.open(peer_config(listen=[self.endpoint], connect=[self.recorder] if self.recorder else [],
+                                               options=self.options))
         session = self._session
         self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
         self._entities.append(session.declare_subscriber(key(self.run_id, "*", "y"), self._on_reply))
@@ -98,6 +112,15 @@ class ZenohBus:
         self._entities.append(session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
         self._publishers = {name: coupling_publisher(session, key(self.run_id, name, "u")) for name in self.names}
         self._go = session.declare_publisher(key(self.run_id, "manager", "go"))
+        self._recorded = {}
+        if self.recorder:
+            self._recorded = {(name, "commands"): coupling_publisher(session, key(self.run_id, name, "commands"))
+                              for name in self.names}
+            self._recorded["manager", "status"] = coupling_publisher(session, key(self.run_id, "manager", "status"))
+            self._entities += self._recorded.values()
+            # the recorder declares its token after its subscriber: once the token is seen, nothing is lost
+            if not token_seen(session, key(self.run_id, RECORDER, "alive"), STARTUP_TIMEOUT_S):
+                raise SubsystemFailure(RECORDER, f"not reachable at {self.recorder} within {STARTUP_TIMEOUT_S:g} s")
 
     def _on_run_query(self, query: zenoh.Query) -> None:
         info = {"run_id": self.run_id, "scene": self.scene.name, "scene_digest": self.scene.digest,
@@ -132,6 +155,8 @@ class ZenohBus:
         command += ["--run-id", self.run_id]
         for override in self.scene.overrides:
             command += ["--set", override]
+        if self.recorder:
+            command += ["--recorder", self.recorder.replace("0.0.0.0", "127.0.0.1")]
         if not self.options.lowlatency:
             command.append("--no-lowlatency")
         return command
@@ -149,7 +174,7 @@ class ZenohBus:
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
             self.children[name] = subprocess.Popen(
                 self.spawn_command(name, listen, tuple(spawned)), stdin=subprocess.DEVNULL, stdout=log,
-                stderr=subprocess.STDOUT, preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+                stderr=subprocess.STDOUT, preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
             log.close()
             spawned.append(listen)
 
@@ -201,11 +226,13 @@ class ZenohBus:
                                          f"{expected[0]} -> {expected[1]}")
 
     # -- running ---------------------------------------------------------------------------------
-    def drive(self, realtime: bool = False, progress=None) -> tuple[RunRecord, float]:
-        """Start the run, follow it to the end; return its record and the wall-clock time [s]."""
+    def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None
+              ) -> tuple[RunRecord, float]:
+        """Start the run, follow it to the end; return its record and the wall-clock time [s]. With
+        ``status`` (a recorded run), the status and the commands are published for the recorder."""
         start_ns = time.perf_counter_ns() + START_DELAY_NS
-        scheme = make_scheme(self.scene, self.plan, realtime, start_ns, progress)
-        self._replica = Replica(scheme, self.names, verify=True)
+        scheme = make_scheme(self.scene, self.plan, realtime, start_ns, progress, status)
+        self._replica = Replica(scheme, self.names, verify=True, tap=self._publish if self._recorded else None)
         self._done = threading.Event()
         self._error: BaseException | None = None
         self._driving = True
@@ -228,10 +255,16 @@ class ZenohBus:
             raise self._error
         return self._replica.result, wall_s
 
+    def _publish(self, source: str, channel: str, message: bytes) -> None:
+        """The manager replica's tap in a recorded run: commands and status go to the recorder."""
+        self._recorded[source, channel].put(message)
+        self.counts[f"{source}/{channel}"] += 1
+
     def _on_reply(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).split("/")[-2]
         data = sample.payload.to_bytes()
         with self._lock:
+            self.counts[f"{name}/y"] += 1
             if self._driving and not self._done.is_set():
                 self._guarded(self._replica.deliver, name, data)
 

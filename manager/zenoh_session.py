@@ -5,7 +5,8 @@ process), ``<sub>/u`` control from the manager (STOP), ``<sub>/ctl`` a queryable
 ``<sub>/alive`` and ``manager/alive`` liveliness tokens (a crashed process is seen at once),
 ``<sub>/ready`` a token declared once the subsystem is connected to every other process,
 ``manager/go`` the start signal, ``manager/run`` a queryable that lets a subsystem started by hand
-find the run. Sessions are peers with explicit endpoints and multicast scouting off; gossip over the
+find the run; in a recorded run, ``<sub>/commands`` and ``manager/status`` what the manager's replica
+computed (for the recorder) and ``recorder/alive`` the recorder's token. Sessions are peers with explicit endpoints and multicast scouting off; gossip over the
 links they already have connects the subsystems to each other directly, so that a reply reaches
 every process in one hop.
 """
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 import zenoh
 
 ROOT = "zencosim"
+RECORDER = "recorder"  # the name under the run of the process that records it (recordings.recorder_process)
 
 
 def new_run_id() -> str:
@@ -77,6 +79,16 @@ def peer_config(listen: list[str] = (), connect: list[str] = (), options: ZenohO
         config.insert_json5("transport/unicast/lowlatency", "true")
         config.insert_json5("transport/unicast/qos/enabled", "false")
     return config
+
+
+def token_seen(session: zenoh.Session, token: str, wait_s: float) -> bool:
+    """Whether liveliness token ``token`` is visible to ``session`` now or becomes so within ``wait_s``."""
+    deadline = time.monotonic() + wait_s
+    while not list(session.liveliness().get(token, timeout=1.0)):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
 
 
 def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:
