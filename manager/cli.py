@@ -1,12 +1,14 @@
 """The ``zencosim`` command line.
 
-Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error),
-2 bad input (scene, overrides, arguments), 130 interrupted.
+Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error) or
+a recording did not verify, 2 bad input (scene, overrides, arguments, recording file), 130 interrupted
+(SIGINT or SIGTERM).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 from pathlib import Path
 
@@ -21,6 +23,7 @@ from manager.run import BUSES, run_scene
 from manager.schemes import plan_scene
 from manager.scene import SceneError, bundled_scene_names, load_scene
 from manager.zenoh_session import ZenohOptions
+from recordings import RecordingError
 
 out = Console()
 err = Console(stderr=True)
@@ -97,13 +100,26 @@ def _print_summary(summary: dict) -> None:
         row("missed deadlines", str(timing["missed_deadlines"]))
     row("active effects", ", ".join(summary["effects"]))
     row("digest", summary["digest"][:16] + "…")
+    if "recording" in summary:
+        recording = summary["recording"]
+        row("recording", f"{recording['path']}: {recording['messages']} messages, {recording['lost']} lost")
     out.print(table)
     if "reference_note" in summary:
         out.print(summary["reference_note"])
 
 
+def _recording_text(result: dict) -> str:
+    lost = "unknown losses" if result["lost"] is None else f"{result['lost']} lost"
+    return f"recording {result['path']}: {result['messages']} messages, {lost} ({result['outcome']})"
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, args.overrides)
+    record_path = args.record or scene.manager.record
+    recorder = None
+    if record_path:
+        from recordings.recorder import Recorder
+        recorder = Recorder(record_path)
     options = ZenohOptions(lowlatency=not args.no_lowlatency)
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
@@ -114,8 +130,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(), TimeRemainingColumn(),
                   console=err, disable=not show_progress) as progress:
         task = progress.add_task(f"{scene.name} ({args.bus})", total=n_steps)
-        summary = run_scene(scene, args.bus, True if args.realtime else None,
-                            lambda step: progress.update(task, completed=step), **bus_options)
+        try:
+            summary = run_scene(scene, args.bus, True if args.realtime else None,
+                                lambda step: progress.update(task, completed=step), recorder=recorder, **bus_options)
+        finally:
+            if recorder is not None and recorder.result is not None and (args.quiet or recorder.result["outcome"] != "completed"):
+                err.print(escape(_recording_text(recorder.result)), highlight=False, soft_wrap=True)
     if not args.quiet:
         _print_summary(summary)
     if args.summary:
@@ -127,7 +147,54 @@ def cmd_subsystem(args: argparse.Namespace) -> int:
     from manager.subsystem_host import serve
     scene = load_scene(args.scene, args.overrides)
     return serve(scene, args.name, args.connect, args.run_id, ZenohOptions(lowlatency=not args.no_lowlatency),
-                 args.wait, args.listen)
+                 args.wait, args.listen, args.recorder)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from recordings.reader import read_recording
+    if not (args.rrd or args.spawn or args.verify):
+        raise RecordingError(f"replay {args.recording}: nothing to do; give --rrd FILE, --spawn or --verify")
+    recording = read_recording(args.recording)
+    if recording.truncated:
+        err.print(escape(f"{recording.path}: {recording.truncated}; replaying what it holds"), highlight=False)
+    status = 0
+    if args.rrd or args.spawn:
+        from recordings.rerun_replay import replay_in_rerun
+        replay_in_rerun(recording, args.rrd, args.spawn)
+        if args.rrd:
+            out.print(escape(f"wrote {args.rrd}"), highlight=False)
+    if args.verify:
+        from recordings.verify import verify
+        result = verify(recording)
+        compared = sum(result.compared.values())
+        if result.divergence is not None:
+            out.print(escape(f"verify FAILED: first divergence at {result.divergence}"), highlight=False)
+        elif not result.passed:
+            out.print(escape(f"verify FAILED: {result.note}"), highlight=False)
+        else:
+            out.print(escape(f"verify passed: {compared} messages bit-identical to a re-run, up to step "
+                             f"{result.last_step}" + (f" ({result.note})" if result.note else "")), highlight=False)
+        status = 0 if result.passed else 1
+    return status
+
+
+def cmd_inspect(args: argparse.Namespace) -> int:
+    from recordings.reader import describe, read_recording
+    info = describe(read_recording(args.recording))
+    table = Table(title=f"{info['file']}: scene {info['scene']}, run {info['run_id']} ({info['bus']} bus, "
+                        f"host {info['host']}, zencosim {info['zencosim']})")
+    table.add_column("channel")
+    table.add_column("messages", justify="right")
+    table.add_column("values")
+    for topic, channel in info["channels"].items():
+        table.add_row(escape(topic), str(channel["messages"]), escape(channel["values"]))
+    out.print(table)
+    out.print(escape(f"started {info['started']}; steps {info['steps']}, {info['duration_s']:g} s simulated; "
+                     f"outcome: {info['outcome']}; lost: {'unknown' if info['lost'] is None else info['lost']}"),
+              highlight=False)
+    if info["truncated"]:
+        out.print(escape(f"incomplete: {info['truncated']}"), highlight=False)
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -151,6 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--external", action="append", default=[], metavar="NAME",
                      help="do not start subsystem NAME: wait for 'zencosim subsystem' started by hand")
     run.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
+    run.add_argument("--record", metavar="FILE", help="record every message of the run to an MCAP file "
+                                                      "(default: the scene's manager.record)")
     run.set_defaults(handler=cmd_run)
 
     sub = commands.add_parser("subsystem", help="serve one subsystem of a scene over Zenoh (for runs across hosts)")
@@ -164,15 +233,34 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_argument("--run-id", help="the run to join (default: the one run that waits for this subsystem)")
     sub.add_argument("--wait", type=float, default=30.0, metavar="SECONDS", help="how long to look for the run")
     sub.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
+    sub.add_argument("--recorder", metavar="ENDPOINT", help="Zenoh endpoint of the run's recorder (recorded runs)")
     sub.set_defaults(handler=cmd_subsystem)
+
+    replay = commands.add_parser("replay", help="replay a recording in Rerun, or verify it by re-running its scene")
+    replay.add_argument("recording", help="an MCAP file written by 'zencosim run --record'")
+    replay.add_argument("--rrd", metavar="FILE", help="write a Rerun recording (.rrd)")
+    replay.add_argument("--spawn", action="store_true", help="open a Rerun viewer with the recording")
+    replay.add_argument("--verify", action="store_true",
+                        help="re-run the embedded scene in process and compare every channel bit for bit")
+    replay.set_defaults(handler=cmd_replay)
+
+    inspect = commands.add_parser("inspect", help="show what a recording holds")
+    inspect.add_argument("recording", help="an MCAP file written by 'zencosim run --record'")
+    inspect.set_defaults(handler=cmd_inspect)
     return parser
+
+
+def _interrupt(signum: int, _frame) -> None:
+    """SIGTERM ends a run like Ctrl-C: subsystems are stopped and the recording is finished."""
+    raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         return args.handler(args)
-    except SceneError as error:
+    except (SceneError, RecordingError) as error:
         err.print(f"[bold red]error:[/] {escape(str(error))}", highlight=False, soft_wrap=True)
         return 2
     except (SubsystemFailure, ProtocolError) as error:

@@ -1,0 +1,5 @@
+"""Recording and replay: every run to MCAP (recorder), read back (reader), replayed in Rerun, verified by re-running it."""
+
+
+class RecordingError(RuntimeError):
+    """A recording that cannot be written, read or re-run; the message names the file."""

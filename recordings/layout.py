@@ -1,0 +1,91 @@
+"""What a recording holds: its channels, the names of their values, and the run's metadata.
+
+One MCAP channel per key of the run (docs/protocol.md), with the key under ``zencosim/<run-id>/`` as
+its topic: ``<sub>/commands`` (the commands the scheme computed for a subsystem: INIT and STEP carry
+its input polynomial, ``rows × inputs``, row ``i`` multiplying ``tau**i``), ``<sub>/y`` (its
+replies: OUTPUT carries its outputs) and ``manager/status`` (the manager's status after every
+macro-step, manager.status). A channel's metadata names its values and their units, so a recording
+is read without the scene.
+
+The ``zencosim`` metadata record describes the run (scene, digest, overrides, software versions,
+bus, run id, host); the attachment ``scene.toml`` is the scene after overrides, enough to re-run it;
+the ``zencosim.end`` metadata record, written when the recorder finishes, holds the outcome and, per
+channel, what the manager published, what the recorder received and what was lost.
+"""
+from __future__ import annotations
+
+import json
+import platform
+import socket
+import time
+from dataclasses import dataclass
+from importlib.metadata import version
+
+import numpy as np
+
+from manager.plan import Plan
+from manager.scene import Scene
+from manager.status import StatusReport
+
+FORMAT = "zencosim-recording/1"
+RUN_METADATA = "zencosim"
+END_METADATA = "zencosim.end"
+SCENE_ATTACHMENT = "scene.toml"
+STATUS_TOPIC = "manager/status"
+COMMANDS = "commands"  # the channel of a subsystem's commands; its replies are "y"
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """One channel: ``topic`` is the key under the run; ``names`` and ``units`` describe its values."""
+
+    topic: str
+    source: str  # the subsystem, or "manager"
+    role: str  # "inputs", "outputs" or "status"
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    measured: tuple[str, ...] = ()  # status fields measured on the wall clock (differ between runs)
+
+    def metadata(self) -> dict[str, str]:
+        return {"source": self.source, "role": self.role, "names": json.dumps(self.names),
+                "units": json.dumps(self.units), "measured": json.dumps(self.measured)}
+
+    @classmethod
+    def from_metadata(cls, topic: str, metadata: dict[str, str]) -> "ChannelSpec":
+        """Raises KeyError or ValueError when the metadata is not a zencosim channel's."""
+        return cls(topic, metadata["source"], metadata["role"], tuple(json.loads(metadata["names"])),
+                   tuple(json.loads(metadata["units"])), tuple(json.loads(metadata["measured"])))
+
+
+def channel_specs(plan: Plan, status: StatusReport) -> list[ChannelSpec]:
+    """The channels of a run: ``<sub>/commands`` and ``<sub>/y`` per subsystem in scene order, then the status."""
+    specs = []
+    for sub in plan.subsystems:
+        specs.append(ChannelSpec(f"{sub.name}/{COMMANDS}", sub.name, "inputs", tuple(p.name for p in sub.inputs),
+                                 tuple(p.unit for p in sub.inputs)))
+        specs.append(ChannelSpec(f"{sub.name}/y", sub.name, "outputs", tuple(p.name for p in sub.outputs),
+                                 tuple(p.unit for p in sub.outputs)))
+    specs.append(ChannelSpec(STATUS_TOPIC, "manager", "status", tuple(f.name for f in status.fields),
+                             tuple(f.unit for f in status.fields), tuple(f.name for f in status.fields if f.measured)))
+    return specs
+
+
+def run_metadata(scene: Scene, plan: Plan, bus: str, run_id: str, realtime: bool) -> dict[str, str]:
+    """The ``zencosim`` metadata record of a run."""
+    return {
+        "format": FORMAT,
+        "zencosim": version("zencosim"),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scene": scene.name,
+        "scene_digest": scene.digest,
+        "scene_source": scene.path,
+        "overrides": json.dumps(list(scene.overrides)),
+        "bus": bus,
+        "run_id": run_id,
+        "host": socket.gethostname(),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "macro_step_ns": str(plan.base_step_ns),
+        "steps": str(plan.n_ticks),
+        "realtime": json.dumps(realtime),
+    }

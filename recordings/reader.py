@@ -1,0 +1,147 @@
+"""Read a recording back: its metadata, its scene, and every message of every channel.
+
+A recording that was cut short (the recorder was killed before it finished) is read up to its last
+complete chunk; ``Recording.truncated`` then says where and why reading stopped. Every error names
+the file, and the channel and message where it applies.
+"""
+from __future__ import annotations
+
+import json
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mcap.exceptions import McapError
+from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+
+from manager.protocol import Kind
+from recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
+from recordings.schema import SCHEMA_NAME, StoredMessage, decode_stored
+from recordings import RecordingError
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+@dataclass
+class ChannelRecord:
+    """The messages of one channel in the order they were recorded."""
+
+    spec: ChannelSpec
+    messages: list[StoredMessage] = field(default_factory=list)
+    publish_ns: list[int] = field(default_factory=list)  # wall clock when each message was recorded
+
+    def table(self, kind: Kind) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Steps, times [ns] and values (one row per message) of the messages of ``kind``."""
+        chosen = [m for m in self.messages if m.kind == kind]
+        width = max((m.values.size for m in chosen), default=0)
+        values = np.full((len(chosen), width), np.nan)
+        for row, message in zip(values, chosen):
+            row[:message.values.size] = message.values
+        return (np.array([m.step for m in chosen], dtype=np.int64), np.array([m.time_ns for m in chosen], dtype=np.int64),
+                values)
+
+
+@dataclass
+class Recording:
+    path: Path
+    info: dict[str, str]  # the run's ``zencosim`` metadata record
+    end: dict | None  # the ``zencosim.end`` record; None when the recorder did not finish
+    scene_toml: str
+    channels: dict[str, ChannelRecord]
+    truncated: str | None  # why reading stopped before the end of the file; None for a complete file
+
+    def last_step(self) -> int:
+        """The last step whose status was recorded (0 when none was)."""
+        status = [m.step for m in self.channels["manager/status"].messages] if "manager/status" in self.channels else []
+        return max(status, default=0)
+
+
+def _end_record(metadata: dict[str, str]) -> dict:
+    return {key: (value if key in ("outcome", "path", "first_malformed", "finished") else json.loads(value))
+            for key, value in metadata.items()}
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a whole recording; raise :class:`RecordingError` naming the file when it is not one."""
+    path = Path(path)
+    try:
+        handle = open(path, "rb")
+    except OSError as error:
+        raise RecordingError(f"cannot read recording {path}: {error.strerror}") from None
+    with handle:
+        if handle.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise RecordingError(f"{path} is not an MCAP file (it does not start with the MCAP magic bytes)")
+        handle.seek(0)
+        return _read(path, handle)
+
+
+def _read(path: Path, handle) -> Recording:
+    info: dict[str, str] | None = None
+    end = None
+    scene_toml = None
+    channels: dict[int, ChannelRecord] = {}
+    truncated = "the file ends without an MCAP footer"
+    records = StreamReader(handle, validate_crcs=True).records
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            break
+        except (McapError, EOFError, struct.error, ValueError) as error:
+            truncated = f"the file is cut off or damaged after {handle.tell()} bytes ({type(error).__name__}: {error})"
+            break
+        if isinstance(record, Message):
+            channel = channels.get(record.channel_id)
+            if channel is None:
+                raise RecordingError(f"{path}: a message on channel id {record.channel_id}, which is not declared")
+            try:
+                channel.messages.append(decode_stored(record.data))
+            except ValueError as error:
+                raise RecordingError(f"{path}: channel {channel.spec.topic}, message {len(channel.messages) + 1}: "
+                                     f"{error}") from None
+            channel.publish_ns.append(record.publish_time)
+        elif isinstance(record, Channel) and record.id not in channels:
+            try:
+                channels[record.id] = ChannelRecord(ChannelSpec.from_metadata(record.topic, record.metadata))
+            except (KeyError, ValueError):
+                raise RecordingError(f"{path}: channel {record.topic} is not a zencosim channel "
+                                     "(its metadata does not name its values)") from None
+        elif isinstance(record, Schema) and record.name != SCHEMA_NAME:
+            raise RecordingError(f"{path}: schema {record.name!r}, expected {SCHEMA_NAME}: not a zencosim recording")
+        elif isinstance(record, Metadata) and record.name == RUN_METADATA:
+            info = dict(record.metadata)
+        elif isinstance(record, Metadata) and record.name == END_METADATA:
+            end = _end_record(record.metadata)
+        elif isinstance(record, Attachment) and record.name == SCENE_ATTACHMENT:
+            scene_toml = record.data.decode("utf-8")
+        elif isinstance(record, Footer):
+            truncated = None
+    if info is None:
+        raise RecordingError(f"{path} is an MCAP file but not a zencosim recording (no '{RUN_METADATA}' metadata)")
+    if info.get("format") != FORMAT:
+        raise RecordingError(f"{path}: recording format {info.get('format')!r}, this zencosim reads {FORMAT}")
+    if scene_toml is None:
+        raise RecordingError(f"{path}: the scene attachment '{SCENE_ATTACHMENT}' is missing")
+    return Recording(path, info, end, scene_toml, {c.spec.topic: c for c in channels.values()}, truncated)
+
+
+def describe(recording: Recording) -> dict:
+    """What ``zencosim inspect`` shows: run, scene, duration, channels with message counts, losses."""
+    info, end = recording.info, recording.end
+    last = recording.last_step()
+    return {
+        "file": str(recording.path),
+        "scene": info["scene"], "run_id": info["run_id"], "bus": info["bus"], "host": info["host"],
+        "zencosim": info["zencosim"], "started": info["started"],
+        "steps": f"{last} of {info['steps']}",
+        "duration_s": last * int(info["macro_step_ns"]) * 1e-9,
+        "outcome": end["outcome"] if end else "unknown: the recorder did not finish",
+        "lost": (end["lost"] if end else None),
+        "complete": recording.truncated is None,
+        "truncated": recording.truncated,
+        "channels": {topic: {"messages": len(c.messages), "values": ", ".join(f"{n} [{u}]" for n, u in
+                                                                              zip(c.spec.names, c.spec.units))}
+                     for topic, c in recording.channels.items()},
+    }

@@ -1,0 +1,168 @@
+"""The manager's handle on a recorder process (recordings.recorder_process).
+
+``start`` spawns the process (it dies with the manager), sends it the run's description and waits
+until it is ready; with the in-process bus, ``tap`` hands it every wire message through a pipe —
+the tap only appends the message and its channel to two lists, and every ``BATCH_MESSAGES`` messages
+(after every step of a real-time run) they go down the pipe as one frame, so validation, encoding
+and compression run in the other process, on the other core; with the Zenoh bus the process
+subscribes to the run itself. ``finish`` sends the outcome and what the manager published and returns the
+recorder's end record (outcome, per-channel published / received / lost).
+"""
+from __future__ import annotations
+
+import fcntl
+import json
+import select
+import subprocess
+import sys
+import tempfile
+from array import array
+from collections import Counter
+from pathlib import Path
+from time import time_ns
+
+import tomli_w
+
+from manager.plan import Plan
+from manager.scene import Scene
+from manager.status import StatusReport
+from manager.zenoh_bus import die_with_parent
+from manager.zenoh_session import ZenohOptions, free_tcp_port
+from recordings.layout import channel_specs, run_metadata
+from recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
+from recordings import RecordingError
+
+READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
+FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
+PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
+BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
+F_SETPIPE_SZ = 1031  # Linux fcntl
+
+
+class Recorder:
+    """Records one run to ``path``: create it, pass it to ``manager.run.execute``, read ``result``."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.result: dict | None = None
+        self._process: subprocess.Popen | None = None
+        self._log = tempfile.TemporaryFile()
+        self._index: dict[tuple[str, str], int] = {}  # (source, channel) → channel index
+        self._topics: list[str] = []
+        self._status = -1  # index of the status channel
+        self._channels = bytearray()  # the batch being tapped: channel index of each message
+        self._messages: list[bytes] = []  # and the messages
+        self._stamps: list[int] = []  # wall clock [ns] at each status message of the batch
+        self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
+        self._paced = False  # a real-time run: the tap hands each step over at once
+
+    def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool,
+              options: ZenohOptions = ZenohOptions(), host: str = "127.0.0.1") -> str | None:
+        """Start the recorder process; return the Zenoh endpoint it listens on (None in process)."""
+        specs = channel_specs(plan, status)
+        if len(specs) > 255:
+            raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
+        self._paced = realtime
+        self._index = {tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)}
+        self._topics = [spec.topic for spec in specs]
+        self._status = len(specs) - 1
+        endpoint = f"tcp/{host}:{free_tcp_port(host)}" if bus == "zenoh" else None
+        start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime),
+                 "scene_toml": tomli_w.dumps(scene.resolved),
+                 "channels": [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs],
+                 "zenoh": {"run_id": run_id, "endpoint": endpoint, "lowlatency": options.lowlatency} if endpoint else None}
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", "recordings.recorder_process"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=self._log, preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
+        try:
+            fcntl.fcntl(self._process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
+        except OSError:
+            pass  # the default capacity only means the tap blocks sooner
+        self._send_control(start)
+        ready = self._event(READY_TIMEOUT_S, "start")
+        if ready["event"] != "ready":
+            raise RecordingError(ready.get("reason", f"recorder of {self.path} failed to start"))
+        return endpoint
+
+    def tap(self, source: str, channel: str, data: bytes) -> None:
+        """A message of the in-process replica (``manager.replica``)."""
+        index = self._index[source, channel]
+        self._channels.append(index)
+        self._messages.append(data)
+        if index == self._status:  # the status opens a step: the batch holds whole steps
+            self._stamps.append(time_ns())
+            if self._paced or len(self._messages) >= BATCH_MESSAGES:
+                self.flush()
+
+    def flush(self) -> None:
+        """Hand what the tap holds to the recorder process now."""
+        if not self._messages:
+            return
+        n = len(self._messages)
+        self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(self._stamps)), self._channels,
+                                           array("I", map(len, self._messages)).tobytes(),
+                                           array("q", self._stamps).tobytes(), *self._messages)))
+        self._tapped.update(self._channels)
+        self._channels.clear()
+        self._messages.clear()
+        self._stamps.clear()
+
+    @property
+    def published(self) -> dict[str, int]:
+        """In-process bus: the messages the tap handed over, per channel."""
+        return {topic: self._tapped[index] for index, topic in enumerate(self._topics)}
+
+    def finish(self, outcome: str, published: dict[str, int] | None = None) -> dict:
+        """Tell the recorder how the run ended and what was published (default: what the tap handed
+        over); wait for the file to be complete and return its end record."""
+        if self.result is not None:
+            return self.result
+        if self._process is None:
+            raise RecordingError(f"recorder of {self.path} was never started")
+        if not self._process.stdin.closed:
+            try:
+                self.flush()
+                self._send_control({"outcome": outcome, "published": dict(self.published if published is None else published)})
+                self._process.stdin.close()
+            except BrokenPipeError:
+                pass  # the recorder is gone; its exit is reported below
+        end = self._event(FINISH_TIMEOUT_S, "finish")
+        self._process.wait()
+        self.result = {key: value for key, value in end.items() if key != "event"}
+        return self.result
+
+    def close(self) -> None:
+        """End the recorder process if it is still there (after a failure to start or finish)."""
+        if self._process is not None and self._process.poll() is None:
+            self._process.terminate()
+            try:
+                self._process.wait(5.0)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+                self._process.wait()
+        self._log.close()
+
+    def _send_control(self, message: dict) -> None:
+        self._write_frame(CONTROL, json.dumps(message).encode())
+
+    def _write_frame(self, kind: int, payload: bytes) -> None:
+        self._process.stdin.write(FRAME.pack(kind, len(payload), time_ns()))
+        self._process.stdin.write(payload)
+        self._process.stdin.flush()
+
+    def _event(self, timeout_s: float, what: str) -> dict:
+        """The recorder's next JSON line on standard output."""
+        stdout = self._process.stdout
+        if not select.select([stdout], [], [], timeout_s)[0]:
+            raise RecordingError(f"recorder of {self.path} did not {what} within {timeout_s:g} s{self._log_tail()}")
+        line = stdout.readline()
+        if not line:
+            self._process.wait()
+            raise RecordingError(f"recorder of {self.path} exited with code {self._process.returncode}"
+                                 f"{self._log_tail()}")
+        return json.loads(line)
+
+    def _log_tail(self) -> str:
+        self._log.seek(0)
+        text = self._log.read().decode(errors="replace").strip()
+        return ":\n" + "\n".join(text.splitlines()[-15:]) if text else ""

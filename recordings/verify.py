@@ -1,0 +1,161 @@
+"""Replay verification: re-run a recording's embedded scene in process and compare every channel bit for bit.
+
+The re-run is the in-process replica with a tap that compares each message, as it is produced, with
+the next recorded message of the same channel: kind, step, time, rows, reference, and every float64
+value by its bits (NaN included). The status's measured fields (wall-clock times) are not compared. The first
+difference stops the re-run and is reported with its channel, step, value name and both values; a
+recording that ends early (a failed or interrupted run) is compared up to its last message. STOP
+commands and their ACKs, which the Zenoh bus sends after a failed run and which the scheme never
+produces, are passed over.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from manager.protocol import Kind, decode
+from manager.replica import Replica
+from manager.scene import SceneError, scene_from_text
+from manager.schemes import endpoints, make_scheme, plan_scene
+from manager.status import StatusReport
+from recordings.layout import SCENE_ATTACHMENT, STATUS_TOPIC, channel_specs
+from recordings.reader import Recording
+from recordings import RecordingError
+
+
+@dataclass(frozen=True)
+class Divergence:
+    channel: str
+    step: int
+    what: str  # the field or value name that differs
+    recorded: str
+    rerun: str
+
+    def __str__(self) -> str:
+        return f"{self.channel} step {self.step}: {self.what} recorded {self.recorded}, re-run {self.rerun}"
+
+
+@dataclass(frozen=True)
+class Verification:
+    compared: dict[str, int]  # messages compared per channel
+    last_step: int  # the last step whose status was compared
+    divergence: Divergence | None
+    note: str  # why the comparison ended before the end of the re-run or of the recording, or ""
+    completed_run: bool  # the recording says its run completed: then it must hold every message
+
+    @property
+    def passed(self) -> bool:
+        return self.divergence is None and not (self.completed_run and self.note)
+
+
+class _Stop(Exception):
+    """Ends the re-run early: the recording diverged, or has no more messages."""
+
+
+def _kind_name(kind: int) -> str:
+    return Kind(kind).name if kind in Kind._value2member_map_ else str(kind)
+
+
+def _value_text(x: float) -> str:
+    return f"{x!r} (0x{np.float64(x).view(np.uint64):016x})"
+
+
+LIFECYCLE = (Kind.STOP, Kind.ACK)  # messages of the bus, not of the scheme
+
+
+def _skip_lifecycle(messages: list, index: int) -> int:
+    while index < len(messages) and messages[index].kind in LIFECYCLE:
+        index += 1
+    return index
+
+
+class _Comparer:
+    """The tap of the re-run: compares every message with the recording's next one on the same channel."""
+
+    def __init__(self, recording: Recording, status_names: tuple[str, ...]) -> None:
+        self.recording = recording
+        self.cursor = {topic: 0 for topic in recording.channels}
+        self.divergence: Divergence | None = None
+        self.exhausted: str | None = None
+        self.last_step = 0
+        spec = recording.channels[STATUS_TOPIC].spec
+        compared = [n for n in spec.names if n not in spec.measured]
+        missing = [n for n in compared if n not in status_names]
+        if missing:
+            raise RecordingError(f"{recording.path}: this zencosim reports no status fields {', '.join(missing)}")
+        self.status_pairs = [(spec.names.index(n), status_names.index(n), n) for n in compared]
+
+    def tap(self, source: str, channel: str, wire: bytes) -> None:
+        topic = f"{source}/{channel}"
+        channel = self.recording.channels[topic]
+        index = _skip_lifecycle(channel.messages, self.cursor[topic])
+        if index >= len(channel.messages):
+            self.exhausted = f"{topic} has no message after step {channel.messages[-1].step if index else 'none'}"
+            raise _Stop
+        self.cursor[topic] = index + 1
+        recorded = channel.messages[index]
+        message = decode(wire, topic)
+        if recorded.kind != message.kind:
+            self._diverged(topic, message.step, "kind", _kind_name(recorded.kind), message.kind.name)
+        for what, old, new in (("step", recorded.step, message.step), ("time_ns", recorded.time_ns, message.time_ns),
+                               ("rows", recorded.rows, message.rows), ("ref", recorded.ref, message.ref)):
+            if old != new:
+                self._diverged(topic, message.step, what, str(old), str(new))
+        if topic == STATUS_TOPIC:
+            pairs = self.status_pairs
+            self.last_step = message.step
+        else:
+            if recorded.values.size != message.values.size:
+                self._diverged(topic, message.step, "number of values", str(recorded.values.size),
+                               str(message.values.size))
+            names = channel.spec.names
+            pairs = [(i, i, names[i % len(names)] + (f" (row {i // len(names)})" if message.rows > 1 else ""))
+                     for i in range(message.values.size)] if names else []
+        old_bits, new_bits = recorded.values.view(np.uint64), message.values.view(np.uint64)
+        for old_at, new_at, name in pairs:
+            if old_bits[old_at] != new_bits[new_at]:
+                self._diverged(topic, message.step, name, _value_text(recorded.values[old_at]),
+                               _value_text(message.values[new_at]))
+
+    def _diverged(self, topic: str, step: int, what: str, recorded: str, rerun: str) -> None:
+        self.divergence = Divergence(topic, step, what, recorded, rerun)
+        raise _Stop
+
+
+def verify(recording: Recording) -> Verification:
+    """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run."""
+    try:
+        scene = scene_from_text(recording.scene_toml, f"{recording.path}:{SCENE_ATTACHMENT}")
+    except SceneError as error:
+        raise RecordingError(f"{recording.path}: its scene no longer loads in this zencosim "
+                             f"({recording.info['zencosim']} recorded it): {error}") from None
+    if scene.digest != recording.info["scene_digest"]:
+        raise RecordingError(f"{recording.path}: the embedded scene's digest {scene.digest[:12]} differs from the "
+                             f"recorded {recording.info['scene_digest'][:12]}")
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, realtime=False)
+    expected = {spec.topic: spec for spec in channel_specs(plan, status)}
+    if set(expected) != set(recording.channels):
+        raise RecordingError(f"{recording.path}: channels {', '.join(recording.channels)}; scene {scene.name} has "
+                             f"{', '.join(expected)} in this zencosim")
+    for topic, spec in expected.items():
+        recorded = recording.channels[topic].spec
+        if spec.role != "status" and recorded.names != spec.names:
+            raise RecordingError(f"{recording.path}: channel {topic} holds {', '.join(recorded.names)}; "
+                                 f"this zencosim has {', '.join(spec.names)}")
+    comparer = _Comparer(recording, tuple(f.name for f in status.fields))
+    replica = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
+                      endpoints(plan, subsystems), tap=comparer.tap)
+    try:
+        replica.run()
+    except _Stop:
+        pass
+    note = comparer.exhausted or ""
+    if comparer.divergence is None and not note:
+        extra = {t: n for t, c in recording.channels.items()
+                 if (n := sum(m.kind not in LIFECYCLE for m in c.messages[comparer.cursor[t]:]))}
+        if extra:
+            note = "the recording holds more messages than the re-run: " + ", ".join(f"{t} {n}" for t, n in extra.items())
+    completed = recording.end is not None and recording.end["outcome"] == "completed"
+    return Verification(dict(comparer.cursor), comparer.last_step, comparer.divergence, note, completed)
