@@ -1,0 +1,177 @@
+"""Recordings of in-process runs: what the file holds, that standard tooling reads it, that verification
+catches a difference, that a killed recorder leaves a readable file, and that bad input is named.
+
+The recorder is a real process fed by the in-process bus's tap.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from manager.protocol import Kind
+from manager.replica import Replica
+from manager.run import execute
+from manager.scene import load_scene, scene_from_text
+from manager.schemes import endpoints, make_scheme, plan_scene
+from manager.status import StatusReport
+from recordings.layout import SCENE_ATTACHMENT
+from recordings.reader import read_recording
+from recordings.recorder import Recorder
+from recordings.recorder_process import IDLE_S
+from recordings.verify import verify
+from recordings.writer import FLUSH_INTERVAL_S, RecordingWriter
+from tests.conftest import REPO, children_of, cmdline
+
+pytestmark = pytest.mark.multiprocess
+
+SCENE = ("two_mass_damped", ["manager.duration=2.0"])  # 2000 macro-steps
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """An in-process run of 2000 steps, recorded: (file, run record, recorder's end record)."""
+    path = tmp_path_factory.mktemp("recorded") / "run.mcap"
+    recorder = Recorder(path)
+    record, _ = execute(load_scene(*SCENE), "inproc", recorder=recorder)
+    return path, record, recorder.result
+
+
+def test_the_file_holds_every_message_bit_for_bit(recorded):
+    path, record, result = recorded
+    plan = record.plan
+    assert result["outcome"] == "completed" and result["lost"] == 0 and result["malformed"] == 0
+    assert all(c["published"] == c["received"] == (plan.n_ticks if t == "manager/status" else plan.n_ticks + 1)
+               for t, c in result["channels"].items())
+    recording = read_recording(path)
+    assert recording.truncated is None and recording.end["lost"] == 0
+    for sub in plan.subsystems:
+        steps, times, outputs = recording.channels[f"{sub.name}/y"].table(Kind.OUTPUT)
+        assert steps.tolist() == list(range(plan.n_ticks + 1))
+        assert times.tolist() == (steps * plan.base_step_ns).tolist()
+        assert outputs.tobytes() == record.trajectories[sub.index].tobytes()
+        received = [m for m in recording.channels[f"{sub.name}/commands"].messages if m.kind == Kind.STEP]
+        assert [m.step for m in received] == list(range(plan.n_ticks))
+    # ZOH: what S1 received at step j is what S2 reported at step j (x2, v2)
+    s1_inputs = np.array([m.values for m in recording.channels["S1/commands"].messages if m.kind == Kind.STEP])
+    assert s1_inputs.tobytes() == record.trajectories[1][:-1, :2].tobytes()
+    steps, _, status = recording.channels["manager/status"].table(Kind.STATUS)
+    names = recording.channels["manager/status"].spec.names
+    assert steps.tolist() == list(range(1, plan.n_ticks + 1))
+    assert status[:, names.index("delta_p.c")].tobytes() == record.residual_power[1:, 0].tobytes()
+    assert status[:, names.index("delta_e.c")].tobytes() == record.residual_energy[1:, 0].tobytes()
+    assert np.all(np.diff(status[:, names.index("wall_time")]) >= 0)
+
+
+def test_the_file_says_what_ran_and_holds_a_scene_that_reruns_it(recorded):
+    path, _, _ = recorded
+    recording = read_recording(path)
+    info = recording.info
+    assert (info["scene"], info["bus"], info["steps"], info["macro_step_ns"]) == ("two_mass_damped", "inproc",
+                                                                                  "2000", "1000000")
+    assert info["host"] and info["run_id"] and info["zencosim"] and info["overrides"] == '["manager.duration=2.0"]'
+    scene = scene_from_text(recording.scene_toml, SCENE_ATTACHMENT)
+    assert scene.digest == info["scene_digest"] == load_scene(*SCENE).digest
+
+
+def test_standard_mcap_tooling_decodes_every_message(recorded):
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+    path, record, result = recorded
+    with open(path, "rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        assert reader.get_summary().statistics.message_count == result["messages"]
+        decoded = [proto for _, channel, _, proto in reader.iter_decoded_messages() if channel.topic == "S2/y"]
+    x2 = [proto.values[0] for proto in decoded if proto.kind == Kind.OUTPUT]
+    assert np.array(x2).tobytes() == record.trajectories[1][:, 0].tobytes()
+
+
+def test_verification_passes_then_names_the_first_difference(recorded):
+    path, _, _ = recorded
+    assert verify(read_recording(path)).passed
+
+    recording = read_recording(path)
+    channel = recording.channels["S2/y"]
+    original = channel.messages[700]
+    flipped = original.values.copy()
+    flipped.view(np.uint64)[0] ^= 1  # one bit of x2 at step 700
+    channel.messages[700] = dataclasses.replace(original, values=flipped)
+    result = verify(recording)
+    assert not result.passed
+    assert (result.divergence.channel, result.divergence.step, result.divergence.what) == ("S2/y", 700, "x2")
+    assert result.divergence.recorded != result.divergence.rerun
+    assert f"{flipped[0]!r}" in result.divergence.recorded and f"{original.values[0]!r}" in result.divergence.rerun
+
+    recording = read_recording(path)
+    del recording.channels["S1/y"].messages[300]  # a lost message
+    result = verify(recording)
+    assert (result.divergence.channel, result.divergence.step, result.divergence.what) == ("S1/y", 300, "step")
+    assert result.divergence.recorded == "301"
+
+
+def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_path):
+    path = tmp_path / "killed.mcap"
+    scene = load_scene("two_mass_damped", ["manager.duration=0.5"])
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, realtime=False)
+    recorder = Recorder(path)
+    try:
+        recorder.start(scene, plan, status, "inproc", "killed", realtime=False)
+        record = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
+                         endpoints(plan, subsystems), tap=recorder.tap).run()
+        recorder.flush()
+        time.sleep(FLUSH_INTERVAL_S + 2 * IDLE_S + 0.5)  # the idle recorder writes its open chunk out
+        recorder_pid = next(pid for pid in children_of(os.getpid()) if "recordings.recorder_process" in cmdline(pid))
+        os.kill(recorder_pid, signal.SIGKILL)
+    finally:
+        recorder.close()
+    recording = read_recording(path)
+    assert recording.truncated is not None and recording.end is None  # no footer, no end record
+    assert {t: len(c.messages) for t, c in recording.channels.items()} == dict(recorder.published)
+    _, _, outputs = recording.channels["S2/y"].table(Kind.OUTPUT)
+    assert outputs.tobytes() == record.trajectories[1].tobytes()
+
+
+def _zencosim(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "manager.cli", *args], capture_output=True, text=True, cwd=REPO,
+                          timeout=120)
+
+
+def test_bad_input_gives_an_error_naming_the_file(recorded, tmp_path):
+    not_mcap = tmp_path / "notes.mcap"
+    not_mcap.write_text("hello\n")
+    for command in (("inspect", str(not_mcap)), ("replay", str(not_mcap), "--verify")):
+        result = _zencosim(*command)
+        assert result.returncode == 2 and f"{not_mcap} is not an MCAP file" in result.stderr, result.stderr
+    missing = tmp_path / "missing.mcap"
+    result = _zencosim("inspect", str(missing))
+    assert result.returncode == 2 and f"cannot read recording {missing}" in result.stderr
+
+    # a recording made by a zencosim whose model "masses" this one no longer has
+    path, _, _ = recorded
+    good = read_recording(path)
+    stale = tmp_path / "stale.mcap"
+    writer = RecordingWriter(stale, good.info, good.scene_toml.replace('model = "masses"', 'model = "point_masses"'),
+                             [c.spec for c in good.channels.values()])
+    writer.finish("completed", {})
+    result = _zencosim("replay", str(stale), "--verify")
+    assert result.returncode == 2
+    assert f"{stale}: its scene no longer loads" in result.stderr and "point_masses" in result.stderr, result.stderr
+
+    result = _zencosim("replay", str(path))
+    assert result.returncode == 2 and "nothing to do" in result.stderr
+
+
+def test_inspect_shows_channels_counts_and_losses(recorded):
+    path, _, _ = recorded
+    result = _zencosim("inspect", str(path))
+    assert result.returncode == 0, result.stderr
+    for text in ("two_mass_damped", "S1/commands", "S2/y", "manager/status", "2001", "2000 of 2000", "2 s simulated",
+                 "lost: 0", "completed"):
+        assert text in result.stdout, text
