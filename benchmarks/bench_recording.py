@@ -68,7 +68,7 @@ def wire_messages(path: Path) -> list[tuple[int, bytes]]:
     messages = []
     for index, channel in enumerate(recording.channels.values()):
         for m in channel.messages:
-            messages.append((index, encode(m.kind, m.step, m.time_ns, m.values, rows=m.rows)))
+            messages.append((index, encode(m.kind, m.step, m.time_ns, m.values, rows=m.rows, ref=m.ref)))
     return messages
 
 
@@ -93,9 +93,9 @@ def _from_json_float(x: float | str) -> float:
 
 
 def encode_json(wire: bytes) -> bytes:
-    _version, kind, rows, count, step, time_ns = HEADER.unpack_from(wire)
+    _version, kind, rows, count, step, time_ns, ref = HEADER.unpack_from(wire)
     values = np.frombuffer(wire, "<f8", count, HEADER.size).tolist()
-    return json.dumps({"step": step, "time_ns": time_ns, "kind": kind, "rows": rows,
+    return json.dumps({"step": step, "time_ns": time_ns, "kind": kind, "rows": rows, "ref": ref,
                        "values": [_json_float(v) for v in values]}, separators=(",", ":")).encode()
 
 

@@ -1,11 +1,11 @@
 """Write one run to an MCAP file: header, schema, channels, metadata, scene, then every wire message.
 
-Messages go into ZSTD-compressed chunks of at most ``CHUNK_BYTES``; a chunk is also closed and
-handed to the operating system once it is ``FLUSH_INTERVAL_S`` old (at the next message, or when the
-recorder is idle: ``flush_if_due``). A recorder killed outright (SIGKILL) therefore leaves a file
-whose every complete chunk is readable: it loses at most the messages of the last
-``FLUSH_INTERVAL_S`` (one chunk at most).
-``finish`` writes the ``zencosim.end`` record and the MCAP summary and footer.
+Messages go into ZSTD-compressed chunks of about ``CHUNK_BYTES`` (``recordings.mcap_file``); a chunk
+is also closed and handed to the operating system once it is ``FLUSH_INTERVAL_S`` old (at the next
+message, or when the recorder is idle: ``flush_if_due``). A recorder killed outright (SIGKILL)
+therefore leaves a file whose every complete chunk is readable: it loses at most the messages of the
+last ``FLUSH_INTERVAL_S`` (one chunk at most). ``finish`` writes the ``zencosim.end`` record, the
+MCAP summary and the footer.
 """
 from __future__ import annotations
 
@@ -13,11 +13,10 @@ import json
 import time
 from pathlib import Path
 
-from mcap.writer import CompressionType, Writer
-
 from manager.protocol import ProtocolError
 from recordings import RecordingError
 from recordings.layout import END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
+from recordings.mcap_file import McapFile
 from recordings.schema import FILE_DESCRIPTOR_SET, MESSAGE_ENCODING, SCHEMA_ENCODING, SCHEMA_NAME, encode_wire
 
 CHUNK_BYTES = 256 * 1024  # uncompressed bytes of messages per chunk
@@ -35,13 +34,11 @@ class RecordingWriter:
             self._file = open(self.path, "wb")
         except OSError as error:
             raise RecordingError(f"cannot write recording {self.path}: {error.strerror}") from None
-        self._mcap = Writer(self._file, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
-        self._mcap.start(profile="", library=f"zencosim {metadata['zencosim']}")
-        schema = self._mcap.register_schema(SCHEMA_NAME, SCHEMA_ENCODING, FILE_DESCRIPTOR_SET)
-        self._ids = [self._mcap.register_channel(c.topic, MESSAGE_ENCODING, schema, c.metadata()) for c in channels]
-        self._mcap.add_metadata(RUN_METADATA, metadata)
-        now = time.time_ns()
-        self._mcap.add_attachment(now, now, SCENE_ATTACHMENT, "application/toml", scene_toml.encode())
+        self._mcap = McapFile(self._file, f"zencosim {metadata['zencosim']}", CHUNK_BYTES)
+        schema = self._mcap.schema(SCHEMA_NAME, SCHEMA_ENCODING, FILE_DESCRIPTOR_SET)
+        self._ids = [self._mcap.channel(c.topic, MESSAGE_ENCODING, schema, c.metadata()) for c in channels]
+        self._mcap.metadata(RUN_METADATA, metadata)
+        self._mcap.attachment(SCENE_ATTACHMENT, "application/toml", scene_toml.encode(), time.time_ns())
         self._mcap.flush()
         self.received = [0] * len(channels)
         self.malformed: list[str] = []  # why each rejected message was rejected
@@ -55,7 +52,7 @@ class RecordingWriter:
         except ProtocolError as error:
             self.malformed.append(str(error))
             return
-        self._mcap.add_message(self._ids[index], max(time_ns, 0), data, publish_ns)
+        self._mcap.message(self._ids[index], max(time_ns, 0), publish_ns, data)
         self.flush_if_due()
 
     def flush_if_due(self) -> None:
@@ -68,8 +65,8 @@ class RecordingWriter:
     def finish(self, outcome: str, published: dict[str, int] | None) -> dict:
         """Close the file with its end record; return what it says (see ``end_record``)."""
         end = self.end_record(outcome, published)
-        self._mcap.add_metadata(END_METADATA, {key: value if isinstance(value, str) else json.dumps(value)
-                                               for key, value in end.items()})
+        self._mcap.metadata(END_METADATA, {key: value if isinstance(value, str) else json.dumps(value)
+                                           for key, value in end.items()})
         self._mcap.finish()
         self._file.close()
         return end
