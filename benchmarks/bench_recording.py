@@ -5,7 +5,9 @@
 1. Overhead: macro-steps per second of two_mass_damped (10 000 steps of 1 ms) without and with
    ``--record``, on the in-process bus and over Zenoh; runs alternate, medians over repeats. Also
    the time until the recording is complete (the recorder finishing after the last step) and the
-   messages lost.
+   messages lost. On a shared machine these depend on what else runs; so, also, the cost on the
+   stepping loop alone: CPU time per step of the in-process run with the status and the tap, whose
+   batches go nowhere (no recorder process competing for a core).
 2. Recorder ceiling: messages per second the recorder's writer takes (encode and write MCAP), alone
    on one core.
 3. Encoding: the real messages of a recorded run, encoded as our protobuf and as JSON with a JSON
@@ -33,8 +35,11 @@ from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
 from manager.protocol import HEADER, encode  # noqa: E402
+from manager.replica import Replica  # noqa: E402
 from manager.run import execute  # noqa: E402
 from manager.scene import load_scene  # noqa: E402
+from manager.schemes import endpoints, make_scheme, plan_scene  # noqa: E402
+from manager.status import StatusReport  # noqa: E402
 from recordings.reader import read_recording  # noqa: E402
 from recordings.recorder import Recorder  # noqa: E402
 from recordings.schema import decode_stored, encode_wire  # noqa: E402
@@ -60,6 +65,41 @@ def overhead(bus: str, repeats: int, workdir: Path) -> dict:
     return {"steps": record.plan.n_ticks, "steps_per_s_without": without, "steps_per_s_with": with_,
             "overhead": without / with_ - 1.0, "recording_complete_s": statistics.median(complete),
             "lost": lost, "file_bytes": (workdir / f"{bus}-0.mcap").stat().st_size}
+
+
+class _NullRecorder(Recorder):
+    """The in-process tap with no recorder process: its batches are dropped."""
+
+    def __init__(self, plan, status: StatusReport) -> None:
+        super().__init__(os.devnull)
+        topics = [f"{s.name}/{c}" for s in plan.subsystems for c in ("commands", "y")] + ["manager/status"]
+        self._index = {tuple(topic.split("/")): i for i, topic in enumerate(topics)}
+        self._topics, self._status = topics, len(topics) - 1
+
+    def _write_frame(self, kind: int, payload: bytes) -> None:
+        pass
+
+
+def stepping_loop_cost(repeats: int) -> dict:
+    """CPU µs per macro-step of the in-process run: plain, with the status, with status and tap."""
+    scene = load_scene(SCENE)
+    plan, _ = plan_scene(scene)
+    names = [s.name for s in plan.subsystems]
+
+    def cpu_per_step(status: StatusReport | None, tap) -> float:
+        replica = Replica(make_scheme(scene, plan, status=status), names, endpoints(plan, plan_scene(scene)[1]), tap=tap)
+        started = time.process_time()
+        replica.run()
+        return (time.process_time() - started) / plan.n_ticks * 1e6
+
+    plain, with_status, with_tap = [], [], []
+    for _ in range(repeats):
+        plain.append(cpu_per_step(None, None))
+        with_status.append(cpu_per_step(StatusReport(plan, False), None))
+        status = StatusReport(plan, False)
+        with_tap.append(cpu_per_step(status, _NullRecorder(plan, status).tap))
+    return {"plain_us": min(plain), "status_us": min(with_status), "status_and_tap_us": min(with_tap),
+            "overhead": min(with_tap) / min(plain) - 1.0}
 
 
 def wire_messages(path: Path) -> list[tuple[int, bytes]]:
@@ -146,6 +186,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="zencosim-bench-") as tmp:
         workdir = Path(tmp)
         figures = {"scene": SCENE, "cpus": os.cpu_count(), "load_average": os.getloadavg(),
+                   "stepping_loop": stepping_loop_cost(args.repeats),
                    "inproc": overhead("inproc", args.repeats, workdir),
                    "zenoh": overhead("zenoh", args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
@@ -156,6 +197,10 @@ def main() -> None:
                         f"of each kind), load average {figures['load_average'][0]:.1f} on {figures['cpus']} cores")
     table.add_column("measure")
     table.add_column("value", justify="right")
+    loop = figures["stepping_loop"]
+    table.add_row("stepping loop: CPU per step plain / +status / +status+tap [µs]",
+                  f"{loop['plain_us']:.1f} / {loop['status_us']:.1f} / {loop['status_and_tap_us']:.1f}")
+    table.add_row("stepping loop: cost of recording on it (min over repeats)", f"{loop['overhead'] * 100:.1f} %")
     for bus in ("inproc", "zenoh"):
         f = figures[bus]
         table.add_row(f"{bus}: macro-steps/s without / with --record",

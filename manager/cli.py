@@ -133,8 +133,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         try:
             summary = run_scene(scene, args.bus, True if args.realtime else None,
                                 lambda step: progress.update(task, completed=step), recorder=recorder, **bus_options)
-        finally:
-            if recorder is not None and recorder.result is not None and (args.quiet or recorder.result["outcome"] != "completed"):
+        finally:  # a run that did not complete prints no summary: say what its recording holds
+            if recorder is not None and recorder.result is not None and recorder.result["outcome"] != "completed":
                 err.print(escape(_recording_text(recorder.result)), highlight=False, soft_wrap=True)
     if not args.quiet:
         _print_summary(summary)

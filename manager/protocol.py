@@ -7,10 +7,12 @@ on the in-process bus and over Zenoh, so a codec bug shows on both.
 """
 from __future__ import annotations
 
+import functools
 import struct
 import zlib
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Callable
 
 import numpy as np
 
@@ -68,9 +70,10 @@ def command_ref(command: bytes) -> int:
     return zlib.crc32(command)
 
 
-def encode_floats(kind: Kind, step: int, time_ns: int, values: list[float]) -> bytes:
-    """``encode`` for a short list of Python floats, without numpy (the manager's status, every step)."""
-    return HEADER.pack(VERSION, kind, 0, len(values), step, time_ns, 0) + struct.pack(f"<{len(values)}d", *values)
+def floats_encoder(kind: Kind, count: int) -> Callable[..., bytes]:
+    """``encode`` of ``kind`` messages of exactly ``count`` float64 values in one ``struct.pack``, without
+    numpy: ``encoder(step, time_ns, ref, *values)`` (the manager's status, every step)."""
+    return functools.partial(struct.Struct(HEADER.format + f"{count}d").pack, VERSION, kind, 0, count)
 
 
 def decode(data: bytes, sender: str) -> Message:

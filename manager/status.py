@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from manager.plan import Plan
-from manager.protocol import Kind, encode_floats
+from manager.protocol import Kind, floats_encoder
 
 
 @dataclass(frozen=True)
@@ -36,12 +36,12 @@ class StatusReport:
             StatusField("step_wall_time", "s", measured=True),  # from the release of the step to its completion
             *((StatusField("lateness", "s", measured=True),) if realtime else ()),  # release minus deadline
         )
+        self._encode = floats_encoder(Kind.STATUS, len(self.fields))
 
     def encode(self, step: int, time_ns: int, delta_p: np.ndarray, delta_e: np.ndarray, start_ns: int,
                released_ns: int, completed_ns: int, lateness_ns: int | None) -> bytes:
         """The STATUS message of step ``step`` (times from ``time.perf_counter_ns``)."""
-        values = [*delta_p.tolist(), *delta_e.tolist(), (completed_ns - start_ns) * 1e-9,
-                  (completed_ns - released_ns) * 1e-9]
+        timing = ((completed_ns - start_ns) * 1e-9, (completed_ns - released_ns) * 1e-9)
         if lateness_ns is not None:
-            values.append(lateness_ns * 1e-9)
-        return encode_floats(Kind.STATUS, step, time_ns, values)
+            timing += (lateness_ns * 1e-9,)
+        return self._encode(step, time_ns, 0, *delta_p.tolist(), *delta_e.tolist(), *timing)

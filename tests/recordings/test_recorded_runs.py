@@ -53,9 +53,12 @@ def test_a_zenoh_run_at_1_ms_over_10_s_is_recorded_without_loss_and_replays(proc
                         "--summary", str(summary))
     recorder = wait_for(lambda: _child(manager.pid, "recordings.recorder_process"), 30, "the recorder process")
     wait_for(lambda: mcap.exists() and mcap.stat().st_size > 100_000, 60, "the recording to grow")
-    os.kill(recorder, signal.SIGSTOP)  # a recorder that falls behind: Zenoh must block, not drop
-    time.sleep(3.0)
-    os.kill(recorder, signal.SIGCONT)
+    slowed = time.monotonic()
+    while time.monotonic() - slowed < 4.0:  # a recorder at a tenth of its speed: Zenoh must block, not drop
+        os.kill(recorder, signal.SIGSTOP)
+        time.sleep(0.09)
+        os.kill(recorder, signal.SIGCONT)
+        time.sleep(0.01)
     _, stderr = manager.communicate(timeout=150)
     assert manager.returncode == 0, stderr
 
