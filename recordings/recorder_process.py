@@ -12,15 +12,17 @@ were handed over then), and the n messages one after the other.
 
 On the Zenoh bus the recorder listens on its endpoint (the manager and every subsystem connect to
 it), subscribes to ``zencosim/<run-id>/**`` (keys that are not channels, such as the start signal,
-are passed over) with a FIFO handler (a full queue blocks Zenoh, and the
-publishers' ``CongestionControl.BLOCK`` turns that into backpressure, never into a drop), and only
+are passed over) with a FIFO handler (a full queue blocks Zenoh, and the publishers'
+``CongestionControl.BLOCK`` turns that into backpressure rather than drops; a recorder frozen for
+longer than Zenoh's lease, 10 s, is disconnected instead, see docs/recording.md), and only
 then declares its liveliness token, which the manager and the subsystems wait for. After END it
 waits until it has received what the manager published, or until nothing arrives for
 ``QUIET_S``, then finishes the file; the end record counts what was lost.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
 (also sent by the kernel when the manager dies) and an end of input without END finish the file with
-what has arrived. Standard output gets one JSON line when ready and one when finished.
+what has arrived once nothing more has for ``LINGER_S``. Standard output gets one JSON line when
+ready and one when finished.
 """
 from __future__ import annotations
 
@@ -43,6 +45,7 @@ CONTROL, BATCH = 0xFFFF, 0xFFFE
 BATCH_HEAD = struct.Struct("<II")
 FIFO_CAPACITY = 2048  # samples queued between Zenoh and the writer before Zenoh blocks
 QUIET_S = 2.0  # after END, give up waiting for missing messages once nothing arrived for this long
+LINGER_S = 0.3  # after SIGTERM or the end of input without END, finish once nothing arrived for this long
 POLL_S = 0.0005  # sleep when the Zenoh queue is empty
 IDLE_S = 0.1  # the pipe reader lets the writer flush after this long without input
 NO_END = "the manager ended without closing the recording"
@@ -153,12 +156,13 @@ def record_zenoh(frames: FrameReader, writer: RecordingWriter, zenoh_start: dict
                     writer.write(index, sample.payload.to_bytes(), time.time_ns())
                 last_arrival = time.monotonic()
                 continue
-            if frames.stop.is_set():
-                break
-            if end:
-                published = end[0][1] or {}
-                if (all(writer.received[topics[t]] >= n for t, n in published.items() if t in topics)
-                        or time.monotonic() - last_arrival > QUIET_S):
+            idle_s = time.monotonic() - last_arrival
+            if frames.stop.is_set() or (end and end[0][1] is None):
+                if idle_s > LINGER_S:  # the manager is gone: what was in flight has arrived
+                    break
+            elif end:
+                published = end[0][1]
+                if idle_s > QUIET_S or all(writer.received[topics[t]] >= n for t, n in published.items() if t in topics):
                     break
             writer.flush_if_due()
             time.sleep(POLL_S)
