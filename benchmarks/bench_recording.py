@@ -40,6 +40,7 @@ from manager.run import execute  # noqa: E402
 from manager.scene import load_scene  # noqa: E402
 from manager.schemes import endpoints, make_scheme, plan_scene  # noqa: E402
 from manager.status import StatusReport  # noqa: E402
+from recordings.layout import channel_specs  # noqa: E402
 from recordings.reader import read_recording  # noqa: E402
 from recordings.recorder import Recorder  # noqa: E402
 from recordings.schema import decode_stored, encode_wire  # noqa: E402
@@ -72,9 +73,7 @@ class _NullRecorder(Recorder):
 
     def __init__(self, plan, status: StatusReport) -> None:
         super().__init__(os.devnull)
-        topics = [f"{s.name}/{c}" for s in plan.subsystems for c in ("commands", "y")] + ["manager/status"]
-        self._index = {tuple(topic.split("/")): i for i, topic in enumerate(topics)}
-        self._topics, self._status = topics, len(topics) - 1
+        self._declare(channel_specs(plan, status), realtime=False)
 
     def _write_frame(self, kind: int, payload: bytes) -> None:
         pass

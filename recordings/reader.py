@@ -17,9 +17,9 @@ from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 from manager.protocol import Kind
-from recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
-from recordings.schema import SCHEMA_NAME, StoredMessage, decode_stored
 from recordings import RecordingError
+from recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, STATUS_TOPIC, ChannelSpec
+from recordings.schema import SCHEMA_NAME, StoredMessage, decode_stored
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -54,7 +54,7 @@ class Recording:
 
     def last_step(self) -> int:
         """The last step whose status was recorded (0 when none was)."""
-        status = [m.step for m in self.channels["manager/status"].messages] if "manager/status" in self.channels else []
+        status = [m.step for m in self.channels[STATUS_TOPIC].messages] if STATUS_TOPIC in self.channels else []
         return max(status, default=0)
 
 

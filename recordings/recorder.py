@@ -1,11 +1,11 @@
 """The manager's handle on a recorder process (recordings.recorder_process).
 
 ``start`` spawns the process (it dies with the manager), sends it the run's description and waits
-until it is ready; with the in-process bus, ``tap`` hands it every wire message through a pipe —
-the tap only appends the message and its channel to two lists, and every ``BATCH_MESSAGES`` messages
-(after every step of a real-time run) they go down the pipe as one frame, so validation, encoding
-and compression run in the other process, on the other core; with the Zenoh bus the process
-subscribes to the run itself. ``finish`` sends the outcome and what the manager published and returns the
+until it is ready; with the in-process bus, ``tap`` hands it every message through a pipe — the tap
+only appends the message and its channel to two lists, and every ``BATCH_MESSAGES`` messages (after
+every step of a real-time run) they go down the pipe as one frame, so validation, encoding and
+compression run in the other process, on the other core; with the Zenoh bus the process subscribes
+to the run itself. ``finish`` sends the outcome and what the manager published and returns the
 recorder's end record (outcome, per-channel published / received / lost).
 """
 from __future__ import annotations
@@ -28,9 +28,9 @@ from manager.scene import Scene
 from manager.status import StatusReport
 from manager.zenoh_bus import die_with_parent
 from manager.zenoh_session import ZenohOptions, free_tcp_port
-from recordings.layout import channel_specs, run_metadata
-from recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
 from recordings import RecordingError
+from recordings.layout import STATUS_TOPIC, ChannelSpec, channel_specs, run_metadata
+from recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
 
 READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
 FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
@@ -60,12 +60,7 @@ class Recorder:
               options: ZenohOptions = ZenohOptions(), host: str = "127.0.0.1") -> str | None:
         """Start the recorder process; return the Zenoh endpoint it listens on (None in process)."""
         specs = channel_specs(plan, status)
-        if len(specs) > 255:
-            raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
-        self._paced = realtime
-        self._index = {tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)}
-        self._topics = [spec.topic for spec in specs]
-        self._status = len(specs) - 1
+        self._declare(specs, realtime)
         endpoint = f"tcp/{host}:{free_tcp_port(host)}" if bus == "zenoh" else None
         start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime),
                  "scene_toml": tomli_w.dumps(scene.resolved),
@@ -83,6 +78,15 @@ class Recorder:
         if ready["event"] != "ready":
             raise RecordingError(ready.get("reason", f"recorder of {self.path} failed to start"))
         return endpoint
+
+    def _declare(self, specs: list[ChannelSpec], realtime: bool) -> None:
+        """What the tap needs to know of the channels."""
+        if len(specs) > 255:
+            raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
+        self._paced = realtime
+        self._index = {tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)}
+        self._topics = [spec.topic for spec in specs]
+        self._status = self._topics.index(STATUS_TOPIC)
 
     def tap(self, source: str, channel: str, data: bytes) -> None:
         """A message of the in-process replica (``manager.replica``)."""

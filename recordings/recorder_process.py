@@ -36,8 +36,8 @@ import threading
 import time
 from array import array
 
-from recordings.layout import ChannelSpec
 from recordings import RecordingError
+from recordings.layout import ChannelSpec
 from recordings.writer import RecordingWriter
 
 FRAME = struct.Struct("<HIq")

@@ -19,9 +19,9 @@ from manager.replica import Replica
 from manager.scene import SceneError, scene_from_text
 from manager.schemes import endpoints, make_scheme, plan_scene
 from manager.status import StatusReport
+from recordings import RecordingError
 from recordings.layout import SCENE_ATTACHMENT, STATUS_TOPIC, channel_specs
 from recordings.reader import Recording
-from recordings import RecordingError
 
 
 @dataclass(frozen=True)
@@ -88,13 +88,13 @@ class _Comparer:
 
     def tap(self, source: str, channel: str, wire: bytes) -> None:
         topic = f"{source}/{channel}"
-        channel = self.recording.channels[topic]
-        index = _skip_lifecycle(channel.messages, self.cursor[topic])
-        if index >= len(channel.messages):
-            self.exhausted = f"{topic} has no message after step {channel.messages[-1].step if index else 'none'}"
+        messages = self.recording.channels[topic].messages
+        index = _skip_lifecycle(messages, self.cursor[topic])
+        if index >= len(messages):
+            self.exhausted = f"{topic} has no message after step {messages[-1].step if messages else 'none'}"
             raise _Stop
         self.cursor[topic] = index + 1
-        recorded = channel.messages[index]
+        recorded = messages[index]
         message = decode(wire, topic)
         if recorded.kind != message.kind:
             self._diverged(topic, message.step, "kind", _kind_name(recorded.kind), message.kind.name)
@@ -102,6 +102,10 @@ class _Comparer:
                                ("rows", recorded.rows, message.rows), ("ref", recorded.ref, message.ref)):
             if old != new:
                 self._diverged(topic, message.step, what, str(old), str(new))
+        if message.kind == Kind.ERROR:
+            if recorded.text != message.text():
+                self._diverged(topic, message.step, "error text", recorded.text, message.text())
+            return
         if topic == STATUS_TOPIC:
             pairs = self.status_pairs
             self.last_step = message.step
@@ -109,9 +113,9 @@ class _Comparer:
             if recorded.values.size != message.values.size:
                 self._diverged(topic, message.step, "number of values", str(recorded.values.size),
                                str(message.values.size))
-            names = channel.spec.names
+            names = self.recording.channels[topic].spec.names
             pairs = [(i, i, names[i % len(names)] + (f" (row {i // len(names)})" if message.rows > 1 else ""))
-                     for i in range(message.values.size)] if names else []
+                     for i in range(message.values.size)]
         old_bits, new_bits = recorded.values.view(np.uint64), message.values.view(np.uint64)
         for old_at, new_at, name in pairs:
             if old_bits[old_at] != new_bits[new_at]:
