@@ -22,17 +22,18 @@ import zenoh
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.zenoh_session import RECORDER, ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
+from manager.zenoh_session import concrete_endpoint, RECORDER, ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
 
 
 class HostError(RuntimeError):
     """The subsystem process could not join a run."""
 
 
-def describe(scene: Scene, name: str, subsystem) -> bytes:
-    """What the manager checks before a run: same scene, same ports."""
+def describe(scene: Scene, name: str, subsystem, listen: str) -> bytes:
+    """What the manager checks before a run (same scene, same ports), and where this process listens."""
     return json.dumps({
         "subsystem": name,
+        "listen": listen,
         "scene_digest": scene.digest,
         "inputs": [[p.name, p.unit] for p in subsystem.inputs],
         "outputs": [[p.name, p.unit] for p in subsystem.outputs],
@@ -40,8 +41,9 @@ def describe(scene: Scene, name: str, subsystem) -> bytes:
     }).encode()
 
 
-def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> str:
-    """The id of the one run that waits for subsystem ``name`` of this scene."""
+def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> dict:
+    """The description of the one run that waits for subsystem ``name`` of this scene: its id and the
+    endpoints of the processes already in it."""
     deadline = time.monotonic() + wait_s
     while True:
         candidates = []
@@ -50,12 +52,12 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
                 continue
             info = json.loads(reply.ok.payload.to_bytes())
             if info.get("scene_digest") == scene.digest and name in info.get("waiting_for", []):
-                candidates.append(info["run_id"])
+                candidates.append(info)
         if len(candidates) == 1:
             return candidates[0]
         if len(candidates) > 1:
-            raise HostError(f"several runs wait for {name} of scene {scene.name}: {', '.join(candidates)}; "
-                            "choose one with --run-id")
+            raise HostError(f"several runs wait for {name} of scene {scene.name}: "
+                            f"{', '.join(c['run_id'] for c in candidates)}; choose one with --run-id")
         if time.monotonic() > deadline:
             raise HostError(f"no run of scene {scene.name} (digest {scene.digest[:12]}) waits for subsystem {name}; "
                             "is the manager started with the same scene and --set options?")
@@ -125,13 +127,20 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
     """Serve subsystem ``name`` until the run ends; return the process exit code."""
     if name not in scene.subsystems:
         raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
+    listen = concrete_endpoint(listen)
     connect = connect + ([recorder] if recorder else [])
-    for endpoint in connect:
-        if endpoint.startswith("tcp/"):
+    if run_id is None:
+        # started by hand: find the run, then connect to every process already in it (gossip would
+        # too, but not reliably in time), so that every pair of processes has a direct link
+        for endpoint in connect:
             wait_for_listener(endpoint, wait_s)
+        with zenoh.open(peer_config(connect=connect, options=options)) as probe:
+            info = find_run(probe, scene, name, wait_s)
+        run_id = info["run_id"]
+        connect = connect + [ep for peer, ep in info.get("endpoints", {}).items() if peer != name and ep not in connect]
+    for endpoint in connect:
+        wait_for_listener(endpoint, wait_s)
     with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:
-        if run_id is None:
-            run_id = find_run(session, scene, name, wait_s)
         host = _Host(scene, name, run_id, session)
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, lambda s, _f: host.stop(f"signal {signal.Signals(s).name}"))
@@ -140,7 +149,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             session.declare_subscriber(key(run_id, name, "u"), host.on_control),
             session.declare_subscriber(key(run_id, "manager", "go"), host.on_go),
             session.declare_queryable(key(run_id, name, "ctl"), lambda query: query.reply(
-                key(run_id, name, "ctl"), describe(scene, name, host.subsystem))),
+                key(run_id, name, "ctl"), describe(scene, name, host.subsystem, listen))),
             session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
             session.liveliness().declare_token(key(run_id, name, "alive")),
         ]

@@ -77,6 +77,7 @@ class ZenohBus:
         self._logs = tempfile.TemporaryDirectory(prefix="zencosim-")
         self._lock = threading.Lock()
         self._joined = {name: threading.Event() for name in self.names}
+        self._endpoints: dict[str, str] = {}  # where each subsystem process listens (for those started by hand)
         self._ready = {name: threading.Event() for name in self.names}
         self._lost: list[str] = []
         self._driving = False
@@ -124,7 +125,8 @@ class ZenohBus:
 
     def _on_run_query(self, query: zenoh.Query) -> None:
         info = {"run_id": self.run_id, "scene": self.scene.name, "scene_digest": self.scene.digest,
-                "waiting_for": [n for n in self.names if not self._joined[n].is_set()]}
+                "waiting_for": [n for n in self.names if not self._joined[n].is_set()],
+                "endpoints": dict(self._endpoints)}
         query.reply(key(self.run_id, "manager", "run"), json.dumps(info).encode())
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
@@ -177,6 +179,7 @@ class ZenohBus:
                 stderr=subprocess.STDOUT, preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
             log.close()
             spawned.append(listen)
+            self._endpoints[name] = listen
 
     def log_tail(self, name: str, lines: int = 15) -> str:
         path = Path(self._logs.name) / f"{name}.log"
@@ -216,6 +219,7 @@ class ZenohBus:
         if not replies:
             raise SubsystemFailure(name, "did not describe itself")
         info = json.loads(replies[0].ok.payload.to_bytes())
+        self._endpoints.setdefault(name, info["listen"])
         if info["scene_digest"] != self.scene.digest:
             raise SubsystemFailure(name, f"loaded a different scene (digest {info['scene_digest'][:12]}, manager has "
                                          f"{self.scene.digest[:12]}): start it with the same scene file and --set options")

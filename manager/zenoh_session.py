@@ -36,7 +36,10 @@ def key(run_id: str, *parts: str) -> str:
 def wait_for_listener(endpoint: str, timeout_s: float) -> None:
     """Block until a ``tcp/HOST:PORT`` endpoint accepts connections (Zenoh peers do not reliably retry
     a connect endpoint that was not listening when the session opened)."""
+    if not endpoint.startswith("tcp/"):
+        return
     host, _, port = endpoint.removeprefix("tcp/").rpartition(":")
+    host = "127.0.0.1" if host == "0.0.0.0" else host
     deadline = time.monotonic() + timeout_s
     while True:
         try:
@@ -46,6 +49,14 @@ def wait_for_listener(endpoint: str, timeout_s: float) -> None:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"nothing listens on {endpoint} after {timeout_s:g} s") from None
             time.sleep(0.02)
+
+
+def concrete_endpoint(endpoint: str) -> str:
+    """``tcp/HOST:0`` with a free port chosen now (so that it can be told to others); else unchanged."""
+    if endpoint.startswith("tcp/") and endpoint.endswith(":0"):
+        host = endpoint[len("tcp/"):-len(":0")]
+        return f"tcp/{host}:{free_tcp_port(host.strip('[]'))}"
+    return endpoint
 
 
 def free_tcp_port(host: str = "127.0.0.1") -> int:
