@@ -4,6 +4,14 @@ An integrator is bound to one model and one state vector ``z`` (updated in place
 one micro-step ``h`` with the inputs evaluated where the method needs them. Second-order models
 (``model.second_order``) have ``z = [x, v]`` and give the acceleration; first-order models (a
 hydraulic circuit) give ``ż`` itself. Symplectic Euler needs the second-order form.
+
+For a linear second-order model ``a = A_a z + B_a w`` every method is also a linear map (the exact
+discrete analysis, ``manager.discrete``, is built from it):
+
+    z⁺ = Φ z + Σ_i Γ_i w(τ + θ_i h),   θ_i = ``input_nodes[i]``,
+
+given by the class method ``linear_step(A_a, B_a, h) -> (Φ, Γ)`` with ``Γ`` of shape
+``(len(input_nodes), 2n, n_inputs)``. External forces of time are not part of it.
 """
 from __future__ import annotations
 
@@ -27,6 +35,15 @@ class SymplecticEuler:
 
     name = "symplectic_euler"
     second_order_only = True
+    input_nodes = (0.0,)
+
+    @staticmethod
+    def linear_step(A_a: np.ndarray, B_a: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(Φ, Γ)`` of one kick–drift step: ``v⁺`` rows ``[0 I] + h A_a``, ``x⁺`` rows ``[I 0] + h v⁺``."""
+        n = A_a.shape[0]
+        kick = np.hstack((np.zeros((n, n)), np.eye(n))) + h * A_a
+        drift = np.hstack((np.eye(n), np.zeros((n, n)))) + h * kick
+        return np.vstack((drift, kick)), np.vstack((h * h * B_a, h * B_a))[None]
 
     def __init__(self, model, z: np.ndarray) -> None:
         n = model.n_dof
@@ -46,6 +63,32 @@ class RungeKutta4:
 
     name = "rk4"
     second_order_only = False
+    input_nodes = (0.0, 0.5, 1.0)
+
+    @staticmethod
+    def linear_step(A_a: np.ndarray, B_a: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(Φ, Γ)`` of one RK4 step on ``z' = F z + G w``, ``F = [[0, I], A_a]``, ``G = [[0], B_a]``.
+
+        Each stage is a matrix on ``[z, w(τ), w(τ + h/2), w(τ + h)]``.
+        """
+        n, n_in = A_a.shape[0], B_a.shape[1]
+        F = np.vstack((np.hstack((np.zeros((n, n)), np.eye(n))), A_a))
+        G = np.vstack((np.zeros((n, n_in)), B_a))
+        width = 2 * n + 3 * n_in
+        z = np.eye(2 * n, width)
+
+        def derivative(state: np.ndarray, node: int) -> np.ndarray:
+            k = F @ state
+            k[:, 2 * n + node * n_in:2 * n + (node + 1) * n_in] += G
+            return k
+
+        k1 = derivative(z, 0)
+        k2 = derivative(z + 0.5 * h * k1, 1)
+        k3 = derivative(z + 0.5 * h * k2, 1)
+        k4 = derivative(z + h * k3, 2)
+        step = z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        Gamma = np.stack([step[:, 2 * n + i * n_in:2 * n + (i + 1) * n_in] for i in range(3)])
+        return step[:, :2 * n], Gamma
 
     def __init__(self, model, z: np.ndarray) -> None:
         self.model = model
