@@ -10,6 +10,15 @@ stiffness and damping matrices are stamped over the point coordinates ``q = [x, 
 effects the scene names; nonlinear two-point effects (paper 002 Eqs. 22–23) add ``f_nl``, evaluated
 from their force laws only when the scene names one, so a linear scene runs the matrix products
 alone. Effects the scene does not name, or names with a zero coefficient, are not built.
+
+Public matrices (the exact discrete analysis, ``manager.discrete``, is built from them), with
+``z = [x, v]`` and ``w`` the input values in port order:
+
+* ``A_a`` (n × 2n), ``B_a`` (n × n_inputs): ``a = A_a z + B_a w + M⁻¹ E f_e(t)``;
+* ``C_y`` (k × 2n), ``D_y`` (k × n_inputs): the linear part of the ``k`` outputs other than the
+  energy, ``y = C_y z + D_y w`` (+ the nonlinear elements' forces).
+
+They are the whole model when ``nonlinear`` is false.
 """
 from __future__ import annotations
 
@@ -165,8 +174,8 @@ class MassesModel:
             B_w[:, input_index[t.velocity_inputs[0]]] = -Cq[:n, n + j]
         for f in attachments.force_inputs:
             B_w[point_index[f.point], input_index[f.ports[0]]] += f.sign
-        self._A_a = Minv @ A_f
-        self._B_a = Minv @ B_w
+        self.A_a = Minv @ A_f
+        self.B_a = Minv @ B_w
         self._inverse_mass = np.diag(Minv).copy()
         self.external = tuple((e.effect, point_index[e.endpoints[0]]) for e in placed if e.effect.kind == "external")
         self._E_a = Minv[:, [body for _, body in self.external]]
@@ -208,6 +217,8 @@ class MassesModel:
         self._n_linear = len(ports)
         self._G = np.vstack((np.hstack((np.array(rows_z).reshape(len(ports), 2 * n),
                                         np.array(rows_w).reshape(len(ports), n_in))), 0.5 * Q))
+        self.C_y = self._G[:self._n_linear, :2 * n]
+        self.D_y = self._G[:self._n_linear, 2 * n:]
         self._z0 = np.array([spec.bodies[b].x0 for b in self.body_names] + [spec.bodies[b].v0 for b in self.body_names],
                             dtype=np.float64)
 
@@ -222,7 +233,7 @@ class MassesModel:
 
     def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         """``a = M⁻¹ (A_f z + B_w w + E f_e(t) + f_nl)`` at time t [s]."""
-        a = self._A_a.dot(z) + self._B_a.dot(w)
+        a = self.A_a.dot(z) + self.B_a.dot(w)
         if self.external:
             a = a + self._E_a.dot([effect.force(t) for effect, _ in self.external])
         if self._nonlinear:
