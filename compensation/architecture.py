@@ -10,7 +10,9 @@ it is computed in the other subsystem and sent over — through ``D(s)`` (the ra
 
 The gain vector is ``k = [d; f; g]`` (Eq. 22), each block listing the feedback terms force by
 force in declaration order: for the two-mass system of Eq. 24 ``d = [d_1, d_2, d_3, d_4]`` with
-``d_1: x_1``, ``d_2: x_2*``, ``d_3: x_1*``, ``d_4: x_2``.
+``d_1: x_1``, ``d_2: x_2*``, ``d_3: x_1*``, ``d_4: x_2``. A term declared without acceleration
+feedback keeps its place in ``d`` with the gain fixed at zero (``Architecture.free_gains`` lists
+the gains a design may choose).
 """
 from __future__ import annotations
 
@@ -31,10 +33,14 @@ class ArchitectureError(ValueError):
 
 @dataclass(frozen=True)
 class FeedbackTerm:
-    """``r(s) x_dof`` (collocated) or ``r(s) D(s) x_dof`` (``through_hold``: the exchanged ``x_dof*``)."""
+    """``r(s) x_dof`` (collocated) or ``r(s) D(s) x_dof`` (``through_hold``: the exchanged ``x_dof*``).
+
+    ``acceleration=False`` fixes ``d = 0`` in ``r(s) = s^2 d + s f + g``.
+    """
 
     dof: int
     through_hold: bool = False
+    acceleration: bool = True
 
 
 @dataclass(frozen=True)
@@ -70,6 +76,13 @@ class Architecture:
     @property
     def n_gains(self) -> int:
         return 3 * self.n_terms
+
+    @property
+    def free_gains(self) -> tuple[int, ...]:
+        """Indices into ``k`` of the gains a design chooses; the others are fixed at zero."""
+        terms = [term for u in self.forces for term in u.feedback]
+        d = [t for t, term in enumerate(terms) if term.acceleration]
+        return tuple(d) + tuple(range(self.n_terms, self.n_gains))
 
     def gain_labels(self) -> tuple[str, ...]:
         """``"d1"``, ..., ``"g<n_terms>"`` in the order of ``k``, numbered as in Eqs. 24 and 47."""
@@ -122,7 +135,7 @@ def _subsystem_dofs(model: LinearModel, dof: int) -> tuple[int, ...]:
     return tuple(m for m in range(model.n_dof) if model.dof_subsystem[m] == model.dof_subsystem[dof])
 
 
-def full_feedback(model: LinearModel, exchanged_motion: bool = True) -> Architecture:
+def full_feedback(model: LinearModel, exchanged_motion: bool = True, exchanged_acceleration: bool = True) -> Architecture:
     """Two forces, on the force DOF ``i`` and the motion DOF ``j`` of the model's single bond (``B`` of rank 2).
 
     ``u_1`` on ``i`` feeds back every DOF of ``i``'s subsystem (collocated) and ``x_j*``;
@@ -130,13 +143,17 @@ def full_feedback(model: LinearModel, exchanged_motion: bool = True) -> Architec
     and sent with ``f_c``, Eqs. 37–40) and every DOF of ``j``'s subsystem (collocated).
     Two-mass system: Eq. 24 (``B = I_2``). Four-mass system: Eqs. 47–48 (``u_1`` does not see
     ``x_4``). ``exchanged_motion=False`` drops ``x_j*`` from ``u_1`` (the output-feedback case of
-    §4.3, "omit x_2*").
+    §4.3, "omit x_2*"); ``exchanged_acceleration=False`` keeps ``x_j*`` and ``v_j*`` but fixes the
+    gain of its acceleration at zero (the runtime's architecture, docs/compensation.md).
     """
     name = "full_feedback" if exchanged_motion else "full_feedback_without_exchanged_motion"
+    if exchanged_motion and not exchanged_acceleration:
+        name = "full_feedback_without_exchanged_acceleration"
     bond = _single_bond(model, name)
     i, j = bond.force_dof, bond.motion_dof
     force_side, motion_side = _subsystem_dofs(model, i), _subsystem_dofs(model, j)
-    u_1 = tuple(FeedbackTerm(m) for m in force_side) + ((FeedbackTerm(j, True),) if exchanged_motion else ())
+    exchanged = (FeedbackTerm(j, True, exchanged_acceleration),) if exchanged_motion else ()
+    u_1 = tuple(FeedbackTerm(m) for m in force_side) + exchanged
     u_2 = tuple(FeedbackTerm(m, True) for m in force_side) + tuple(FeedbackTerm(m) for m in motion_side)
     return Architecture(
         name=name,

@@ -54,7 +54,7 @@ from compensation.dynamic_stiffness import DynamicStiffness
 from compensation.eigenstructure import Eigenstructure, monolithic_eigenstructure
 from compensation.interface import InterfaceModel
 from compensation.linear_model import LinearModel
-from compensation.perturbation import cosimulated_stiffness, interface_perturbation
+from compensation.perturbation import cosimulated_stiffness, interface_perturbation, monolithic_stiffness
 from compensation.realization import SingularMassError, realize
 
 RANK_RTOL = 1e-8
@@ -75,11 +75,12 @@ class NotAssignableError(ValueError):
 
 @dataclass(frozen=True)
 class AssignmentSystem:
-    """``L k = n`` of Eq. 22, rows ordered eigenpair-major, then ``rows``."""
+    """``L k = n`` of Eq. 22, rows ordered eigenpair-major, then ``rows``; columns are the free gains."""
 
-    L: np.ndarray  # (2N * p, 3 * n_terms) complex
+    L: np.ndarray  # (2N * p, len(columns)) complex
     n: np.ndarray  # (2N * p,) complex
     rows: tuple[int, ...]  # the p DOF rows kept (perturbed by ΔG_c or acted on by B)
+    columns: tuple[int, ...]  # index into k = [d; f; g] of each column (Architecture.free_gains)
 
     def stacked(self) -> tuple[np.ndarray, np.ndarray]:
         """Real form ``[Re L; Im L], [Re n; Im n]`` (Eq. 29)."""
@@ -111,7 +112,7 @@ class CompensatorDesign:
     rank_used: int  # leading singular directions of L used to fit n
     residual: float  # ||L k - n|| / ||n|| of the stacked system
     k0: np.ndarray  # particular solution [d; f; g]
-    V: np.ndarray  # (3 n_terms, 3 n_terms - rank_used) null-space basis of L in gain units
+    V: np.ndarray  # (3 n_terms, len(free gains) - rank_used) null-space basis of L in gain units, zero rows for fixed gains
     k_r: np.ndarray  # null-space coordinates chosen for the latent roots
     k: np.ndarray  # k0 + V k_r
     latent_abscissa: float  # max Re of the latent roots of the compensated Padé model [1/s]
@@ -141,20 +142,37 @@ class CompensatorDesign:
 
 
 def assignment_system(
-    model: LinearModel, interface: InterfaceModel, architecture: Architecture, monolithic: Eigenstructure
+    model: LinearModel,
+    interface: InterfaceModel,
+    architecture: Architecture,
+    monolithic: Eigenstructure,
+    poles: np.ndarray | None = None,
 ) -> AssignmentSystem:
-    """``L`` and ``n`` of Eqs. 27–28 (two-mass) and 48 (four-mass), built for any architecture."""
+    """``L`` and ``n`` of Eqs. 27–28 (two-mass) and 48 (four-mass), built for any architecture.
+
+    Only the free gains are columns: a gain fixed at zero does not enter ``L``. ``poles`` (same
+    order as ``monolithic.poles``) assigns other poles than the monolithic ones: Eq. 20 is then
+    used as it stands, ``n = -(G_t + ΔG_c)(λ̃_i) w̃_i``, with ``w̃_i`` the monolithic mode shape
+    changed least (minimum norm) so that the rows no force acts on hold, ``(G_t(λ̃_i) w̃_i)_p = 0``.
+    """
     N = model.n_dof
-    directions = architecture.gain_directions(N)
+    columns = architecture.free_gains
+    directions = architecture.gain_directions(N)[list(columns)]
     dG = interface_perturbation(model)
     touched = np.any(dG.P != 0.0, axis=(0, 1, 3)) | np.any(directions != 0.0, axis=(0, 1, 2, 4))
     rows = np.flatnonzero(touched)
+    G_t = monolithic_stiffness(model)
     L_blocks, n_blocks = [], []
-    for lam, w in zip(monolithic.poles, monolithic.vectors.T):
+    for i, (lam, w) in enumerate(zip(monolithic.poles, monolithic.vectors.T)):
+        if poles is not None:
+            lam = poles[i]
+            untouched = G_t(lam, 1.0)[~touched]
+            w = w - np.linalg.pinv(untouched) @ (untouched @ w) if untouched.size else w
         D = interface.D(lam)
         L_blocks.append(np.column_stack([(DynamicStiffness(G)(lam, D) @ w)[rows] for G in directions]))
-        n_blocks.append(-(dG(lam, D) @ w)[rows])
-    return AssignmentSystem(L=np.vstack(L_blocks), n=np.concatenate(n_blocks), rows=tuple(int(r) for r in rows))
+        n_blocks.append(-((dG(lam, D) + (0.0 if poles is None else G_t(lam, D))) @ w)[rows])
+    return AssignmentSystem(L=np.vstack(L_blocks), n=np.concatenate(n_blocks), rows=tuple(int(r) for r in rows),
+                            columns=columns)
 
 
 def _column_scales(A: np.ndarray) -> np.ndarray:
@@ -206,8 +224,12 @@ def design_compensator(
     margin: float | None = None,
     seed: int = 0,
     restarts: int = 8,
+    poles: np.ndarray | None = None,
 ) -> CompensatorDesign:
     """Gains ``k`` that assign the monolithic eigenstructure and keep the latent roots at ``Re s <= -margin``.
+
+    ``poles`` replaces the monolithic poles as targets (``assignment_system``); the latent roots
+    are still the roots not paired with the monolithic poles.
 
     ``margin`` [1/s] defaults to ``0.1 / T_s``. Raises ``NotAssignableError`` (carrying the
     ``Assignability`` report) when Eq. 33 fails or when no truncation keeps ``M_eff`` regular.
@@ -216,7 +238,7 @@ def design_compensator(
     """
     margin = 0.1 / interface.macro_step if margin is None else margin
     monolithic = monolithic_eigenstructure(model)
-    system = assignment_system(model, interface, architecture, monolithic)
+    system = assignment_system(model, interface, architecture, monolithic, poles)
     assignability = assess_assignability(system)
     if not assignability.assignable:
         raise NotAssignableError(architecture.name, assignability)
@@ -229,14 +251,16 @@ def design_compensator(
     L, n = system.stacked()
     scales = _column_scales(L)
     U, S, Vt = np.linalg.svd(L / scales)
+    free = list(system.columns)
     for rank_used in range(assignability.rank_L, 0, -1):
         k0_scaled = Vt[:rank_used].T @ ((U[:, :rank_used].T @ n) / S[:rank_used])
-        k0, V = k0_scaled / scales, Vt[rank_used:].T / scales[:, None]
+        k0, V = np.zeros(architecture.n_gains), np.zeros((architecture.n_gains, len(free) - rank_used))
+        k0[free], V[free] = k0_scaled / scales, Vt[rank_used:].T / scales[:, None]
         if well_posed(k0):
             break
     else:
         raise NotAssignableError(architecture.name, assignability, "every solution removes the inertia of the system")
-    residual = float(np.linalg.norm(L @ k0 - n) / np.linalg.norm(n))
+    residual = float(np.linalg.norm(L @ k0[free] - n) / np.linalg.norm(n))
 
     def abscissa(k_r: np.ndarray) -> float:
         k = k0 + V @ k_r

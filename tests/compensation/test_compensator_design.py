@@ -115,3 +115,34 @@ def test_four_mass_first_order_hold_design_drops_the_degenerate_direction(four_m
     assert compensated.primary_converged.all()
     assert compensated.primary.poles == pytest.approx(monolithic.poles, abs=1e-4)
     assert design.margin_met
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_a_gain_fixed_at_zero_stays_zero_and_the_rest_still_assign(request, case):
+    # full_feedback without the acceleration of x_j* (the runtime's architecture): d_2 (two-mass) or
+    # d_3 (four-mass) is exactly zero. Two-mass: ranks 8 = 8, exact assignment (measured 1e-14).
+    # Four-mass: ranks 15 = 15, but the exact solutions are the degenerate d_2 = -m_2 family again
+    # (see above), so the design keeps 14 directions: residual 1.6e-3, poles 2.0e-4 rad/s off (measured).
+    model = _model(request, case)
+    hold = InterfaceModel(0, model.macro_step)
+    architecture = full_feedback(model, exchanged_acceleration=False)
+    force_side = model.dof_subsystem[model.bonds[0].force_dof]
+    exchanged = model.dof_subsystem.count(force_side)  # u_1 feeds back the force side's DOFs, then x_j*
+    assert exchanged not in architecture.free_gains and len(architecture.free_gains) == architecture.n_gains - 1
+    design = design_compensator(model, hold, architecture, PADE_ORDER)
+    assert design.d[exchanged] == 0.0 and design.margin_met
+    assert (design.assignability.rank_L, design.rank_used) == ((8, 8) if model.n_dof == 2 else (15, 14))
+    monolithic = monolithic_eigenstructure(model)
+    tolerance = 1e-10 if model.n_dof == 2 else 1e-3
+    assert _compensated(model, design).primary.poles == pytest.approx(monolithic.poles, abs=tolerance)
+
+
+def test_other_target_poles_are_assigned(two_mass):
+    # Eq. 20 with targets λ̃ = λ - 0.05 (more damping): the compensated primary poles, polished on the
+    # exact D(s), are the targets (measured 2e-14)
+    model = two_mass(0.1, 1e-3)
+    hold = InterfaceModel(0, model.macro_step)
+    targets = monolithic_eigenstructure(model).poles - 0.05
+    design = design_compensator(model, hold, full_feedback(model), PADE_ORDER, poles=targets)
+    assert design.residual < 1e-12
+    assert _compensated(model, design).primary.poles == pytest.approx(targets, abs=1e-10)
