@@ -11,10 +11,17 @@ effects the scene names; nonlinear two-point effects (paper 002 Eqs. 22–23) ad
 from their force laws only when the scene names one, so a linear scene runs the matrix products
 alone. Effects the scene does not name, or names with a zero coefficient, are not built.
 
+Compensation feedback terms (``subsystems.effects.feedback``, attached by the eigenstructure
+compensator) act in the dynamics only: ``(M + D_fb) x'' = ... - K_fb q - C_fb q'`` over
+``q = [x, x*]``, the acceleration gains as an added mass (solved exactly at every evaluation;
+the acceleration of a terminal is not available, so a terminal source may not have one). The
+reported energy stays the physical one. A ``RelayedForce`` adds the force such terms exert on a
+terminal to a force output, divided by the sign with which the remote side applies it.
+
 Public matrices (the exact discrete analysis, ``manager.discrete``, is built from them), with
 ``z = [x, v]`` and ``w`` the input values in port order:
 
-* ``A_a`` (n × 2n), ``B_a`` (n × n_inputs): ``a = A_a z + B_a w + M⁻¹ E f_e(t)``;
+* ``A_a`` (n × 2n), ``B_a`` (n × n_inputs): ``a = A_a z + B_a w + (M + D_fb)⁻¹ (E f_e(t) + f_nl)``;
 * ``C_y`` (k × 2n), ``D_y`` (k × n_inputs): the linear part of the ``k`` outputs other than the
   energy, ``y = C_y z + D_y w`` (+ the nonlinear elements' forces).
 
@@ -132,6 +139,7 @@ class MassesModel:
 
         placed = [e for e in spec.effects + tuple(PlacedEffect(*t) for t in attachments.effects) if e.effect.active()]
         self.effects: tuple[str, ...] = tuple(e.name for e in placed)
+        by_name = {e.name: e for e in placed}
 
         def coordinates(point: str | None) -> tuple[int, int] | None:
             """Indices of a point's position and velocity in ``s = [x, v, w]`` (None: the ground)."""
@@ -160,35 +168,69 @@ class MassesModel:
                     e.effect.stamp(K, C, *indices(e))
             return K, C
 
+        def feedback_stamped(selection: list[PlacedEffect]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            size = n + len(terminals)
+            Mf, Kf, Cf = np.zeros((size, size)), np.zeros((size, size)), np.zeros((size, size))
+            for e in selection:
+                if e.effect.kind == "feedback":
+                    target, source = indices(e)
+                    if source >= n and e.effect.acceleration_gain != 0.0:
+                        raise ValueError(f"feedback {e.name}: expected the acceleration of a body of this subsystem, "
+                                         f"got terminal {e.endpoints[1]} (its acceleration is not an input)")
+                    e.effect.stamp(Mf, Kf, Cf, target, source)
+            return Mf, Kf, Cf
+
         Kq, Cq = stamped(placed)
+        Mf, Kf, Cf = feedback_stamped(placed)
         self.M = np.diag([spec.bodies[b].mass for b in self.body_names])
         self.K = Kq[:n, :n].copy()  # stiffness among the bodies [N/m]
         self.C = Cq[:n, :n].copy()  # damping among the bodies [N s/m]
-        Minv = np.linalg.inv(self.M)
+        M_eff = self.M + Mf[:n, :n]  # with the added mass of acceleration feedback [kg]
+        if np.linalg.cond(M_eff) > 1e12:
+            raise ValueError(f"the effective mass M + D_fb is singular (condition number {np.linalg.cond(M_eff):.3g}); "
+                             "expected acceleration feedback that leaves the bodies some inertia")
+        Minv = np.linalg.inv(M_eff)
 
         # f = A_f z + B_w w + E f_e(t)  with  z = [x, v],  w = input values
-        A_f = np.hstack((-self.K, -self.C))
+        A_f = np.hstack((-self.K - Kf[:n, :n], -self.C - Cf[:n, :n]))
         B_w = np.zeros((n, n_in))
         for j, t in enumerate(terminals):
-            B_w[:, input_index[t.position_inputs[0]]] = -Kq[:n, n + j]
-            B_w[:, input_index[t.velocity_inputs[0]]] = -Cq[:n, n + j]
+            B_w[:, input_index[t.position_inputs[0]]] = -Kq[:n, n + j] - Kf[:n, n + j]
+            B_w[:, input_index[t.velocity_inputs[0]]] = -Cq[:n, n + j] - Cf[:n, n + j]
         for f in attachments.force_inputs:
             B_w[point_index[f.point], input_index[f.ports[0]]] += f.sign
         self.A_a = Minv @ A_f
         self.B_a = Minv @ B_w
-        self._inverse_mass = np.diag(Minv).copy()
+        self._inverse_mass = Minv  # of the nonlinear elements' forces (diagonal unless acceleration feedback)
         self.external = tuple((e.effect, point_index[e.endpoints[0]]) for e in placed if e.effect.kind == "external")
         self._E_a = Minv[:, [body for _, body in self.external]]
 
-        # outputs y = C_y z + D_y w, then the energy 0.5 s^T Q s with s = [x, v, w]
+        def relayed_force(relay) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            """The force the relayed feedback terms exert on the terminal, on z, w and f_e."""
+            Mr, Kr, Cr = feedback_stamped([by_name[name] for name in relay.effects if name in by_name])
+            i = point_index[relay.terminal]
+            row_z = -np.concatenate((Kr[i, :n], Cr[i, :n])) - Mr[i, :n] @ self.A_a
+            row_w = -Mr[i, :n] @ self.B_a
+            for j, t in enumerate(terminals):
+                row_w[input_index[t.position_inputs[0]]] -= Kr[i, n + j]
+                row_w[input_index[t.velocity_inputs[0]]] -= Cr[i, n + j]
+            return row_z / relay.sign, row_w / relay.sign, -Mr[i, :n] @ self._E_a / relay.sign
+
+        # outputs y = C_y z + D_y w (+ F_y f_e(t) for relayed accelerations), then the energy 0.5 s^T Q s
+        # with s = [x, v, w]
         rows_z, rows_w, ports = [], [], []
+        n_ext = len(self.external)
+        F_y = []
         for m in attachments.motion_outputs:
             i = point_index[m.point]
             for port, column in ((m.position_ports[0], i), (m.velocity_ports[0], n + i)):
                 rows_z.append(np.eye(2 * n)[column])
                 rows_w.append(np.zeros(n_in))
+                F_y.append(np.zeros(n_ext))
                 ports.append(Port(port, "position" if column < n else "velocity"))
-        by_name = {e.name: e for e in placed}
+        unknown = {r.port for r in attachments.relayed_forces} - {out.ports[0] for out in attachments.force_outputs}
+        if unknown:
+            raise ValueError(f"relayed forces name outputs {sorted(unknown)}; expected force outputs of this subsystem")
         nonlinear_index = {e.name: k for k, e in enumerate(e for e in placed if e.effect.kind == "nonlinear")}
         self._nonlinear_outputs = []  # (output row, nonlinear element, sign of its force on the output's point)
         for out in attachments.force_outputs:
@@ -199,6 +241,11 @@ class MassesModel:
             for j, t in enumerate(terminals):
                 row_w[input_index[t.position_inputs[0]]] = -Ke[i, n + j]
                 row_w[input_index[t.velocity_inputs[0]]] = -Ce[i, n + j]
+            row_f = np.zeros(n_ext)
+            for relay in attachments.relayed_forces:
+                if relay.port == out.ports[0]:
+                    relayed = relayed_force(relay)
+                    row_z, row_w, row_f = row_z + relayed[0], row_w + relayed[1], row_f + relayed[2]
             feedthrough = bool(np.any(row_w != 0.0))
             for name in out.effects:
                 if name in nonlinear_index:
@@ -207,6 +254,7 @@ class MassesModel:
                     feedthrough |= any(p is not None and point_index[p] >= n for p in endpoints)
             rows_z.append(row_z)
             rows_w.append(row_w)
+            F_y.append(row_f)
             ports.append(Port(out.ports[0], "force", feedthrough=feedthrough))
         self.outputs: tuple[Port, ...] = tuple(ports) + (Port("energy", "energy"),)
         Q = np.zeros((2 * n + n_in, 2 * n + n_in))
@@ -219,6 +267,8 @@ class MassesModel:
                                         np.array(rows_w).reshape(len(ports), n_in))), 0.5 * Q))
         self.C_y = self._G[:self._n_linear, :2 * n]
         self.D_y = self._G[:self._n_linear, 2 * n:]
+        F_y = np.array(F_y).reshape(len(ports), n_ext)
+        self._F_y = F_y if np.any(F_y) else None
         self._z0 = np.array([spec.bodies[b].x0 for b in self.body_names] + [spec.bodies[b].v0 for b in self.body_names],
                             dtype=np.float64)
 
@@ -232,7 +282,7 @@ class MassesModel:
         return bool(self._nonlinear)
 
     def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """``a = M⁻¹ (A_f z + B_w w + E f_e(t) + f_nl)`` at time t [s]."""
+        """``a = (M + D_fb)⁻¹ (A_f z + B_w w + E f_e(t) + f_nl)`` at time t [s]."""
         a = self.A_a.dot(z) + self.B_a.dot(w)
         if self.external:
             a = a + self._E_a.dot([effect.force(t) for effect, _ in self.external])
@@ -243,7 +293,7 @@ class MassesModel:
                     f[body_a] += force
                 if body_b is not None:
                     f[body_b] -= force
-            a = a + self._inverse_mass * f
+            a = a + self._inverse_mass.dot(f)
         return a
 
     def _element_forces(self, s: np.ndarray) -> list[float]:
@@ -261,6 +311,8 @@ class MassesModel:
         k = self._n_linear
         y = r[:k + 1]
         y[k] = r[k:].dot(s)  # energy 0.5 s^T Q s [J]
+        if self._F_y is not None:
+            y[:k] += self._F_y.dot([effect.force(t) for effect, _ in self.external])
         if self._nonlinear:
             forces = self._element_forces(s)
             for row, element, sign in self._nonlinear_outputs:

@@ -87,6 +87,21 @@ class RestState:
 
 
 @dataclass(frozen=True)
+class RelayedForce:
+    """Adds to force output ``port`` the force that ``effects`` exert on ``terminal`` (a remote body on a line).
+
+    The remote subsystem applies the value it receives multiplied by ``sign`` (its ``ForceInput``
+    sign), so the force enters the output divided by ``sign``: that is how a non-collocated
+    compensation term joins the coupling force (paper 000 Eqs. 37–40, docs/compensation.md).
+    """
+
+    port: str
+    terminal: str
+    effects: tuple[str, ...]
+    sign: float
+
+
+@dataclass(frozen=True)
 class Attachments:
     """Everything couplings add to one subsystem: terminals, input forces, outputs, coupling effects."""
 
@@ -96,6 +111,7 @@ class Attachments:
     force_outputs: tuple[EffectForceOutput, ...] = ()
     effects: tuple = ()  # (name, effect, endpoints) triples added by couplings; endpoints name bodies/terminals
     rest_states: tuple[RestState, ...] = ()
+    relayed_forces: tuple[RelayedForce, ...] = ()
 
     def __add__(self, other: "Attachments") -> "Attachments":
         """Both sets of attachments; an output two couplings share (one motion side) appears once."""
@@ -103,4 +119,4 @@ class Attachments:
 
     def _parts(self) -> tuple:
         return (self.terminals, self.force_inputs, self.motion_outputs, self.force_outputs, self.effects,
-                self.rest_states)
+                self.rest_states, self.relayed_forces)
