@@ -8,16 +8,19 @@ from functools import reduce
 import numpy as np
 
 from compensation.linear_model import ForceDisplacementBond, LinearModel
-from manager.scene import Scene
+from manager import compensator
+from manager.discrete import DiscreteScheme, scene_scheme
+from manager.scene import Scene, SceneError
 from subsystems.effects import PlacedEffect
 from subsystems.integrators import INTEGRATORS
 from subsystems.masses import MassesModel, MassesSpec
+from subsystems.params import Problem
 from subsystems.models import MODELS
 from subsystems.ports import Attachments
 from subsystems.subsystem import Subsystem
 
 
-def attachments(scene: Scene) -> dict[str, Attachments]:
+def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
     """What every coupling adds to every subsystem, in scene order.
 
     A force-side model that starts in equilibrium with its load (``starts_at_rest``) also gets the
@@ -32,6 +35,26 @@ def attachments(scene: Scene) -> dict[str, Attachments]:
             motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])
             rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
             result[coupling.force_sub] = result[coupling.force_sub] + Attachments(rest_states=(rest,))
+    return result
+
+
+def scene_compensator(scene: Scene) -> compensator.Compensator:
+    """The compensator of a scene that asks for one, corrected on the scene's own discrete scheme."""
+    base = coupling_attachments(scene)
+
+    def runtime_scheme(added: dict[str, Attachments]) -> DiscreteScheme:
+        return scene_scheme(scene, {name: build_subsystem(scene, name, base[name] + added[name])
+                                    for name in scene.subsystems})
+
+    return compensator.compensate(scene, compensated_linear_model(scene), runtime_scheme)
+
+
+def attachments(scene: Scene) -> dict[str, Attachments]:
+    """What every coupling, then the compensator the scene asks for, adds to every subsystem."""
+    result = coupling_attachments(scene)
+    if scene.manager.compensation == "eigenstructure":
+        for sub, added in scene_compensator(scene).attachments.items():
+            result[sub] = result[sub] + added
     return result
 
 
@@ -69,6 +92,22 @@ def monolithic_unavailable(scene: Scene) -> str | None:
     return None
 
 
+LINEAR_KINDS = ("linear", "external")  # effect kinds of a linear model (an external force is a forcing term)
+
+
+def linear_unavailable(scene: Scene) -> str | None:
+    """Why the scene has no linear model ``M, C, K`` (None when it has one)."""
+    reason = monolithic_unavailable(scene)
+    if reason:
+        return reason
+    nonlinear = [f"{sub.name}.{e.name}" for sub in scene.subsystems.values() for e in sub.spec.effects
+                 if e.effect.kind not in LINEAR_KINDS]
+    nonlinear += [e.name for c in scene.couplings.values() for e in c.effects if e.effect.kind not in LINEAR_KINDS]
+    if nonlinear:
+        return f"effects {', '.join(nonlinear)} are not linear"
+    return None
+
+
 def _qualify(sub: str, point: str | None) -> str | None:
     return None if point is None else f"{sub}.{point}"
 
@@ -98,6 +137,14 @@ def build_monolithic(scene: Scene) -> Subsystem:
     micro_step_ns = math.gcd(*(s.settings.micro_step_ns for s in scene.subsystems.values()))
     integrator = next(iter(scene.subsystems.values())).settings.integrator
     return Subsystem("monolithic", model, INTEGRATORS[integrator], micro_step_ns)
+
+
+def compensated_linear_model(scene: Scene) -> LinearModel:
+    """``linear_model`` of a scene that asks for compensation; ``SceneError`` when it is not linear."""
+    reason = linear_unavailable(scene)
+    if reason:
+        raise SceneError(scene.path, [Problem("manager.compensation", f"expected a linear scene: {reason}")])
+    return linear_model(scene)
 
 
 def linear_model(scene: Scene) -> LinearModel:

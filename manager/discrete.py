@@ -36,7 +36,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from manager.extrapolation import extrapolation_matrix
-from manager.plan import Plan
+from manager.plan import Plan, compile_plan
+from manager.scene import Scene
 from subsystems.masses import MassesModel
 from subsystems.subsystem import Subsystem
 
@@ -163,3 +164,8 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
     Psi = np.vstack(z + [sample for samples in history for sample in samples[-(order + 1):]])
     return DiscreteScheme(Psi, period * base * 1e-9, tuple(z_index), tuple(history_index))
 
+
+def scene_scheme(scene: Scene, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
+    """``discrete_scheme`` of a scene's built subsystems (the run plan compiled from their ports)."""
+    plan = compile_plan(scene, {name: (s.inputs, s.outputs, s.effects) for name, s in subsystems.items()})
+    return discrete_scheme(plan, subsystems)

@@ -72,6 +72,7 @@ class ManagerSettings:
     record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
     correction: CorrectionSettings | None = None  # [manager.correction]
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
+    compensation: Literal["none", "eigenstructure"] = "none"  # paper 000 compensator (docs/compensation.md)
 
     @property
     def corrects(self) -> bool:
@@ -287,6 +288,8 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
 
     if manager is not None:
         _check_timing(manager, tables, subsystems, problems)
+        if manager.compensation != "none":
+            _check_compensation(couplings, subsystems, problems)
     _check_couplings(couplings, subsystems, tables, problems)
     if outputs is not None:
         signals = {s for c in couplings.values() for s in c.signals()}
@@ -329,6 +332,17 @@ def _check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, 
         if comm % sub.settings.micro_step_ns:
             problems.add(key, f"expected a divisor of the communication step {comm * 1e-9:g} s, "
                          f"got {sub.settings.micro_step!r} s")
+
+
+def _check_compensation(couplings: dict, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """What the eigenstructure compensator (manager.compensator) needs of a scene's structure."""
+    if len(couplings) != 1 or next(iter(couplings.values())).kind != "force_displacement":
+        problems.add("manager.compensation", f"expected exactly one force_displacement coupling, got {len(couplings)} "
+                     "coupling(s)")
+    multi_rate = sorted(s.name for s in subsystems.values() if s.settings.comm_ratio != 1)
+    if multi_rate:
+        problems.add("manager.compensation", f"expected a single-rate scene (comm_ratio = 1), got comm_ratio != 1 "
+                     f"in {', '.join(multi_rate)}")
 
 
 def _check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tables: dict,
