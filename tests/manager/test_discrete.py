@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from manager.build import linear_model
 from manager.bus import drive_inprocess
-from manager.discrete import DiscreteScheme, discrete_scheme
+from manager.discrete import ZERO_EIGENVALUE, DiscreteScheme, discrete_scheme
 from manager.endpoint import SubsystemEndpoint
 from manager.jacobi import jacobi
 from manager.run import execute, plan_scene
@@ -75,31 +76,48 @@ def test_transition_matrix_advances_the_runtime_state(configuration):
 def late_growth(name: str, overrides: list[str], scheme: DiscreteScheme) -> float:
     """Energy growth rate [1/s] of the second half of a run (``manager.summary.energy_growth_rate``).
 
-    A stable scheme runs 10 s. An unstable one runs until its least damped mode dominates: 4 / gap
-    seconds, ``gap = 2 (σ_1 - σ_2)`` between the two least damped modes (their energy ratio changes
-    by e^4), 10 s to 120 s.
+    A stable scheme runs 10 s. An unstable one runs until its least damped mode dominates from
+    mid-run on. The runtime's state after 4 periods is decomposed on the eigenvectors of Ψ: mode
+    ``i`` carries the mechanical energy ``E_i e^{g_i t}``, ``g_i = 2 σ_i`` (``½ vᴴMv + ½ xᴴKx`` of
+    its bodies, monolithic ``M, K``). The slope of ``ln E`` falls short of ``g_1`` by at most
+    ``Σ_i (E_i(t) / E_1(t)) (g_1 - g_i)``; the run lasts twice the time after which each of the ``n``
+    terms is below ``g_1 / (4 n)``, so that the second half grows at 3/4 of ``g_1`` or more; 10 s to
+    120 s.
     """
     base = load_scene(name, overrides).manager.macro_step
-    duration = 10.0
-    if not scheme.stable:
-        sigma = np.unique(np.round(scheme.poles().real, 9))[::-1]
-        duration = min(max(duration, 4.0 / (2.0 * (sigma[0] - sigma[1]))), 120.0)
+    duration = 10.0 if scheme.stable else _takeover_duration(name, overrides, scheme, base)
     duration = base * round(duration / base)
     record, _ = execute(load_scene(name, [*overrides, f"manager.duration={duration!r}"]))
     return energy_growth_rate(*total_energy(record))
 
 
+def _takeover_duration(name: str, overrides: list[str], scheme: DiscreteScheme, base: float) -> float:
+    X, _, _ = _run(name, overrides, 4 * round(scheme.period / base))
+    model = linear_model(load_scene(name, overrides))
+    mu, V = np.linalg.eig(scheme.Psi)
+    live = np.abs(mu) > ZERO_EIGENVALUE
+    modes = V[:, live] * np.linalg.solve(V, X)[live]
+    x = modes[np.concatenate([np.arange(z.start, (z.start + z.stop) // 2) for z in scheme.z_index])]
+    v = modes[np.concatenate([np.arange((z.start + z.stop) // 2, z.stop) for z in scheme.z_index])]
+    energy = 0.5 * np.real(np.sum(v.conj() * (model.M @ v) + x.conj() * (model.K @ x), axis=0))
+    g = 2.0 * np.log(np.abs(mu[live])) / scheme.period
+    lead = np.argmax(g)
+    behind = g < g[lead] - 1e-9
+    gap = g[lead] - g[behind]
+    takeover = np.log(4.0 * behind.sum() * energy[behind] / energy[lead] * gap / g[lead]) / gap
+    return min(max(10.0, 2.0 * float(np.max(takeover, initial=0.0))), 120.0)
+
+
 def assert_prediction_agrees(scheme: DiscreteScheme, measured: float) -> None:
-    """The slope of ln E is a weighted mean of the modes' 2σ: above zero exactly when ρ > 1 and never
-    above 2σ_max (+ 0.02 1/s for the windowed maxima: measured at most 0.015 over); it tends to 2σ_max
-    as the least damped mode takes over, slowly when that mode starts weakly excited (measured over the
-    runs of ``late_growth``: 0.99 of it for the two-mass systems, 0.91–0.95 for the multiple
-    oscillators, 0.71 for four_mass), so an unstable run must show at least half of it."""
+    """The slope of ln E is a weighted mean of the modes' 2σ: above zero exactly when ρ > 1, never above
+    2σ_max (+ 2 % + 0.02 1/s for the windowed maxima; measured at most 0.5 % over), and at least 3/4 of
+    it over the second half of a ``late_growth`` run (measured 0.90 for four_mass, 0.96–1.01 for the
+    other bundled scenes and the random two-mass systems)."""
     predicted = scheme.growth_rate
     assert (measured > 0.0) == (not scheme.stable)
-    assert measured <= predicted + 0.02
+    assert measured <= predicted + 0.02 * (1.0 + abs(predicted))
     if not scheme.stable:
-        assert measured >= 0.5 * predicted
+        assert measured >= 0.75 * predicted
 
 
 FREE_SCENES = [name for name in bundled_scene_names() if name != "two_mass_chirp"]
