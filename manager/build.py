@@ -7,6 +7,7 @@ from functools import reduce
 
 import numpy as np
 
+from compensation.architecture import Architecture
 from compensation.linear_model import ForceDisplacementBond, LinearModel
 from manager import compensator
 from manager.discrete import DiscreteScheme, scene_scheme
@@ -38,15 +39,16 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
     return result
 
 
-def scene_compensator(scene: Scene) -> compensator.Compensator:
-    """The compensator of a scene that asks for one, corrected on the scene's own discrete scheme."""
+def scene_compensator(scene: Scene, architecture: Architecture | None = None) -> compensator.Compensator:
+    """The compensator of a scene, corrected on the scene's own discrete scheme (``architecture``:
+    default ``compensator.runtime_architecture``)."""
     base = coupling_attachments(scene)
 
     def runtime_scheme(added: dict[str, Attachments]) -> DiscreteScheme:
         return scene_scheme(scene, {name: build_subsystem(scene, name, base[name] + added[name])
                                     for name in scene.subsystems})
 
-    return compensator.compensate(scene, compensated_linear_model(scene), runtime_scheme)
+    return compensator.compensate(scene, compensated_linear_model(scene), runtime_scheme, architecture)
 
 
 def attachments(scene: Scene) -> dict[str, Attachments]:
@@ -76,35 +78,30 @@ def build_subsystems(scene: Scene) -> dict[str, Subsystem]:
     return {name: build_subsystem(scene, name, attached[name]) for name in scene.subsystems}
 
 
-def monolithic_unavailable(scene: Scene) -> str | None:
-    """Why the scene has no monolithic counterpart (None when it has one)."""
+LINEAR_KINDS = ("linear", "external")  # effect kinds of a linear model (an external force is a forcing term)
+
+
+def linear_unavailable(scene: Scene) -> str | None:
+    """Why the scene has no linear model ``M, C, K`` (None when it has one); integrators do not matter."""
     models = {s.settings.model for s in scene.subsystems.values()}
     if models != {MassesModel.name}:
         return f"the monolithic model is assembled for '{MassesModel.name}' subsystems only, got {sorted(models)}"
-    integrators = {s.settings.integrator for s in scene.subsystems.values()}
-    if len(integrators) != 1:
-        return f"subsystems use different integrators {sorted(integrators)}"
     nonlinear = sorted(f"{s.name}.{e.name}" for s in scene.subsystems.values() for e in s.spec.effects
-                       if e.effect.kind == "nonlinear")
-    nonlinear += sorted(e.name for c in scene.couplings.values() for e in c.effects if e.effect.kind == "nonlinear")
+                       if e.effect.kind not in LINEAR_KINDS)
+    nonlinear += sorted(e.name for c in scene.couplings.values() for e in c.effects if e.effect.kind not in LINEAR_KINDS)
     if nonlinear:
         return f"nonlinear effects {', '.join(nonlinear)}"
     return None
 
 
-LINEAR_KINDS = ("linear", "external")  # effect kinds of a linear model (an external force is a forcing term)
-
-
-def linear_unavailable(scene: Scene) -> str | None:
-    """Why the scene has no linear model ``M, C, K`` (None when it has one)."""
-    reason = monolithic_unavailable(scene)
+def monolithic_unavailable(scene: Scene) -> str | None:
+    """Why the scene has no monolithic counterpart (None when it has one): a linear model, one integrator."""
+    reason = linear_unavailable(scene)
     if reason:
         return reason
-    nonlinear = [f"{sub.name}.{e.name}" for sub in scene.subsystems.values() for e in sub.spec.effects
-                 if e.effect.kind not in LINEAR_KINDS]
-    nonlinear += [e.name for c in scene.couplings.values() for e in c.effects if e.effect.kind not in LINEAR_KINDS]
-    if nonlinear:
-        return f"effects {', '.join(nonlinear)} are not linear"
+    integrators = {s.settings.integrator for s in scene.subsystems.values()}
+    if len(integrators) != 1:
+        return f"subsystems use different integrators {sorted(integrators)}"
     return None
 
 
@@ -124,6 +121,12 @@ def monolithic_spec(scene: Scene) -> MassesSpec:
     return MassesSpec(bodies, tuple(effects))
 
 
+def monolithic_model(scene: Scene) -> MassesModel:
+    """All bodies and effects in one model, the couplings' elements acting directly between the bodies."""
+    attached = reduce(lambda a, c: a + c.monolithic_attachments(_qualify), scene.couplings.values(), Attachments())
+    return MassesModel(monolithic_spec(scene), attached)
+
+
 def build_monolithic(scene: Scene) -> Subsystem:
     """The monolithic system with the subsystems' integrator and the finest micro-step that divides all.
 
@@ -132,8 +135,7 @@ def build_monolithic(scene: Scene) -> Subsystem:
     reason = monolithic_unavailable(scene)
     if reason:
         raise ValueError(f"scene {scene.name}: no monolithic model: {reason}")
-    attached = reduce(lambda a, c: a + c.monolithic_attachments(_qualify), scene.couplings.values(), Attachments())
-    model = MassesModel(monolithic_spec(scene), attached)
+    model = monolithic_model(scene)
     micro_step_ns = math.gcd(*(s.settings.micro_step_ns for s in scene.subsystems.values()))
     integrator = next(iter(scene.subsystems.values())).settings.integrator
     return Subsystem("monolithic", model, INTEGRATORS[integrator], micro_step_ns)
@@ -149,7 +151,7 @@ def compensated_linear_model(scene: Scene) -> LinearModel:
 
 def linear_model(scene: Scene) -> LinearModel:
     """``M, C, K`` of the monolithic system (paper 000 Eq. 11 generalised) and its force–displacement bonds."""
-    monolithic = build_monolithic(scene).model
+    monolithic = monolithic_model(scene)
     names = monolithic.body_names
     index = {name: i for i, name in enumerate(names)}
     bonds = []

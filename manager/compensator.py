@@ -69,11 +69,14 @@ def interface_of(scene: Scene) -> InterfaceModel:
     return InterfaceModel(scene.manager.extrapolation, scene.manager.macro_step)
 
 
-def design(scene: Scene, model: LinearModel, poles: np.ndarray | None = None) -> CompensatorDesign:
-    """The compensator of a scene for target ``poles`` (default monolithic); ``SceneError`` when it cannot be designed."""
+def design(scene: Scene, model: LinearModel, poles: np.ndarray | None = None,
+           architecture: Architecture | None = None) -> CompensatorDesign:
+    """The compensator of a scene for target ``poles`` (default monolithic) with ``architecture``
+    (default ``runtime_architecture``); ``SceneError`` when it cannot be designed."""
+    architecture = runtime_architecture(model) if architecture is None else architecture
     try:
-        result = design_compensator(model, interface_of(scene), runtime_architecture(model), PADE_ORDER,
-                                    seed=DESIGN_SEED, poles=poles)
+        result = design_compensator(model, interface_of(scene), architecture, PADE_ORDER, seed=DESIGN_SEED,
+                                    poles=poles)
     except NotAssignableError as error:
         raise _refuse(scene, str(error)) from None
     if not result.margin_met:
@@ -140,14 +143,14 @@ class Compensator:
         return float(np.max(np.abs(self.poles - self.monolithic)))
 
 
-def compensate(scene: Scene, model: LinearModel,
-               runtime_scheme: Callable[[dict[str, Attachments]], DiscreteScheme]) -> Compensator:
+def compensate(scene: Scene, model: LinearModel, runtime_scheme: Callable[[dict[str, Attachments]], DiscreteScheme],
+               architecture: Architecture | None = None) -> Compensator:
     """Design, realise and correct the compensator (module text); ``runtime_scheme`` builds the
     transition matrix of the scene's subsystems with the given compensator attachments."""
     monolithic = monolithic_eigenstructure(model).poles
     targets, previous = monolithic.copy(), None
     for iteration in range(1, MAX_ITERATIONS + 1):
-        designed = design(scene, model, targets)
+        designed = design(scene, model, targets, architecture)
         added = attachments(scene, model, designed)
         scheme = runtime_scheme(added)
         poles = scheme.primary_poles(monolithic)

@@ -25,7 +25,8 @@ Eigenvalues ``μ`` of ``Ψ`` map to continuous poles by ``s = ln(μ) / T`` (``T`
 spectral radius ``ρ(Ψ)`` decides stability. Zero eigenvalues belong to redundant states (a
 committed motion output equals a component of ``z``) and have no pole. Limits: the steady-state
 map (the first ``p`` steps of a run use fewer samples); external forces of time are a forcing
-term, not part of ``Ψ``; only ``masses`` models with linear effects (``MassesModel.A_a`` etc.).
+term, not part of ``Ψ``; only ``masses`` models whose public matrices are their whole dynamics
+(not ``MassesModel.nonlinear``; ``LinearSceneError`` otherwise).
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from compensation.eigenstructure import normalize_mode_shape
 from manager.extrapolation import extrapolation_matrix
 from manager.plan import Plan, compile_plan
 from manager.scene import Scene
@@ -63,9 +65,9 @@ class SubsystemMap:
 def subsystem_map(sub: Subsystem, span_ns: int, order: int) -> SubsystemMap:
     """Compose the integrator's one-step map over the ``span_ns / micro_step`` micro-steps of a step."""
     model = sub.model
-    if not isinstance(model, MassesModel):
+    if not isinstance(model, MassesModel) or model.nonlinear:
         raise LinearSceneError(f"subsystem {sub.name}: the discrete analysis needs linear '{MassesModel.name}' "
-                               f"models, got {type(model).__name__}")
+                               f"models, got {type(model).__name__} with effects {', '.join(model.effects)}")
     integrator = type(sub.integrator)
     h_ns = sub.micro_step_ns
     h = h_ns * 1e-9
@@ -116,9 +118,18 @@ class DiscreteScheme:
 
     def primary_poles(self, monolithic: np.ndarray) -> np.ndarray:
         """The poles paired one-to-one with ``monolithic`` (same order) at least total distance."""
-        poles = self.poles()
+        return self.primary_eigenstructure(monolithic)[0]
+
+    def primary_eigenstructure(self, monolithic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``primary_poles`` and their mode shapes: the body positions of each eigenvector of ``Ψ``
+        (subsystems in plan order, ``z = [x, v]``), unit norm, largest entry real and positive."""
+        mu, V = np.linalg.eig(self.Psi)
+        live = np.abs(mu) > ZERO_EIGENVALUE
+        poles, V = np.log(mu[live].astype(complex)) / self.period, V[:, live]
         _, pick = linear_sum_assignment(np.abs(monolithic[:, None] - poles[None, :]))
-        return poles[pick]
+        positions = np.concatenate([np.arange(z.start, (z.start + z.stop) // 2) for z in self.z_index])
+        shapes = np.column_stack([normalize_mode_shape(V[positions, k]) for k in pick])
+        return poles[pick], shapes
 
 
 def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
