@@ -143,6 +143,73 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+ANALYSIS_COLUMNS = {"monolithic": "monolithic", "cosim_pade": "co-sim. Padé", "cosim": "co-sim. D(s)",
+                    "cosim_discrete": "co-sim. discrete", "compensated_model": "compensated D(s)",
+                    "compensated": "compensated discrete"}
+
+
+def _complex(value: complex, digits: int = 4) -> str:
+    return f"{value.real:.{digits}f} {'+' if value.imag >= 0 else '-'} {abs(value.imag):.{digits}f}j"
+
+
+def _print_analysis(result) -> None:
+    """Table 3 of paper 000 for every pole pair, then the compensator (Table 4) and the verdicts."""
+    report = result.to_dict()
+    interface = report["interface"]
+    out.print(f"[bold]{escape(result.scene.name)}[/]: {interface['extrapolation']}, T_s = {interface['macro_step']:g} s, "
+              f"Padé order {interface['pade_order']}")
+    systems = result.systems()
+    for i in range(0, len(result.monolithic.poles), 2):
+        table = Table(title=f"λ{i + 1},{i + 2}")
+        table.add_column("")
+        for key in systems:
+            table.add_column(ANALYSIS_COLUMNS[key], justify="right")
+        modal = {key: report["modal"][key] for key in systems}
+        table.add_row("λ [1/s]", *(_complex(pairs.poles[i]) for pairs in systems.values()))
+        table.add_row("ω_n [rad/s]", *(f"{modal[key]['omega_n'][i]:.4f}" for key in systems))
+        table.add_row("e_ω [%]", *(f"{modal[key]['e_omega_percent'][i]:.4f}" for key in systems))
+        table.add_row("ξ", *(f"{modal[key]['xi'][i]:.5f}" for key in systems))
+        table.add_row("e_ξ", *(f"{modal[key]['e_xi'][i]:.5f}" for key in systems))
+        for m, name in enumerate(report["dof_names"]):
+            table.add_row(escape(f"w[{name}]"), *(_complex(pairs.shapes[m, i]) for pairs in systems.values()))
+        out.print(table)
+    verdicts = Table(title="stability of the exact discrete scheme")
+    verdicts.add_column("")
+    verdicts.add_column("spectral radius ρ", justify="right")
+    verdicts.add_column("energy growth 2 ln ρ / T [1/s]", justify="right")
+    verdicts.add_column("verdict")
+    for key in ("uncompensated", "compensated"):
+        if report["spectral_radius"][key] is not None:
+            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{report['growth_rate_per_s'][key]:.4g}",
+                             "stable" if report["stable"][key] else "[bold red]UNSTABLE[/]")
+    out.print(verdicts)
+    if report["not_compensated"]:
+        out.print(f"no compensator: {escape(report['not_compensated'])}")
+        return
+    ranks, gains, correction = report["assignability"], report["gains"], report["correction"]
+    table = Table(title=f"compensator: {ranks['architecture']}")
+    table.add_column("")
+    table.add_column("value")
+    table.add_row("rank L / rank [L n] (Eq. 33)", f"{ranks['rank_L']} / {ranks['rank_Ln']}")
+    for kind in "dfg":
+        table.add_row(f"{kind} (Eq. 22)", "{" + "  ".join(f"{v:.4g}" for v in gains[kind]) + "}")
+    table.add_row("directions used / residual", f"{gains['rank_used']} / {gains['residual']:.3g}")
+    table.add_row("latent roots, max Re (Padé) [1/s]", f"{gains['latent_abscissa']:.4g} (margin {-gains['margin']:.4g})")
+    table.add_row("discrete correction", f"{correction['iterations']} designs, max |ν - λ| = {correction['pole_error']:.2g} 1/s")
+    out.print(table)
+
+
+def cmd_analyze(args: argparse.Namespace) -> int:
+    from manager.scene_analysis import analyze_scene, write_pole_map
+    result = analyze_scene(load_scene(args.scene, args.overrides), args.architecture)
+    _print_analysis(result)
+    if args.json:
+        Path(args.json).write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+    if args.plot:
+        write_pole_map(result, args.plot)
+    return 0
+
+
 def cmd_subsystem(args: argparse.Namespace) -> int:
     from manager.subsystem_host import serve
     scene = load_scene(args.scene, args.overrides)
@@ -221,6 +288,14 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--record", metavar="FILE", help="record every message of the run to an MCAP file "
                                                       "(default: the scene's manager.record)")
     run.set_defaults(handler=cmd_run)
+
+    analyze = commands.add_parser("analyze", help="eigenstructure of a linear scene: modelled, exact discrete, compensated")
+    _add_scene_arguments(analyze)
+    analyze.add_argument("--architecture", choices=("full_feedback", "without_exchanged_motion", "rank_one"),
+                         default="full_feedback", help="compensator architecture (paper 000 §4.3); the runtime uses full_feedback")
+    analyze.add_argument("--json", metavar="FILE", help="write the analysis as JSON (keys: docs/compensation.md)")
+    analyze.add_argument("--plot", metavar="FILE", help="write the pole map as PNG")
+    analyze.set_defaults(handler=cmd_analyze)
 
     sub = commands.add_parser("subsystem", help="serve one subsystem of a scene over Zenoh (for runs across hosts)")
     _add_scene_arguments(sub)

@@ -289,7 +289,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     if manager is not None:
         _check_timing(manager, tables, subsystems, problems)
         if manager.compensation != "none":
-            _check_compensation(couplings, subsystems, problems)
+            check_compensation(couplings, subsystems, problems)
     _check_couplings(couplings, subsystems, tables, problems)
     if outputs is not None:
         signals = {s for c in couplings.values() for s in c.signals()}
@@ -334,7 +334,7 @@ def _check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, 
                          f"got {sub.settings.micro_step!r} s")
 
 
-def _check_compensation(couplings: dict, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+def check_compensation(couplings: dict, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
     """What the eigenstructure compensator (manager.compensator) needs of a scene's structure."""
     if len(couplings) != 1 or next(iter(couplings.values())).kind != "force_displacement":
         problems.add("manager.compensation", f"expected exactly one force_displacement coupling, got {len(couplings)} "
