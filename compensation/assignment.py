@@ -163,13 +163,13 @@ def assignment_system(
     rows = np.flatnonzero(touched)
     G_t = monolithic_stiffness(model)
     L_blocks, n_blocks = [], []
-    for i, (lam, w) in enumerate(zip(monolithic.poles, monolithic.vectors.T)):
+    targets = monolithic.poles if poles is None else np.asarray(poles)
+    for lam, D, w in zip(targets, interface.D(targets), monolithic.vectors.T):
         if poles is not None:
-            lam = poles[i]
             untouched = G_t(lam, 1.0)[~touched]
             w = w - np.linalg.pinv(untouched) @ (untouched @ w) if untouched.size else w
-        D = interface.D(lam)
-        L_blocks.append(np.column_stack([(DynamicStiffness(G)(lam, D) @ w)[rows] for G in directions]))
+        powers_D, powers_s = D ** np.arange(directions.shape[1]), lam ** np.arange(directions.shape[2])
+        L_blocks.append(np.einsum("k,l,cklij,j->ic", powers_D, powers_s, directions, w)[rows])
         n_blocks.append(-((dG(lam, D) + (0.0 if poles is None else G_t(lam, D))) @ w)[rows])
     return AssignmentSystem(L=np.vstack(L_blocks), n=np.concatenate(n_blocks), rows=tuple(int(r) for r in rows),
                             columns=columns)
@@ -278,7 +278,8 @@ def design_compensator(
     rng = np.random.default_rng(seed)
     spread = max(np.linalg.norm(k0_scaled), 1.0)
     best_k_r = np.zeros(V.shape[1])
-    best = objective(best_k_r)
+    start_abscissa = abscissa(best_k_r)
+    best = max(start_abscissa, -margin)  # objective(best_k_r)
     for attempt in range(restarts + 1):
         if best <= -margin or V.shape[1] == 0:
             break
@@ -298,7 +299,7 @@ def design_compensator(
         V=V,
         k_r=best_k_r,
         k=k0 + V @ best_k_r,
-        latent_abscissa=abscissa(best_k_r),
+        latent_abscissa=start_abscissa if not best_k_r.any() else abscissa(best_k_r),
         margin=margin,
         pade_order=pade_order,
         seed=seed,
