@@ -53,7 +53,7 @@ from subsystems.ports import Attachments, RelayedForce
 PADE_ORDER = 6  # of the latent-root check in the design (paper 000 §2.3.2)
 DESIGN_SEED = 0  # of the design's null-space search
 POLE_TOLERANCE = 1e-7  # [1/s]: |ν_i - λ_i| at which the correction stops (ρ - 1 <= 1e-10 at 1 ms for λ on the axis)
-MAX_ITERATIONS = 16  # designs; measured: 3-4 for the two-mass cases, 8 for four_mass
+MAX_ITERATIONS = 16  # designs; measured: 4 for the two-mass cases, 8 for four_mass
 
 
 def _refuse(scene: Scene, reason: str) -> SceneError:
