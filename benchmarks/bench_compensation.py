@@ -25,11 +25,9 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from manager.bus import drive_inprocess
-from manager.endpoint import SubsystemEndpoint
-from manager.jacobi import jacobi
-from manager.run import plan_scene
+from manager.replica import Replica
 from manager.scene import load_scene
+from manager.schemes import endpoints, make_scheme, plan_scene
 
 SCENES = ("two_mass_undamped", "four_mass")
 
@@ -39,9 +37,9 @@ def cpu_times(name: str, compensation: str) -> tuple[float, float]:
     scene = load_scene(name, [f"manager.compensation={compensation}"])
     start = time.process_time()
     plan, subsystems = plan_scene(scene)
-    endpoints = {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns) for s in plan.subsystems}
+    replica = Replica(make_scheme(scene, plan), [s.name for s in plan.subsystems], endpoints(plan, subsystems))
     loop_start = time.process_time()
-    drive_inprocess(jacobi(plan), endpoints)
+    replica.run()
     end = time.process_time()
     return end - start, end - loop_start
 

@@ -21,7 +21,7 @@ from compensation.perturbation import cosimulated_stiffness
 from manager import compensator
 from manager.build import linear_model, linear_unavailable, scene_compensator
 from manager.discrete import DiscreteScheme, discrete_scheme
-from manager.run import plan_scene
+from manager.schemes import plan_scene
 from manager.scene import Scene, SceneError, check_compensation
 from subsystems.params import Problem, Problems
 

@@ -13,7 +13,7 @@ from compensation.perturbation import monolithic_stiffness
 from manager import compensator
 from manager.build import build_subsystem, compensated_linear_model, coupling_attachments, scene_compensator
 from manager.discrete import MARGINAL, LinearSceneError, discrete_scheme, scene_scheme
-from manager.run import plan_scene
+from manager.schemes import plan_scene
 from manager.scene import SceneError, load_scene
 from subsystems.effects import EFFECTS
 from subsystems.params import quantity

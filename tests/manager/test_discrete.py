@@ -6,12 +6,11 @@ import numpy as np
 import pytest
 
 from manager.build import linear_model
-from manager.bus import drive_inprocess
 from manager.discrete import ZERO_EIGENVALUE, DiscreteScheme, discrete_scheme
-from manager.endpoint import SubsystemEndpoint
-from manager.jacobi import jacobi
-from manager.run import execute, plan_scene
+from manager.replica import Replica
+from manager.run import execute
 from manager.scene import bundled_scene_names, load_scene
+from manager.schemes import endpoints, make_scheme, plan_scene
 from manager.summary import energy_growth_rate, total_energy
 
 FOUR_MS = ["manager.macro_step=0.004", "subsystems.S1.micro_step=0.004", "subsystems.S2.micro_step=0.004"]
@@ -35,10 +34,10 @@ CONFIGURATIONS = {
 def _run(name: str, overrides: list[str], ticks: int) -> tuple[np.ndarray, object, DiscreteScheme]:
     """Run ``ticks`` base steps; return the discrete state X the runtime reached, the record and Ψ."""
     base_ns = load_scene(name, overrides).manager.macro_step_ns
-    plan, subsystems = plan_scene(load_scene(name, [*overrides, f"manager.duration={ticks * base_ns / 1e9!r}"]))
+    scene = load_scene(name, [*overrides, f"manager.duration={ticks * base_ns / 1e9!r}"])
+    plan, subsystems = plan_scene(scene)
     scheme = discrete_scheme(plan, subsystems)
-    endpoints = {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns) for s in plan.subsystems}
-    record = drive_inprocess(jacobi(plan), endpoints)
+    record = Replica(make_scheme(scene, plan), [s.name for s in plan.subsystems], endpoints(plan, subsystems)).run()
     X = np.empty(scheme.Psi.shape[0])
     for s in plan.subsystems:
         X[scheme.z_index[s.index]] = subsystems[s.name].z

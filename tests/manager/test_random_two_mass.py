@@ -13,7 +13,7 @@ import pytest
 
 from manager.build import scene_compensator
 from manager.discrete import discrete_scheme
-from manager.run import plan_scene
+from manager.schemes import plan_scene
 from manager.scene import load_scene
 from tests.manager.test_discrete import assert_prediction_agrees, late_growth
 
