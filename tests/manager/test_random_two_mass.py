@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 
+from manager import compensator
 from manager.build import scene_compensator
 from manager.discrete import discrete_scheme
 from manager.schemes import plan_scene
@@ -58,12 +59,14 @@ def test_discrete_prediction_agrees_with_the_simulation_of_every_random_system(s
 
 @pytest.mark.slow
 def test_every_random_system_is_stable_compensated(systems, record_property):
-    """ρ ≤ 1 for all 100 compensated schemes; the 15 that were unstable also decay in a 10 s run."""
+    """ρ ≤ 1 for all 100 compensated schemes (measured at most 0.99976), their primary poles within
+    POLE_TOLERANCE of the monolithic ones (measured 9.0e-8 1/s at most, after 4 to 6 designs); the 15
+    that were unstable also decay in a 10 s run."""
     worst, simulated = 0.0, 0
     for overrides in systems:
         compensated = [*overrides, "manager.compensation=eigenstructure"]
         result = scene_compensator(load_scene(SCENE, compensated))
-        assert result.scheme.stable
+        assert result.scheme.stable and result.pole_error <= compensator.POLE_TOLERANCE
         worst = max(worst, result.pole_error)
         if not discrete_scheme(*plan_scene(load_scene(SCENE, overrides))).stable:
             assert_prediction_agrees(result.scheme, late_growth(SCENE, compensated, result.scheme))
