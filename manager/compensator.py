@@ -45,7 +45,7 @@ from compensation.eigenstructure import monolithic_eigenstructure
 from compensation.interface import InterfaceModel
 from compensation.linear_model import LinearModel
 from manager.discrete import DiscreteScheme
-from manager.scene import Scene, SceneError
+from manager.scene import Scene, SceneError, extrapolation_order
 from subsystems.effects.feedback import Feedback
 from subsystems.params import Problem
 from subsystems.ports import Attachments, RelayedForce
@@ -66,8 +66,10 @@ def runtime_architecture(model: LinearModel) -> Architecture:
 
 
 def interface_of(scene: Scene) -> InterfaceModel:
-    """``D(s)`` of the scene's exchange: its extrapolation order and macro-step, no latency."""
-    return InterfaceModel(scene.manager.extrapolation, scene.manager.macro_step)
+    """``D(s)`` of the scene's exchange: its (single, ``check_compensation``) extrapolation order and
+    macro-step, no latency."""
+    first = next(iter(scene.subsystems.values()))
+    return InterfaceModel(extrapolation_order(scene.manager, first), scene.manager.macro_step)
 
 
 def design(scene: Scene, model: LinearModel, poles: np.ndarray | None = None,

@@ -7,12 +7,13 @@ it advances the discrete state
     X = [z_1, ..., z_S, Y_1[k-p..k], ..., Y_S[k-p..k]]
 
 — every subsystem's state ``z = [x, v]`` at its communication point and the last ``p + 1``
-committed samples of its linear outputs (``p`` the extrapolation order) — by ``X⁺ = Ψ X``.
+committed samples of its linear outputs (``p`` the highest extrapolation order of the receivers)
+— by ``X⁺ = Ψ X``.
 ``Ψ`` is built by running the scheme symbolically: every quantity is a matrix acting on ``X``,
 and each step follows ``manager.jacobi`` exactly:
 
-1. the input polynomial of a subsystem starting a step is the Lagrange extrapolation
-   (``manager.extrapolation.extrapolation_matrix``, the same cached matrices) of the newest
+1. the input polynomial of a subsystem starting a step is the Lagrange extrapolation of its own
+   order (``manager.extrapolation.extrapolation_matrix``, the same cached matrices) of the newest
    committed samples of its sources, with the multi-rate offset of a slow source;
 2. over its communication step the subsystem applies its integrator's one-step map
    (``linear_step`` of ``subsystems.integrators``) with its micro-step, the input polynomial
@@ -26,7 +27,8 @@ spectral radius ``ρ(Ψ)`` decides stability. Zero eigenvalues belong to redunda
 committed motion output equals a component of ``z``) and have no pole. Limits: the steady-state
 map (the first ``p`` steps of a run use fewer samples); external forces of time are a forcing
 term, not part of ``Ψ``; only ``masses`` models whose public matrices are their whole dynamics
-(not ``MassesModel.nonlinear``; ``LinearSceneError`` otherwise).
+(not ``MassesModel.nonlinear``) and no energy correction (``manager.correction``: its capped
+correction is not linear); ``LinearSceneError`` otherwise.
 """
 from __future__ import annotations
 
@@ -135,9 +137,9 @@ class DiscreteScheme:
 def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
     """``Ψ`` of the explicit Jacobi scheme (``manager.jacobi``) for ``plan`` and its built subsystems."""
     subs = plan.subsystems
-    order = plan.order
+    depth = max(s.order for s in subs)  # history kept: depth + 1 samples of every subsystem
     base = plan.base_step_ns
-    maps = [subsystem_map(subsystems[s.name], s.ratio * base, order) for s in subs]
+    maps = [subsystem_map(subsystems[s.name], s.ratio * base, s.order) for s in subs]
 
     z_index, history_index, offset = [], [], 0
     for m in maps:
@@ -145,8 +147,8 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
         offset += m.Phi.shape[0]
     for m in maps:
         n_y = m.C_y.shape[0]
-        history_index.append(tuple(slice(offset + q * n_y, offset + (q + 1) * n_y) for q in range(order + 1)))
-        offset += (order + 1) * n_y
+        history_index.append(tuple(slice(offset + q * n_y, offset + (q + 1) * n_y) for q in range(depth + 1)))
+        offset += (depth + 1) * n_y
     identity = np.eye(offset)
     z = [identity[index] for index in z_index]
     history = [[identity[index] for index in samples] for samples in history_index]  # oldest first
@@ -157,12 +159,13 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
         for s in subs:
             if tick % s.ratio:
                 continue
+            order = s.order
             c = np.zeros((order + 1, len(s.inputs), offset))
             for feed in s.feeds:
                 ratio = subs[feed.source].ratio
-                newest = tick // ratio
-                P = extrapolation_matrix(order + 1, ratio * base, (tick - newest * ratio) * base)
-                samples = history[feed.source][newest:newest + order + 1]
+                newest = depth + tick // ratio  # position of the newest committed sample in the history
+                P = extrapolation_matrix(order + 1, ratio * base, (tick - (tick // ratio) * ratio) * base)
+                samples = history[feed.source][newest - order:newest + 1]
                 for output, target in zip(feed.outputs, feed.inputs):
                     values = np.stack([sample[output] for sample in samples])
                     c[:, target] = P @ values
@@ -172,11 +175,14 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
             pending.setdefault(tick + s.ratio, []).append((s.index, m.C_y @ z[s.index] + m.D_y @ w_end))
         for index, y in pending.pop(tick + 1, []):
             history[index].append(y)
-    Psi = np.vstack(z + [sample for samples in history for sample in samples[-(order + 1):]])
+    Psi = np.vstack(z + [sample for samples in history for sample in samples[-(depth + 1):]])
     return DiscreteScheme(Psi, period * base * 1e-9, tuple(z_index), tuple(history_index))
 
 
 def scene_scheme(scene: Scene, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
     """``discrete_scheme`` of a scene's built subsystems (the run plan compiled from their ports)."""
+    if scene.manager.corrects:
+        raise LinearSceneError(f"scene {scene.name}: the discrete analysis does not model energy correction "
+                               "(manager.correction); expected it disabled")
     plan = compile_plan(scene, {name: (s.inputs, s.outputs, s.effects) for name, s in subsystems.items()})
     return discrete_scheme(plan, subsystems)

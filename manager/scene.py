@@ -289,7 +289,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     if manager is not None:
         _check_timing(manager, tables, subsystems, problems)
         if manager.compensation != "none":
-            check_compensation(couplings, subsystems, problems)
+            check_compensation(manager, couplings, subsystems, problems)
     _check_couplings(couplings, subsystems, tables, problems)
     if outputs is not None:
         signals = {s for c in couplings.values() for s in c.signals()}
@@ -334,7 +334,14 @@ def _check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, 
                          f"got {sub.settings.micro_step!r} s")
 
 
-def check_compensation(couplings: dict, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+def extrapolation_order(manager: ManagerSettings, subsystem: SubsystemScene) -> int:
+    """The Lagrange order of the inputs ``subsystem`` receives (its own, else the scene's)."""
+    own = subsystem.settings.extrapolation
+    return manager.extrapolation if own is None else own
+
+
+def check_compensation(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],
+                       problems: Problems) -> None:
     """What the eigenstructure compensator (manager.compensator) needs of a scene's structure."""
     if len(couplings) != 1 or next(iter(couplings.values())).kind != "force_displacement":
         problems.add("manager.compensation", f"expected exactly one force_displacement coupling, got {len(couplings)} "
@@ -343,6 +350,13 @@ def check_compensation(couplings: dict, subsystems: dict[str, SubsystemScene], p
     if multi_rate:
         problems.add("manager.compensation", f"expected a single-rate scene (comm_ratio = 1), got comm_ratio != 1 "
                      f"in {', '.join(multi_rate)}")
+    orders = sorted({extrapolation_order(manager, s) for s in subsystems.values()})
+    if len(orders) > 1:
+        problems.add("manager.compensation", f"expected one extrapolation order for every subsystem (one D(s)), "
+                     f"got {orders}")
+    if manager.corrects:
+        problems.add("manager.compensation", "expected no energy correction (manager.correction) with the "
+                     "compensator: its discrete correction does not model it")
 
 
 def _check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tables: dict,

@@ -113,6 +113,9 @@ def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order:
     reason = linear_unavailable(scene)
     if reason:
         raise SceneError(scene.path, [Problem("scene", f"expected a linear scene for the analysis: {reason}")])
+    if scene.manager.corrects:
+        raise SceneError(scene.path, [Problem("manager.correction", "expected no energy correction: the exact "
+                                              "discrete analysis covers the linear scheme only")])
     model = linear_model(scene)
     interface = compensator.interface_of(scene)
     analysis = analyze(model, interface, pade_order)
@@ -121,7 +124,7 @@ def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order:
     result = SceneAnalysis(scene, model.dof_names, analysis, uncompensated,
                            Eigenpairs(*uncompensated.primary_eigenstructure(analysis.monolithic.poles)))
     problems = Problems()
-    check_compensation(scene.couplings, scene.subsystems, problems)
+    check_compensation(scene.manager, scene.couplings, scene.subsystems, problems)
     if problems:
         return replace(result, not_compensated="; ".join(p.reason for p in problems))
     chosen = ARCHITECTURES[architecture](model)

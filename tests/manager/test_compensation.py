@@ -3,7 +3,6 @@ its sign, the discrete correction, and what it does to the runs of paper 000."""
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -15,8 +14,6 @@ from manager.build import build_subsystem, compensated_linear_model, coupling_at
 from manager.discrete import MARGINAL, LinearSceneError, discrete_scheme, scene_scheme
 from manager.schemes import plan_scene
 from manager.scene import SceneError, load_scene
-from subsystems.effects import EFFECTS
-from subsystems.params import quantity
 from tests.conftest import record_of, summary_of
 
 FOUR_MS = ["manager.macro_step=0.004", "subsystems.S1.micro_step=0.004", "subsystems.S2.micro_step=0.004"]
@@ -142,33 +139,18 @@ def test_forced_response_with_compensation_is_bounded_and_accurate():
     assert summary["stable"] and entry["nrms"] <= 2.0 * entry["nrms_monolithic"]  # measured 0.07 of it
 
 
-@dataclasses.dataclass(frozen=True)
-class CubicSpring:
-    """A stand-in for a non-linear effect (issue 4 adds real ones): any kind but linear/external/feedback."""
-
-    stiffness: float = dataclasses.field(metadata=quantity("N/m^3"))
-    kind: ClassVar[str] = "cubic"
-    endpoint_counts: ClassVar[tuple[int, ...]] = (1,)
-
-    def active(self) -> bool:
-        return True
-
-
-NONLINEAR = ["subsystems.S2.effects.k3.type=cubic_spring", "subsystems.S2.effects.k3.stiffness=10.0",
-             'subsystems.S2.effects.k3.bodies=["m2"]']
-
-
-def test_compensation_refuses_scenes_it_cannot_serve(monkeypatch):
+def test_compensation_refuses_scenes_it_cannot_serve():
     with pytest.raises(SceneError, match="manager.compensation: expected exactly one force_displacement coupling"):
         load_scene("multiple_oscillator_n3", COMPENSATED)
     multi_rate = ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001"]
     with pytest.raises(SceneError, match="expected a single-rate scene"):
         load_scene("double_oscillator", [*multi_rate, *COMPENSATED])
-    monkeypatch.setitem(EFFECTS, "cubic_spring", CubicSpring)
-    with pytest.raises(SceneError, match="expected a linear scene: nonlinear effects S2.k3"):
-        plan_scene(load_scene("two_mass_damped", [*NONLINEAR, *COMPENSATED]))
-    with pytest.raises(LinearSceneError, match="subsystem S2: the discrete analysis needs linear 'masses' models"):
-        discrete_scheme(*plan_scene(load_scene("two_mass_damped", NONLINEAR)))
+    with pytest.raises(SceneError, match="expected a linear scene: nonlinear effects M1.k1, M2.k2, c.kc"):
+        plan_scene(load_scene("nonlinear_oscillator_case1", COMPENSATED))
+    with pytest.raises(LinearSceneError, match="subsystem M1: the discrete analysis needs linear 'masses' models"):
+        discrete_scheme(*plan_scene(load_scene("nonlinear_oscillator_case1")))
+    with pytest.raises(SceneError, match="expected one extrapolation order for every subsystem"):
+        load_scene("two_mass_damped", ["subsystems.S2.extrapolation=1", *COMPENSATED])
     # the linear model does not depend on the integrators: different ones may be compensated
     assert scene_compensator(load_scene("two_mass_damped", ["subsystems.S2.integrator=rk4", *COMPENSATED])).scheme.stable
 
