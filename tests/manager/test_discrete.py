@@ -22,6 +22,8 @@ CONFIGURATIONS = {
     "two_mass_damped_zoh": ("two_mass_damped", []),
     "two_mass_damped_foh": ("two_mass_damped", ["manager.extrapolation=1"]),
     "two_mass_damped_soh_4ms": ("two_mass_damped", ["manager.extrapolation=2", *FOUR_MS]),
+    "two_mass_damped_soh_into_s1_zoh_into_s2": ("two_mass_damped", ["subsystems.S1.extrapolation=2",
+                                                                    "subsystems.S2.extrapolation=0"]),
     "two_mass_undamped_rk4_micro_steps": ("two_mass_undamped", RK4),
     "four_mass": ("four_mass", []),
     "multiple_oscillator_n3": ("multiple_oscillator_n3", ["manager.extrapolation=1"]),
