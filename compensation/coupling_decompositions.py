@@ -77,26 +77,33 @@ class LinearisedCouplingConditions:
     ``g(e*) = residual + jacobian @ (e* - e^p)`` (Eqs. 15, 41, 42, 47–49, 65), one row per output
     level (position, velocity, acceleration, force). Exact for the linear test model, a Newton
     linearisation otherwise. ``kinematic`` and ``force`` say which conditions the decomposition has.
-    A trailing axis on ``residual`` is carried through (the recurrence passes one column per state).
+
+    A joint on a line has ``jacobian`` (4, n_e) and ``residual`` (4, ...), whose trailing axis is carried
+    through (the recurrence passes one column per state). A joint with ``d`` axes (a point in the
+    plane, d = 2) has ``jacobian`` (4, d, n_e) and ``residual`` (4, d): every condition holds per axis,
+    so each level contributes ``d`` rows, and ``n_e`` is ``d`` times the number of coupling variables.
     """
 
-    residual: np.ndarray  # (4, ...) output of mass 2 minus output of mass 1 after the predictor run
-    jacobian: np.ndarray  # (4, n_e) derivative of that difference w.r.t. the coupling variables
+    residual: np.ndarray  # (4, ...) or (4, d): output of mass 2 minus output of mass 1 after the predictor run
+    jacobian: np.ndarray  # (4, n_e) or (4, d, n_e): derivative of that difference w.r.t. the coupling variables
     kinematic: bool
     force: bool
 
     def root(self, predicted_coupling: np.ndarray, kinematic_weights: tuple[float, float, float]) -> np.ndarray:
         """Coupling variables that zero the force condition and the kinematic condition
-        ``w_pos g_pos + w_vel g_vel + w_acc g_acc`` (Eqs. 16, 25–27, 43, 50–52, 66)."""
+        ``w_pos g_pos + w_vel g_vel + w_acc g_acc`` (Eqs. 16, 25–27, 43, 50–52, 66), on every axis."""
         weights = np.asarray(kinematic_weights, dtype=float)
+        on_axes = self.jacobian.ndim == 3
+        residual = self.residual if on_axes else self.residual[:, None]  # (4, d, ...)
+        jacobian = self.jacobian if on_axes else self.jacobian[:, None]  # (4, d, n_e)
         residual_rows, jacobian_rows = [], []
         if self.kinematic:
-            residual_rows.append(np.tensordot(weights, self.residual[KINEMATIC_LEVELS], axes=1))
-            jacobian_rows.append(weights @ self.jacobian[KINEMATIC_LEVELS])
+            residual_rows.append(np.tensordot(weights, residual[KINEMATIC_LEVELS], axes=1))
+            jacobian_rows.append(np.tensordot(weights, jacobian[KINEMATIC_LEVELS], axes=1))
         if self.force:
-            residual_rows.append(self.residual[FORCE_LEVEL])
-            jacobian_rows.append(self.jacobian[FORCE_LEVEL])
-        return predicted_coupling - np.linalg.solve(np.array(jacobian_rows), np.array(residual_rows))
+            residual_rows.append(residual[FORCE_LEVEL])
+            jacobian_rows.append(jacobian[FORCE_LEVEL])
+        return predicted_coupling - np.linalg.solve(np.concatenate(jacobian_rows), np.concatenate(residual_rows))
 
 
 @dataclass(frozen=True)
@@ -132,6 +139,7 @@ class Decomposition:
         ``predicted_outputs`` (2, 4, ...): outputs ``y`` of mass 1 and mass 2 at T_{N+1} of the
         predictor run; ``output_sensitivity`` (2, 4, n_e): their derivatives w.r.t. the coupling
         variables at T_{N+1} (Eqs. 13, 39, 63; zero for a variable that is not the mass's input).
+        A joint with ``d`` axes passes (2, 4, d) and (2, 4, d, n_e) (see ``LinearisedCouplingConditions``).
         """
         return LinearisedCouplingConditions(
             residual=predicted_outputs[1] - predicted_outputs[0],

@@ -161,6 +161,8 @@ def corrected_coupling(
     acceleration and coupling force of mass 1 and mass 2 at T_{N+1} from the predictor run.
     ``output_sensitivity`` (2, 4, n_e): their derivatives w.r.t. ``e*_{N+1}``, the value at T_{N+1} of
     the corrector polynomial (Eqs. 13, 39, 63; constant for the linear model). Returns (n_e, ...).
+    A joint with ``d`` axes (a point in the plane) passes outputs (2, 4, d) and sensitivities
+    (2, 4, d, n_e); its conditions hold on every axis (``LinearisedCouplingConditions``).
 
     The corrector polynomial through ``e*_{N+1}, e_N, ..., e_{N-k+1}`` equals the predictor polynomial
     when ``e*_{N+1} = e^p_{N+1}``, so the predictor outputs are the conditions at ``e^p`` (Eq. 15).
