@@ -28,10 +28,27 @@ def lagrange_matrix(sample_times: tuple[float, ...]) -> np.ndarray:
 @lru_cache(maxsize=256)
 def extrapolation_matrix(points: int, sample_step_ns: int, offset_ns: int) -> np.ndarray:
     """``lagrange_matrix`` for ``points`` samples spaced ``sample_step_ns`` apart, the newest ``offset_ns``
-    before the start of the receiver's step (zero in single-rate schemes). Cached: the run loop asks
-    for the same few matrices at every step."""
+    before the start of the receiver's step (zero in single-rate schemes; ``-sample_step_ns`` for the
+    corrector of the implicit scheme, whose newest sample lies at the end of the step, paper 003
+    Eq. 11). Cached: the run loop asks for the same few matrices at every step."""
     times = tuple((-offset_ns - (points - 1 - k) * sample_step_ns) * 1e-9 for k in range(points))
     return lagrange_matrix(times)
+
+
+def lagrange_coefficients(samples: np.ndarray, columns: slice | np.ndarray, newest: int, order: int,
+                          sample_step_ns: int, offset_ns: int = 0) -> np.ndarray:
+    """Monomial coefficients (one row per power of ``tau``) of the Lagrange polynomials through the
+    samples ``newest - points + 1 ... newest`` (rows of ``samples``, oldest first) of ``columns``.
+
+    ``points = min(order, newest) + 1``: fewer points while the history is shorter, so the first step
+    of a run is always a constant. ``sample_step_ns`` and ``offset_ns`` as in ``extrapolation_matrix``.
+    Both schemes build every input polynomial here (Jacobi: paper 002 Fig. 5; implicit predictor and
+    corrector: paper 003 Eqs. 9, 11).
+    """
+    points = min(order, newest) + 1
+    if points == 1:
+        return samples[newest:newest + 1, columns]
+    return extrapolation_matrix(points, sample_step_ns, offset_ns).dot(samples[newest - points + 1:newest + 1, columns])
 
 
 def evaluate(coefficients: np.ndarray, column: int, tau: float) -> float:

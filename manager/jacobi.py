@@ -27,7 +27,7 @@ from typing import Callable, Generator, Protocol
 
 import numpy as np
 
-from manager.extrapolation import evaluate, extrapolation_matrix
+from manager.extrapolation import evaluate, lagrange_coefficients
 from manager.plan import Plan, SubsystemPlan
 from manager.protocol import Kind, ProtocolError, decode, encode
 from manager.residual import residual_power
@@ -129,12 +129,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         coefficients = np.zeros((order + 1, len(s.inputs)))
         for source, ratio, outputs, inputs in feeds[s.index]:
             newest = tick // ratio
-            if order == 0 or newest == 0:
-                coefficients[0, inputs] = traj[source][newest, outputs]
-                continue
-            points = min(order, newest) + 1
-            P = extrapolation_matrix(points, ratio * base, (tick - newest * ratio) * base)
-            coefficients[:points, inputs] = P.dot(traj[source][newest - points + 1:newest + 1, outputs])
+            rows = lagrange_coefficients(traj[source], outputs, newest, order, ratio * base, (tick - newest * ratio) * base)
+            coefficients[:len(rows), inputs] = rows
         return coefficients
 
     # initial outputs, sources before the subsystems whose feedthrough outputs need them; a subsystem
