@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from subsystems.exact_integrator import ExactLinear
 from subsystems.inputs import InputPolynomial
 
 
@@ -108,4 +109,4 @@ class RungeKutta4:
         z += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
-INTEGRATORS: dict[str, type] = {cls.name: cls for cls in (SymplecticEuler, RungeKutta4)}
+INTEGRATORS: dict[str, type] = {cls.name: cls for cls in (SymplecticEuler, RungeKutta4, ExactLinear)}

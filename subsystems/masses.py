@@ -18,6 +18,10 @@ the acceleration of a terminal is not available, so a terminal source may not ha
 reported energy stays the physical one. A ``RelayedForce`` adds the force such terms exert on a
 terminal to a force output, divided by the sign with which the remote side applies it.
 
+A body can be one side of a rigid joint (paper 003 §2, ``subsystems.ports.JointSide``): force-driven,
+the joint force ``λ*`` enters ``f*`` with the side's sign; displacement-driven, the body follows the
+received acceleration ``ã*`` and the model reports the force ``μ`` that this takes (Eqs. 33b, 57).
+
 Public matrices (the exact discrete analysis, ``manager.discrete``, is built from them), with
 ``z = [x, v]`` and ``w`` the input values in port order:
 
@@ -58,6 +62,16 @@ class MassesSpec:
     def points(self) -> tuple[str, ...]:
         """Names couplings may attach to."""
         return tuple(self.bodies)
+
+    def drive_problem(self, point: str, drive: str, axes: int) -> str | None:
+        """Why ``point`` cannot be a joint side with this drive (None: it can; a point mass always can)."""
+        return None
+
+    def linear_problem(self) -> str | None:
+        """Why the model is not linear and time-invariant (None: it is)."""
+        reasons = {"external": "a force of time", "nonlinear": "nonlinear"}
+        found = [f"effect {e.name} is {reasons[e.effect.kind]}" for e in self.effects if e.effect.kind in reasons]
+        return "; ".join(found) or None
 
 
 class MassesModel:
@@ -133,7 +147,8 @@ class MassesModel:
             raise ValueError(f"the {self.name} model computes a coupling force only from coupling effects")
         self.inputs: tuple[Port, ...] = tuple(
             [Port(p[0], q) for t in terminals for p, q in ((t.position_inputs, "position"), (t.velocity_inputs, "velocity"))]
-            + [Port(f.ports[0], "force") for f in attachments.force_inputs])
+            + [Port(f.ports[0], "force") for f in attachments.force_inputs]
+            + [Port(p, "force" if j.drive == "force" else "acceleration") for j in attachments.joint_sides for p in j.inputs])
         input_index = {p.name: j for j, p in enumerate(self.inputs)}
         n_in = len(self.inputs)
 
@@ -199,11 +214,23 @@ class MassesModel:
             B_w[:, input_index[t.velocity_inputs[0]]] = -Cq[:n, n + j] - Cf[:n, n + j]
         for f in attachments.force_inputs:
             B_w[point_index[f.point], input_index[f.ports[0]]] += f.sign
+        joints = [(side, point_index[side.point], input_index[side.inputs[0]]) for side in attachments.joint_sides]
+        if joints and np.any(Mf):
+            raise ValueError("a joint side needs the bodies' own mass matrix: acceleration feedback would couple a "
+                             "displacement-driven body to the others")
+        for side, i, column in joints:
+            if side.drive == "force":
+                B_w[i, column] += side.sign
         self.A_a = Minv @ A_f
         self.B_a = Minv @ B_w
         self._inverse_mass = Minv  # of the nonlinear elements' forces (diagonal unless acceleration feedback)
         self.external = tuple((e.effect, point_index[e.endpoints[0]]) for e in placed if e.effect.kind == "external")
         self._E_a = Minv[:, [body for _, body in self.external]]
+        E_f = np.eye(n)[:, [body for _, body in self.external]]  # external forces onto bodies
+        self._driven = [i for side, i, _ in joints if side.drive == "displacement"]
+        for side, i, column in joints:
+            if side.drive == "displacement":  # the body follows the received acceleration
+                self.A_a[i], self.B_a[i], self._E_a[i] = 0.0, np.eye(n_in)[column], 0.0
 
         def relayed_force(relay) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             """The force the relayed feedback terms exert on the terminal, on z, w and f_e."""
@@ -256,6 +283,32 @@ class MassesModel:
             rows_w.append(row_w)
             F_y.append(row_f)
             ports.append(Port(out.ports[0], "force", feedthrough=feedthrough))
+        # joint outputs: position, velocity, acceleration, force f = sign × (joint force on the body), 1/m;
+        # the acceleration and force carry external forces (rows of F_y) and nonlinear element forces
+        # (``_joint_nonlinear``); 1/m is a constant
+        constants, self._joint_nonlinear = [0.0] * len(ports), []
+        no_external = np.zeros(n_ext)
+        for side, i, column in joints:
+            mass = self.M[i, i]
+            if side.drive == "force":
+                f_z, f_w, f_e = np.zeros(2 * n), np.eye(n_in)[column], no_external
+                self._joint_nonlinear.append((len(ports) + 2, i, 1.0 / mass))  # a += f_nl / m
+            else:  # μ = sign (m ã* − forces of the subsystem on the body)
+                f_z, f_w, f_e = -side.sign * A_f[i], side.sign * (mass * np.eye(n_in)[column] - B_w[i]), -side.sign * E_f[i]
+                self._joint_nonlinear.append((len(ports) + 3, i, -side.sign))  # μ −= sign f_nl
+            for port, quantity_name, row_z, row_w, row_f, constant in (
+                    (side.positions[0], "position", np.eye(2 * n)[i], np.zeros(n_in), no_external, 0.0),
+                    (side.velocities[0], "velocity", np.eye(2 * n)[n + i], np.zeros(n_in), no_external, 0.0),
+                    (side.accelerations[0], "acceleration", self.A_a[i], self.B_a[i], self._E_a[i], 0.0),
+                    (side.forces[0], "force", f_z, f_w, f_e, 0.0),
+                    (side.inverse_masses[0], "inverse_mass", np.zeros(2 * n), np.zeros(n_in), no_external, 1.0 / mass)):
+                rows_z.append(row_z)
+                rows_w.append(row_w)
+                F_y.append(row_f)
+                constants.append(constant)
+                ports.append(Port(port, quantity_name, feedthrough=bool(np.any(row_w != 0.0))))
+        self._joint_bodies = tuple((i, self.M[i, i]) for _, i, _ in joints)
+        self._y_constant = np.array(constants) if joints else None
         self.outputs: tuple[Port, ...] = tuple(ports) + (Port("energy", "energy"),)
         Q = np.zeros((2 * n + n_in, 2 * n + n_in))
         q_index = list(range(n)) + [2 * n + input_index[t.position_inputs[0]] for t in terminals]
@@ -282,19 +335,32 @@ class MassesModel:
         return bool(self._nonlinear)
 
     def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """``a = (M + D_fb)⁻¹ (A_f z + B_w w + E f_e(t) + f_nl)`` at time t [s]."""
+        """``a = (M + D_fb)⁻¹ (A_f z + B_w w + E f_e(t) + f_nl)`` at time t [s] (displacement-driven
+        bodies of a joint: ``ã*``)."""
         a = self.A_a.dot(z) + self.B_a.dot(w)
         if self.external:
             a = a + self._E_a.dot([effect.force(t) for effect, _ in self.external])
         if self._nonlinear:
-            f = np.zeros(self.n_dof)
-            for (effect, _, _, body_a, body_b), force in zip(self._nonlinear, self._element_forces(np.concatenate((z, w)))):
-                if body_a is not None:
-                    f[body_a] += force
-                if body_b is not None:
-                    f[body_b] -= force
+            f = self._body_forces(np.concatenate((z, w)))
+            f[self._driven] = 0.0
             a = a + self._inverse_mass.dot(f)
         return a
+
+    def _body_forces(self, s: np.ndarray) -> np.ndarray:
+        """The nonlinear elements' forces summed onto each body at ``s = [x, v, w]``."""
+        f = np.zeros(self.n_dof)
+        for (_, _, _, body_a, body_b), force in zip(self._nonlinear, self._element_forces(s)):
+            if body_a is not None:
+                f[body_a] += force
+            if body_b is not None:
+                f[body_b] -= force
+        return f
+
+    def linear_dynamics(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A_a, B_a)`` for integrators that need a linear, time-invariant model (``exact``)."""
+        if self.external or self._nonlinear:
+            raise ValueError("the model has external forces of time or nonlinear effects")
+        return self.A_a, self.B_a
 
     def _element_forces(self, s: np.ndarray) -> list[float]:
         """Force law of every nonlinear element at ``s = [x, v, w]`` (on its point a)."""
@@ -319,4 +385,19 @@ class MassesModel:
                 y[row] += sign * forces[element]
             for effect, a, b, _, _ in self._nonlinear:
                 y[k] += effect.potential(float(s[a[0]] - (s[b[0]] if b is not None else 0.0)))
+        if self._y_constant is not None:
+            y[:k] += self._y_constant
+            if self._nonlinear:
+                f = self._body_forces(s)
+                for row, body, factor in self._joint_nonlinear:
+                    y[row] += factor * f[body]
         return y
+
+    def project(self, z: np.ndarray, corrections: np.ndarray) -> None:
+        """Projection step (paper 003 Eqs. 30, 55, 68), this subsystem's part: the position and velocity
+        corrections ``[ν_x, ν_v]`` of each joint side (an impulse-like correction at the point) move the
+        body by ``ν / m`` (``M⁻¹ Gᵀ ν`` for a point mass)."""
+        n = self.n_dof
+        for side, (i, mass) in enumerate(self._joint_bodies):
+            z[i] += corrections[2 * side] / mass
+            z[n + i] += corrections[2 * side + 1] / mass

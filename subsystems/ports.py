@@ -11,9 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-Quantity = Literal["position", "velocity", "force", "energy"]
+Quantity = Literal["position", "velocity", "acceleration", "force", "inverse_mass", "energy"]
 
-UNITS: dict[str, str] = {"position": "m", "velocity": "m/s", "force": "N", "energy": "J"}
+UNITS: dict[str, str] = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2", "force": "N",
+                         "inverse_mass": "1/kg", "energy": "J"}
 
 
 @dataclass(frozen=True)
@@ -102,6 +103,30 @@ class RelayedForce:
 
 
 @dataclass(frozen=True)
+class JointSide:
+    """One side of a rigid joint at a local point (paper 003 §2): how the point is driven and what it reports.
+
+    ``drive = "force"``: the inputs are the joint force ``λ*`` (one port per axis), applied to the point
+    as ``sign λ*`` (Eqs. 7a, 7b). ``drive = "displacement"``: the inputs are the acceleration ``ã*`` the
+    point must follow (a rheonomic constraint on acceleration level, Eqs. 33b, 57a, 57b); the model
+    computes the force the point needs for it. Outputs per axis: position, velocity and acceleration of
+    the point and the joint force in the sign of side 1, ``f = sign × (force of the joint on the point)``
+    (``λ*`` itself when force-driven, the multiplier ``μ`` when displacement-driven); then the point's
+    inverse effective mass ``G M⁻¹ Gᵀ`` (axes × axes, row-major), the weight of the projection step.
+    """
+
+    point: str
+    sign: float  # +1 on side 1, -1 on side 2 (paper 003 Eq. 4)
+    drive: Literal["force", "displacement"]
+    inputs: tuple[str, ...]
+    positions: tuple[str, ...]
+    velocities: tuple[str, ...]
+    accelerations: tuple[str, ...]
+    forces: tuple[str, ...]
+    inverse_masses: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class Attachments:
     """Everything couplings add to one subsystem: terminals, input forces, outputs, coupling effects."""
 
@@ -112,6 +137,7 @@ class Attachments:
     effects: tuple = ()  # (name, effect, endpoints) triples added by couplings; endpoints name bodies/terminals
     rest_states: tuple[RestState, ...] = ()
     relayed_forces: tuple[RelayedForce, ...] = ()
+    joint_sides: tuple[JointSide, ...] = ()
 
     def __add__(self, other: "Attachments") -> "Attachments":
         """Both sets of attachments; an output two couplings share (one motion side) appears once."""
@@ -119,4 +145,4 @@ class Attachments:
 
     def _parts(self) -> tuple:
         return (self.terminals, self.force_inputs, self.motion_outputs, self.force_outputs, self.effects,
-                self.rest_states, self.relayed_forces)
+                self.rest_states, self.relayed_forces, self.joint_sides)

@@ -35,6 +35,7 @@ class Subsystem:
         self.micro_step_ns = micro_step_ns
         self.z = model.initial_state()
         self.t_ns = 0
+        self.w = np.zeros(len(model.inputs))  # input values at t_ns, as the last step or INIT used them
         self.integrator = integrator_cls(model, self.z)
 
     @property
@@ -51,6 +52,7 @@ class Subsystem:
 
     def output_values(self, w: np.ndarray) -> np.ndarray:
         """Outputs at the current time with input values ``w``."""
+        self.w = w
         return self.model.outputs_at(self.t_ns * 1e-9, self.z, w)
 
     def advance(self, t0_ns: int, t1_ns: int, inputs: InputPolynomial) -> np.ndarray:
@@ -68,7 +70,15 @@ class Subsystem:
             offset_ns = j * h_ns
             step((t0_ns + offset_ns) * 1e-9, offset_ns * 1e-9, h, inputs)
         self.t_ns = t1_ns
-        return self.model.outputs_at(t1_ns * 1e-9, self.z, inputs.at(span * 1e-9))
+        self.w = inputs.at(span * 1e-9)
+        return self.model.outputs_at(t1_ns * 1e-9, self.z, self.w)
+
+    def project(self, corrections: np.ndarray) -> np.ndarray:
+        """Projection step of a rigid joint (paper 003 Eqs. 30, 55, 68): correct the state by
+        ``corrections`` (per joint side: position then velocity correction, one value per axis; see the
+        model's ``project``) and return the outputs with the input values of the last step."""
+        self.model.project(self.z, corrections)
+        return self.model.outputs_at(self.t_ns * 1e-9, self.z, self.w)
 
     def save(self) -> SavedState:
         return SavedState(self.t_ns, self.z.astype("<f8").tobytes())

@@ -13,7 +13,7 @@ from manager.scene import bundled_scene_names, load_scene
 from subsystems.inputs import InputPolynomial
 from subsystems.models import MODELS
 
-SI_UNITS = {"m", "m/s", "N", "J"}
+SI_UNITS = {"m", "m/s", "m/s^2", "N", "1/kg", "J"}
 SUBSYSTEMS = [(name, sub) for name in bundled_scene_names() for sub in load_scene(name).subsystems]
 
 

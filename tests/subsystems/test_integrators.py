@@ -6,11 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 from subsystems.inputs import InputPolynomial
 from subsystems.integrators import INTEGRATORS
 from subsystems.masses import Body, MassesModel, MassesSpec
 from subsystems.effects import PlacedEffect, Spring
+from subsystems.ports import Attachments, ForceInput
 from subsystems.subsystem import Subsystem
 
 OMEGA = 10.0  # [rad/s]: k = 100 N/m, m = 1 kg
@@ -67,3 +69,26 @@ def test_linear_step_is_the_step_the_integrator_takes(integrator):
     expected = Phi @ z0 + sum(G @ inputs.at(tau + node * h) for G, node in zip(Gamma, nodes))
     # same arithmetic in another order: agreement to a few ulps of the largest term (|A_a| h ~ 0.3)
     assert sub.z == pytest.approx(expected, rel=1e-14, abs=1e-14 * np.abs(expected).max())
+
+
+def _forced_oscillator(micro_step_ns: int, force_coefficients: np.ndarray) -> tuple[Subsystem, InputPolynomial]:
+    spec = MassesSpec({"m": Body(mass=2.0, x0=X0, v0=V0)},
+                      (PlacedEffect("k", Spring(stiffness=OMEGA ** 2), ("m", None)),))
+    model = MassesModel(spec, Attachments(force_inputs=(ForceInput(("f*",), "m", 1.0),)))
+    return Subsystem("osc", model, INTEGRATORS["exact"], micro_step_ns), InputPolynomial(force_coefficients[:, None])
+
+
+def test_exact_integrator_matches_a_tight_reference_and_any_micro_step():
+    """A quadratic force over one 0.2 s step: the exact integrator agrees with scipy's DOP853 at rtol
+    1e-12 to 1e-10 (the reference's own tolerance, accumulated), and one step equals 16 micro-steps
+    (re-expanded input polynomial) to 1e-13 (rounding)."""
+    force = np.array([3.0, -20.0, 150.0])  # f(tau) = 3 - 20 tau + 150 tau^2 [N]
+    span_ns = 200_000_000
+    one, inputs = _forced_oscillator(span_ns, force)
+    many, _ = _forced_oscillator(span_ns // 16, force)
+    x_one, x_many = one.advance(0, span_ns, inputs), many.advance(0, span_ns, inputs)
+    reference = solve_ivp(lambda t, z: [z[1], (-OMEGA ** 2 * z[0] + np.polyval(force[::-1], t)) / 2.0],
+                          (0.0, 0.2), [X0, V0], method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1]
+    np.testing.assert_allclose(one.z, reference, rtol=1e-10)
+    np.testing.assert_allclose(many.z, one.z, rtol=1e-13)
+    assert x_one[-1] == pytest.approx(x_many[-1], rel=1e-13)
