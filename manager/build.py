@@ -32,6 +32,8 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
         for sub, added in coupling.attachments().items():
             result[sub] = result[sub] + added
     for coupling in scene.couplings.values():
+        if coupling.kind == "rigid_joint":  # no force side: both sides are driven by the joint's variables
+            continue
         if MODELS[scene.subsystems[coupling.force_sub].settings.model].starts_at_rest:
             motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])
             rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
@@ -83,6 +85,10 @@ LINEAR_KINDS = ("linear", "external")  # effect kinds of a linear model (an exte
 
 def linear_unavailable(scene: Scene) -> str | None:
     """Why the scene has no linear model ``M, C, K`` (None when it has one); integrators do not matter."""
+    joints = [name for name, c in scene.couplings.items() if c.kind == "rigid_joint"]
+    if joints:
+        return (f"the scene has a rigid joint ({', '.join(joints)}); its reference is 'solve_ivp', the "
+                "subsystems integrated together with the joint held exactly")
     models = {s.settings.model for s in scene.subsystems.values()}
     if models != {MassesModel.name}:
         return f"the monolithic model is assembled for '{MassesModel.name}' subsystems only, got {sorted(models)}"

@@ -4,7 +4,8 @@ A coupling turns its scene table into attachments for each side (terminals, inpu
 the coupling element's effects), the routes of the signals between them and the power bonds whose
 residual power the manager monitors. The run loop only sees routes and bonds, so a new coupling type
 (displacement–displacement, force–force) is one new class here. ``COUPLINGS`` maps scene names to
-classes.
+classes. A coupling whose inputs the manager computes rather than routes (the coupling variables of a
+rigid joint) lists them in ``computed_inputs()``.
 
 A signal is a scalar (one name) or a vector of scalar components (a list of names, e.g. the x and y
 components of a point in the plane); every signal of one coupling has the same number of components.
@@ -14,9 +15,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from compensation.coupling_decompositions import DECOMPOSITIONS, Decomposition
 from subsystems.effects import PlacedEffect, read_effect
 from subsystems.params import Problems, read_table
-from subsystems.ports import Attachments, EffectForceOutput, ForceInput, MotionOutput, Terminal
+from subsystems.ports import Attachments, EffectForceOutput, ForceInput, JointSide, MotionOutput, Terminal
 
 
 @dataclass(frozen=True)
@@ -198,4 +200,100 @@ class ForceDisplacement:
                      starred(self.force)),)
 
 
-COUPLINGS: dict[str, type] = {cls.kind: cls for cls in (ForceDisplacement,)}
+@dataclass(frozen=True)
+class RigidJointSettings:
+    type: Literal["rigid_joint"]
+    side_1: str  # "<subsystem>.<point>": the joint force λ acts on it with + (paper 003 Eq. 4, mass 1)
+    side_2: str  # "<subsystem>.<point>": λ acts on it with −
+    decomposition: Literal["force-force", "force-displacement", "displacement-displacement"] = "force-force"
+    axes: tuple[str, ...] = ("x",)  # components of the joint: ["x"] on a line, ["x", "y"] in the plane
+
+    def problems(self) -> list[tuple[str, str]]:
+        found = []
+        for key in ("side_1", "side_2"):
+            value = getattr(self, key)
+            if value.count(".") != 1 or not all(value.split(".")):
+                found.append((key, f"expected '<subsystem>.<point>', got {value!r}"))
+        if not found and self.side_1.split(".")[0] == self.side_2.split(".")[0]:
+            found.append(("side_2", "expected a different subsystem than side_1"))
+        if len(self.axes) not in (1, 2) or len(set(self.axes)) != len(self.axes):
+            found.append(("axes", f"expected one or two distinct axis names, got {list(self.axes)}"))
+        return found
+
+
+class RigidJoint:
+    """A rigid joint between points of two subsystems, held by an implicit coupling method (paper 003 §2).
+
+    ``decomposition`` splits it as in §2.1–2.3: force/force (both points driven by the joint force
+    ``λ_c``), force/displacement (side 1 by ``λ_c``, side 2 follows the acceleration ``a_1`` of side 1)
+    or displacement/displacement (both follow the acceleration ``ã``). The coupling variables are the
+    decomposition's (``compensation.coupling_decompositions``), one per axis, computed by the manager
+    (``computed_inputs``); each side reports position, velocity, acceleration and joint force of its
+    point and the point's inverse effective mass (``subsystems.ports.JointSide``). Port names:
+    ``<joint>.<x|v|a|f><side>`` and ``<joint>.Minv<side>``, inputs ``<joint>.<variable>*``, with
+    ``_<axis>`` (``_<axis><axis>`` for Minv) on a joint with two axes.
+    """
+
+    kind = "rigid_joint"
+    effects = ()  # no coupling element: the joint is a constraint
+
+    def __init__(self, name: str, settings: RigidJointSettings) -> None:
+        self.name = name
+        self.settings = settings
+        self.decomposition: Decomposition = DECOMPOSITIONS[settings.decomposition]
+        self.points = tuple(tuple(side.split(".")) for side in (settings.side_1, settings.side_2))
+
+    @classmethod
+    def read(cls, name: str, table: dict, key: str, problems: Problems) -> "RigidJoint | None":
+        settings = read_table(RigidJointSettings, table, key, problems)
+        return None if settings is None else cls(name, settings)
+
+    @property
+    def dimension(self) -> int:
+        """Number of axes of the joint (1 on a line, 2 in the plane)."""
+        return len(self.settings.axes)
+
+    def _names(self, stem: str) -> tuple[str, ...]:
+        axes = self.settings.axes
+        return (f"{self.name}.{stem}",) if len(axes) == 1 else tuple(f"{self.name}.{stem}_{a}" for a in axes)
+
+    def coupling_variables(self) -> tuple[str, ...]:
+        """Names of the coupling variables ``e``, variable-major: ``lambda_c_x, lambda_c_y, a_1_x, ...``."""
+        return tuple(n for variable in self.decomposition.coupling_variables for n in self._names(variable))
+
+    def side(self, index: int) -> JointSide:
+        """Side 1 (index 0) or side 2 (index 1) as attached to its subsystem."""
+        number = index + 1
+        axes = self.settings.axes
+        variable = self.decomposition.coupling_variables[self.decomposition.coupling_index[index]]
+        inverse_masses = ((f"{self.name}.Minv{number}",) if len(axes) == 1
+                          else tuple(f"{self.name}.Minv{number}_{a}{b}" for a in axes for b in axes))
+        return JointSide(self.points[index][1], 1.0 if index == 0 else -1.0, self.decomposition.drives[index],
+                         tuple(f"{n}*" for n in self._names(variable)), self._names(f"x{number}"),
+                         self._names(f"v{number}"), self._names(f"a{number}"), self._names(f"f{number}"), inverse_masses)
+
+    def sides(self) -> dict[str, tuple[str, str]]:
+        return {"side_1": self.points[0], "side_2": self.points[1]}
+
+    def signals(self) -> tuple[str, ...]:
+        return tuple(name for i in (0, 1) for part in ("positions", "velocities", "accelerations", "forces")
+                     for name in getattr(self.side(i), part))
+
+    def producers(self) -> dict[str, str]:
+        return {name: f"an output of joint {self.name!r}" for name in self.signals()}
+
+    def attachments(self) -> dict[str, Attachments]:
+        return {self.points[i][0]: Attachments(joint_sides=(self.side(i),)) for i in (0, 1)}
+
+    def computed_inputs(self) -> tuple[tuple[str, str], ...]:
+        """``(subsystem, input port)`` of every coupling variable: the manager computes them."""
+        return tuple((self.points[i][0], port) for i in (0, 1) for port in self.side(i).inputs)
+
+    def routes(self) -> tuple[Route, ...]:
+        return ()
+
+    def bonds(self) -> tuple[Bond, ...]:
+        return ()
+
+
+COUPLINGS: dict[str, type] = {cls.kind: cls for cls in (ForceDisplacement, RigidJoint)}

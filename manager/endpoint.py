@@ -18,7 +18,7 @@ class SubsystemEndpoint:
         self.ratio = ratio
         self.comm_step_ns = ratio * base_step_ns
         self.n_inputs = len(subsystem.inputs)
-        self.saved: dict[int, SavedState] = {}
+        self.saved: tuple[int, SavedState] | None = None  # (step, state): SAVE replaces the previous one
         self.stopped = False
 
     def handle(self, data: bytes) -> bytes:
@@ -52,13 +52,17 @@ class SubsystemEndpoint:
             return encode(Kind.OUTPUT, message.step, message.time_ns, sub.output_values(self._inputs(message).at(0.0)),
                           ref=ref)
         if kind == Kind.SAVE:
-            self.saved[message.step] = sub.save()
+            self.saved = (message.step, sub.save())
             return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
         if kind == Kind.RESTORE:
-            if message.step not in self.saved:
+            if self.saved is None or self.saved[0] != message.step:
                 raise ProtocolError(f"subsystem {sub.name}: no state saved at step {message.step}")
-            sub.restore(self.saved[message.step])
+            sub.restore(self.saved[1])
             return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
+        if kind == Kind.PROJECT:
+            if message.time_ns != sub.t_ns:
+                raise ProtocolError(f"subsystem {sub.name}: PROJECT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")
+            return encode(Kind.OUTPUT, message.step, message.time_ns, sub.project(message.values), ref=ref)
         if kind == Kind.STOP:
             self.stopped = True
             return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable, Generator, Protocol
+from typing import TYPE_CHECKING, Callable, Generator, Protocol
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from manager.plan import Plan, SubsystemPlan
 from manager.protocol import Kind, ProtocolError, decode, encode
 from manager.residual import residual_power
 from manager.status import StatusReport
+
+if TYPE_CHECKING:
+    from manager.implicit import ImplicitRecord
 
 PROGRESS_EVERY = 500  # base steps between two progress callbacks
 
@@ -77,13 +80,14 @@ class RunRecord:
     trajectories: list[np.ndarray]  # per subsystem: outputs at its communication points
     residual_power: np.ndarray  # (n_ticks + 1, n_bonds) [W], NaN where a bond was not evaluated
     residual_energy: np.ndarray  # (n_ticks + 1, n_bonds) [J], cumulative
-    send_time_ns: np.ndarray  # (n_ticks,) wall clock (perf_counter_ns) when step j's inputs went out
-    lateness_ns: np.ndarray | None  # (n_ticks,) real-time mode: send time minus deadline
+    send_time_ns: np.ndarray  # (macro-steps executed,) wall clock (perf_counter_ns) when step j's inputs went out
+    lateness_ns: np.ndarray | None  # (macro-steps executed,) real-time mode: send time minus deadline
     missed_deadlines: int
     corrections: tuple = ()  # the correctors' logs (manager.correction.CorrectionLog), one per corrected point
+    implicit: ImplicitRecord | None = None  # what the implicit scheme adds (manager.implicit)
 
 
-def _decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
+def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
     message = decode(data, f"subsystem {sub.name}")
     if message.kind == Kind.ERROR:
         raise SubsystemFailure(sub.name, f"failed at step {step}: {message.text()}")
@@ -145,7 +149,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
         replies = yield Exchange(sends, tuple(sends))
         for i in round_:
-            traj[i][0] = _decode_output(replies[subs[i].name], subs[i], 0)
+            traj[i][0] = decode_output(replies[subs[i].name], subs[i], 0)
         initialised.update(round_)
 
     # what happens at each phase of the schedule, which repeats every lcm of the ratios
@@ -174,7 +178,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         send_time[tick] = released_ns = time.perf_counter_ns()
         replies = yield Exchange(sends, due_names[phase], step_status)
         for s in due[phase]:
-            traj[s.index][next_tick // s.ratio] = _decode_output(replies[s.name], s, next_tick)
+            traj[s.index][next_tick // s.ratio] = decode_output(replies[s.name], s, next_tick)
         for b, bond, components in bonds_due[phase]:
             f_start, f_coefficients = sent[bond.force_side]
             m_start, m_coefficients = sent[bond.motion_side]

@@ -73,6 +73,8 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
 
     Raises :class:`SceneError` when an input is unfed, a route joins ports of different units, or
     outputs with direct feedthrough form an algebraic loop that an explicit scheme cannot initialise.
+    Inputs that a coupling's ``computed_inputs()`` lists (coupling variables of a rigid joint) are fed
+    by the manager.
     """
     names = list(scene.subsystems)
     index = {name: i for i, name in enumerate(names)}
@@ -82,6 +84,8 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
                   for n in names}
 
     fed: dict[str, dict[int, tuple[int, int]]] = {n: {} for n in names}
+    computed = {(sub, port_index[sub][0][port]) for c in scene.couplings.values()
+                for sub, port in getattr(c, "computed_inputs", tuple)()}
     for route in routes:
         source_port = ports[route.source][1][port_index[route.source][1][route.output]]
         target_in = port_index[route.target][0][route.input]
@@ -95,7 +99,7 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     for i, name in enumerate(names):
         inputs, outputs, effects = ports[name]
         for j, port in enumerate(inputs):
-            if j not in fed[name]:
+            if j not in fed[name] and (name, j) not in computed:
                 problems.add(f"subsystems.{name}", f"input {port.name} is fed by no coupling")
         groups: dict[int, list[tuple[int, int]]] = {}
         for j, (source, output) in sorted(fed[name].items()):

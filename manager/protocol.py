@@ -26,6 +26,7 @@ class Kind(IntEnum):
     SAVE = 3  # manager → subsystem: keep the state at this step; reply ACK
     RESTORE = 4  # manager → subsystem: go back to the state saved at this step; reply ACK
     STOP = 5  # manager → subsystem: end the process; reply ACK
+    PROJECT = 6  # manager → subsystem: move joint points by the given corrections; reply OUTPUT (same step)
     OUTPUT = 16  # subsystem → manager: output values at a communication point
     ACK = 17  # subsystem → manager
     ERROR = 18  # subsystem → manager: the command failed; the payload is the reason (UTF-8)

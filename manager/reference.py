@@ -8,6 +8,7 @@ computed by the same output equations as in the co-simulation.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,7 @@ from scipy.integrate import solve_ivp
 
 from compensation.analytic import linear_response
 from manager.build import build_monolithic, build_subsystems
+from manager.couplings import RigidJoint
 from manager.plan import compile_plan
 from manager.scene import Scene
 from subsystems.inputs import InputPolynomial
@@ -85,12 +87,17 @@ class CoupledSystem:
     At time t the outputs are evaluated in the plan's initialisation order (subsystems without
     feedthrough first, then those whose feedthrough outputs need them), so every input is the exact
     current value of its source output: the continuous system the co-simulation approximates,
-    without a hand-written monolithic model.
+    without a hand-written monolithic model. A rigid joint is built force/force whatever its
+    decomposition, and its force solves the joint on acceleration level (:class:`JointForce`).
     """
 
     def __init__(self, scene: Scene) -> None:
+        scene = dataclasses.replace(scene, couplings={
+            name: RigidJoint(name, dataclasses.replace(c.settings, decomposition="force-force"))
+            if isinstance(c, RigidJoint) else c for name, c in scene.couplings.items()})
         subsystems = build_subsystems(scene)
         self.plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
+        self.joints = [JointForce(c, self.plan) for c in scene.couplings.values() if isinstance(c, RigidJoint)]
         self.models = [subsystems[s.name].model for s in self.plan.subsystems]
         states = [m.initial_state() for m in self.models]
         bounds = np.cumsum([0] + [len(z) for z in states])
@@ -111,7 +118,10 @@ class CoupledSystem:
         for round_ in self.plan.init_rounds:
             for i in round_:
                 outputs[i] = self.models[i].outputs_at(t, Z[self.slices[i]], self._inputs(i, outputs))
-        return [self._inputs(i, outputs) for i in range(len(self.models))]
+        inputs = [self._inputs(i, outputs) for i in range(len(self.models))]
+        for joint in self.joints:
+            joint.apply(outputs, inputs)
+        return inputs
 
     def derivative(self, t: float, Z: np.ndarray) -> np.ndarray:
         inputs = self.resolve(t, Z)
@@ -121,6 +131,33 @@ class CoupledSystem:
         """Every subsystem's outputs (energy included) with the exact inputs."""
         inputs = self.resolve(t, Z)
         return [m.outputs_at(t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)]
+
+
+class JointForce:
+    """The force of a rigid joint (built force/force) that holds it on acceleration level (paper 003
+    Eq. 4, index 1). The sides' accelerations are affine in it, ``a_i(λ) = a_i(0) + s_i W_i λ`` with
+    ``s = +1, −1`` and ``W_i`` the points' inverse effective masses, both reported by the models, so
+    ``a_2(λ) = a_1(λ)`` gives ``λ = (W_1 + W_2)⁻¹ (a_2(0) − a_1(0))``. Position and velocity gaps then
+    only drift by the integration error."""
+
+    def __init__(self, joint: RigidJoint, plan) -> None:
+        self.axes = joint.dimension
+        self.sides = []
+        for index in (0, 1):
+            side, sub = joint.side(index), plan.by_name(joint.points[index][0])
+            out = {p.name: j for j, p in enumerate(sub.outputs)}
+            into = {p.name: j for j, p in enumerate(sub.inputs)}
+            self.sides.append((sub.index, [out[n] for n in side.accelerations], [out[n] for n in side.inverse_masses],
+                               [into[n] for n in side.inputs]))
+
+    def apply(self, outputs: list[np.ndarray], inputs: list[np.ndarray]) -> None:
+        """Set the joint force into ``inputs``; ``outputs`` were evaluated with the force zero."""
+        (s1, a1, W1, _), (s2, a2, W2, _) = self.sides
+        d = self.axes
+        force = np.linalg.solve(outputs[s1][W1].reshape(d, d) + outputs[s2][W2].reshape(d, d),
+                                outputs[s2][a2] - outputs[s1][a1])
+        for sub, _, _, ports in self.sides:
+            inputs[sub][ports] = force
 
 
 def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL) -> Reference:

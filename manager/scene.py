@@ -18,7 +18,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, Sequence
 
-from manager.couplings import COUPLINGS
+from compensation.coupling_decompositions import DECOMPOSITIONS
+from compensation.implicit_coupling_laws import Baumgarte, CouplingMethod, Projection, WeightedMultiplier, check_supported
+from manager.couplings import COUPLINGS, RigidJoint
 from subsystems.integrators import INTEGRATORS
 from subsystems.models import MODELS
 from subsystems.params import Problems, quantity, read_table
@@ -60,19 +62,47 @@ class SpikeSettings:
 
 
 @dataclass(frozen=True)
+class ImplicitSettings:
+    """The ``[manager.implicit]`` table: the coupling method of paper 003 and its corrector iteration.
+
+    The degree k of the predictor and corrector polynomials is ``manager.extrapolation``. Parameters of
+    the methods not chosen are not used.
+    """
+
+    method: Literal["baumgarte", "weighted-multiplier", "projection"] = "baumgarte"
+    mu: float = field(default=5e-3, metadata=quantity("s", minimum=0.0))  # Baumgarte: beta = 2 mu [s], gamma = mu^2 [s^2] (§3.7.1)
+    index: int = field(default=1, metadata=quantity("", minimum=1, maximum=3))  # Baumgarte: 1, 2 (gamma = 0), 3 (beta = gamma = 0)
+    a: float = field(default=1.0, metadata=quantity("", minimum=0.0))  # weighted multiplier: weight of the velocity level
+    b: float = field(default=1.0, metadata=quantity("", minimum=0.0))  # weighted multiplier: weight of the acceleration level
+    max_iterations: int = field(default=1, metadata=quantity("", minimum=1))  # corrector runs per macro-step
+    tolerance: float = field(default=1e-8, metadata=quantity("", minimum=0.0))  # relative change of e ending the iteration
+    sensitivity_step: float = field(default=1e-4, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # relative perturbation of e
+    divergence_gap: float = field(default=1.0, metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # the run stops when the joint opens wider
+
+    def coupling_method(self) -> CouplingMethod:
+        """The method with its parameters in SI units (Baumgarte's beta [s] and gamma [s^2])."""
+        if self.method == "baumgarte":
+            return Baumgarte.from_mu(self.mu, self.index)
+        if self.method == "weighted-multiplier":
+            return WeightedMultiplier(self.a, self.b)
+        return Projection()
+
+
+@dataclass(frozen=True)
 class ManagerSettings:
     """The ``[manager]`` table: how the run is orchestrated."""
 
     duration: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # simulated time [s]
     macro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # base communication step [s]
-    scheme: Literal["jacobi"] = "jacobi"
-    extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order
+    scheme: Literal["jacobi", "implicit"] = "jacobi"
+    extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order (implicit: k)
     timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
     realtime: bool = False
     record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
     correction: CorrectionSettings | None = None  # [manager.correction]
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
     compensation: Literal["none", "eigenstructure"] = "none"  # paper 000 compensator (docs/compensation.md)
+    implicit: ImplicitSettings | None = None  # [manager.implicit], with scheme = "implicit"
 
     @property
     def corrects(self) -> bool:
@@ -270,6 +300,8 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
         spec = MODELS[settings.model].read({k: v for k, v in table.items() if k not in generic}, key, problems)
         if spec is not None:
             subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
+            if settings.integrator == "exact" and spec.linear_problem():
+                problems.add(f"{key}.integrator", f"'exact' needs a linear, time-invariant model: {spec.linear_problem()}")
 
     couplings: dict[str, Any] = {}
     coupling_tables = doc.get("couplings", {})
@@ -290,6 +322,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
         _check_timing(manager, tables, subsystems, problems)
         if manager.compensation != "none":
             check_compensation(manager, couplings, subsystems, problems)
+        _check_scheme(manager, outputs, couplings, subsystems, problems)
     _check_couplings(couplings, subsystems, tables, problems)
     if outputs is not None:
         signals = {s for c in couplings.values() for s in c.signals()}
@@ -303,16 +336,57 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
 
 
 def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
-    """``[manager]`` with its ``correction`` and ``spikes`` sub-tables."""
-    parts = ("correction", "spikes")
+    """``[manager]`` with its ``correction``, ``spikes`` and ``implicit`` sub-tables (``implicit``: with
+    scheme "implicit" only, defaults when absent)."""
+    parts = ("correction", "spikes", "implicit")
     manager = read_table(ManagerSettings, table, "manager", problems, skip=parts)
     if manager is None:
         return None
     settings = {}
-    for part, cls in zip(parts, (CorrectionSettings, SpikeSettings)):
+    for part, cls in zip(parts[:2], (CorrectionSettings, SpikeSettings)):
         if part in table:
             settings[part] = read_table(cls, table[part], f"manager.{part}", problems)
+    if manager.scheme == "implicit":
+        settings["implicit"] = read_table(ImplicitSettings, table.get("implicit", {}), "manager.implicit", problems)
+    elif "implicit" in table:
+        problems.add("manager.implicit", f"only with manager.scheme = 'implicit', got {manager.scheme!r}")
     return dataclasses.replace(manager, **{k: v for k, v in settings.items() if v is not None})
+
+
+def _check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, couplings: dict,
+                  subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """Rigid joints need the implicit scheme, which handles one rigid joint, single-rate, with the scene's
+    extrapolation order as k and no energy correction (paper 003 §2)."""
+    joints = [c for c in couplings.values() if isinstance(c, RigidJoint)]
+    if manager.scheme == "jacobi":
+        for joint in joints:
+            problems.add(f"couplings.{joint.name}.type", "a rigid joint needs manager.scheme = 'implicit': an "
+                         "explicit scheme cannot hold an algebraic constraint")
+    else:
+        for coupling in couplings.values():
+            if not isinstance(coupling, RigidJoint):
+                problems.add(f"couplings.{coupling.name}.type", f"the implicit scheme couples through rigid joints "
+                             f"only, got {coupling.kind!r}")
+        if len(joints) != 1:
+            problems.add("couplings", f"the implicit scheme handles exactly one rigid joint, got {len(joints)}")
+        for sub in subsystems.values():
+            if sub.settings.comm_ratio != 1:
+                problems.add(f"subsystems.{sub.name}.comm_ratio", "expected 1: the implicit scheme is single-rate")
+            if sub.settings.extrapolation is not None:
+                problems.add(f"subsystems.{sub.name}.extrapolation", "the implicit scheme's degree k is "
+                             "manager.extrapolation, for both sides of the joint; remove it")
+        if manager.corrects:
+            problems.add("manager.correction", "energy correction belongs to the explicit scheme; the implicit "
+                         "scheme holds the joint itself")
+        if manager.implicit is not None:
+            for joint in joints:
+                try:
+                    check_supported(manager.implicit.coupling_method(), DECOMPOSITIONS[joint.settings.decomposition])
+                except ValueError as error:
+                    problems.add(f"couplings.{joint.name}.decomposition", str(error))
+    if outputs is not None and joints and outputs.reference == "analytic":
+        problems.add("outputs.reference", "a scene with a rigid joint has no analytic reference here; expected "
+                     "'solve_ivp' (the subsystems integrated together, the joint held exactly) or 'none'")
 
 
 def _check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
@@ -374,8 +448,26 @@ def _check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tab
             elif sub in subsystems and point not in subsystems[sub].spec.points:
                 problems.add(full_key, f"subsystem {sub!r} has no point {point!r}; expected one of "
                              f"{', '.join(subsystems[sub].spec.points)}")
-        if all(sub in subsystems for sub, _ in coupling.sides().values()):
+        if not all(sub in subsystems for sub, _ in coupling.sides().values()):
+            continue
+        if isinstance(coupling, RigidJoint):
+            _check_joint_sides(coupling, subsystems, problems)
+        else:
             _check_coupled_models(coupling, subsystems, problems)
+
+
+def _check_joint_sides(joint: RigidJoint, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """Both points move in as many dimensions as the joint has axes and can be driven as it says."""
+    for index, (sub, point) in enumerate(joint.points):
+        spec, model = subsystems[sub].spec, MODELS[subsystems[sub].settings.model]
+        if point not in spec.points:
+            continue
+        if model.point_dimension != joint.dimension:
+            problems.add(f"couplings.{joint.name}.axes", f"{sub}.{point} moves in {model.point_dimension} "
+                         f"dimension(s), the joint has {joint.dimension} axes")
+        reason = spec.drive_problem(point, joint.side(index).drive, joint.dimension)
+        if reason:
+            problems.add(f"couplings.{joint.name}.decomposition", f"{sub}.{point}: {reason}")
 
 
 def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:

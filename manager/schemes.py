@@ -6,6 +6,7 @@ from typing import Callable
 from manager.build import build_subsystems
 from manager.correction import build_correctors
 from manager.endpoint import SubsystemEndpoint
+from manager.implicit import compile_joint, implicit
 from manager.jacobi import jacobi
 from manager.pacing import Pacer
 from manager.plan import Plan, compile_plan
@@ -27,6 +28,8 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
     recorded run)."""
     pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns) if realtime else None
+    if scene.manager.scheme == "implicit":
+        return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction), status)
 
 

@@ -5,10 +5,10 @@ Definitions (docs/summary.md lists every key):
 * NRMS (paper 000 Eq. 42): ``sqrt(mean_k (x_k - x_ref,k)^2) / (max x_ref - min x_ref)`` over the
   signal's communication points. Reading taken: Eq. 42's ``/T`` is the number of samples (a root
   mean square), not the duration in seconds, which would make the error depend on the units of time.
-* stable: every recorded value is finite and the mechanical energy does not grow exponentially:
-  the least-squares slope of ``ln`` of the windowed energy maximum (20 windows over the run) over the
-  second half of the run is below ``STABLE_GROWTH_RATE`` (energy doubling time above 69 s). Meant
-  for free or bounded-forcing runs.
+* stable: every recorded value is finite, an implicit run did not diverge, and the mechanical energy
+  does not grow exponentially: the least-squares slope of ``ln`` of the windowed energy maximum (20
+  windows over the run) over the second half of the run is below ``STABLE_GROWTH_RATE`` (energy
+  doubling time above 69 s). Meant for free or bounded-forcing runs.
 * digest: sha256 over every subsystem's output trajectory (scene order of subsystems, declared
   order of outputs, each as float64 little-endian over its communication points). Equal digests
   mean bit-identical runs.
@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from manager.implicit import implicit_summary
 from manager.jacobi import RunRecord
 from manager.monitor import residual_power_spikes
 from manager.reference import Reference
@@ -70,7 +71,8 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
               reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
     t, energy = total_energy(record)
-    finite = all(np.isfinite(tr).all() for tr in record.trajectories)
+    finite = all(np.isfinite(tr).all() for tr in record.trajectories) and (
+        record.implicit is None or record.implicit.diverged_at is None)
     growth = energy_growth_rate(t, energy) if finite else math.inf
     signals = {}
     reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
@@ -94,7 +96,7 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
     if reference is not None:
         energy_summary["reference_final"] = float(reference.energy[-1])
     steps = np.diff(record.send_time_ns)
-    timing = {"wall_s": wall_s, "steps_per_s": plan.n_ticks / wall_s}
+    timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
     if len(steps):
         per_step = _percentiles_us(steps)
         timing.update(step_us_median=per_step["median"], step_us_p99=per_step["p99"], step_us_max=per_step["max"])
@@ -128,6 +130,8 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
     summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}
     summary["reliable"] = not any(spikes.values())
     summary["correction"] = correction_summary(scene, record)
+    if record.implicit is not None:
+        summary["implicit"] = implicit_summary(scene, record)
     if reference_note:
         summary["reference_note"] = reference_note
     if recording is not None:
