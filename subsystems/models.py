@@ -13,5 +13,7 @@ from subsystems.crane_arm import CraneArmModel
 from subsystems.hydraulic_cylinder import HydraulicCylinderModel
 from subsystems.masses import MassesModel
 from subsystems.pendulum import PendulumModel
+from subsystems.planar_link import PlanarLinkModel
 
-MODELS: dict[str, type] = {cls.name: cls for cls in (MassesModel, PendulumModel, CraneArmModel, HydraulicCylinderModel)}
+MODELS: dict[str, type] = {cls.name: cls for cls in (MassesModel, PendulumModel, CraneArmModel, HydraulicCylinderModel,
+                                                     PlanarLinkModel)}
