@@ -51,6 +51,10 @@ def cmd_check(args: argparse.Namespace) -> int:
     out.print(f"[bold]scene {escape(scene.name)}[/]: valid — {escape(scene.description)}")
     out.print(f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s, scheme {scene.manager.scheme}, "
               f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(b.name for b in plan.bonds) or 'none'}")
+    if scene.manager.implicit is not None:
+        joints = ", ".join(f"{c.name} ({c.settings.decomposition})" for c in scene.couplings.values())
+        out.print(escape(f"implicit coupling: {scene.manager.implicit.coupling_method()}, k = {scene.manager.extrapolation}, "
+                         f"up to {scene.manager.implicit.max_iterations} corrector run(s); joint {joints}"))
     for sub in plan.subsystems:
         settings = scene.subsystems[sub.name].settings
         out.print(f"[bold]{sub.name}[/]: {settings.model}, {settings.integrator}, micro-step {settings.micro_step:g} s, "
@@ -98,6 +102,13 @@ def _print_summary(summary: dict) -> None:
         row("lateness median / p99 / max [µs]", f"{timing['lateness_us_median']:.1f} / "
                       f"{timing['lateness_us_p99']:.1f} / {timing['lateness_us_max']:.1f}")
         row("missed deadlines", str(timing["missed_deadlines"]))
+    implicit = summary.get("implicit")
+    if implicit is not None:
+        row("implicit coupling", f"{implicit['method']}, {implicit['decomposition']}, k={implicit['k']}")
+        row("corrector runs mean / max", f"{implicit['corrector_runs']['mean']:.3g} / {implicit['corrector_runs']['max']}")
+        row("largest joint gap [m]", f"{implicit['max_gap']['position']:.3g}")
+        if implicit["diverged_at_s"] is not None:
+            row("DIVERGED at [s]", f"{implicit['diverged_at_s']:g}")
     row("active effects", ", ".join(summary["effects"]))
     row("digest", summary["digest"][:16] + "…")
     if "recording" in summary:
@@ -210,6 +221,37 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_stability(args: argparse.Namespace) -> int:
+    """Spectral-radius map of an implicit coupling method on the test model (paper 003 §3, Eq. 71)."""
+    from compensation.implicit_coupling_laws import Baumgarte, WeightedMultiplier, resolve_method
+    from compensation.stability_map import stability_map, write_stability_map
+    options = {"baumgarte": ("mu_bar", "index"), "weighted-multiplier": ("a", "b"), "projection": ()}
+    misplaced = [f"--{name.replace('_', '-')}" for method, names in options.items() if method != args.method
+                 for name in names if getattr(args, name) is not None]
+    if misplaced:
+        err.print(f"[bold red]error:[/] not options of the {args.method} method: {', '.join(misplaced)}", soft_wrap=True)
+        return 2
+    if args.method == "baumgarte":
+        method = Baumgarte.from_mu(1.0 if args.mu_bar is None else args.mu_bar, 1 if args.index is None else args.index)
+    elif args.method == "weighted-multiplier":
+        method = WeightedMultiplier(1.0 if args.a is None else args.a, 1.0 if args.b is None else args.b)
+    else:
+        method = resolve_method(args.method)
+    try:
+        result = stability_map(method, args.decomposition, args.k, alpha_m21=args.alpha_m21,
+                               alpha_lambda_r21=args.alpha_lambda_r21, alpha_lambda_i21=args.alpha_lambda_i21,
+                               grid_points=args.grid, lambda_r1_range=tuple(args.lambda_r1),
+                               lambda_i1_range=tuple(args.lambda_i1))
+    except ValueError as error:
+        err.print(f"[bold red]error:[/] {escape(str(error))}", highlight=False, soft_wrap=True)
+        return 2
+    png, json_path = write_stability_map(result, args.out, args.json)
+    out.print(escape(result.describe().replace("\n", "; ")), highlight=False)
+    out.print(f"stable (rho <= 1) at {int(result.stable.sum())} of {result.stable.size} grid points; "
+              f"max rho = {result.spectral_radius.max():.6g}; wrote {escape(str(png))} and {escape(str(json_path))}")
+    return 0
+
+
 def cmd_subsystem(args: argparse.Namespace) -> int:
     from manager.subsystem_host import serve
     scene = load_scene(args.scene, args.overrides)
@@ -296,6 +338,28 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--json", metavar="FILE", help="write the analysis as JSON (keys: docs/compensation.md)")
     analyze.add_argument("--plot", metavar="FILE", help="write the pole map as PNG")
     analyze.set_defaults(handler=cmd_analyze)
+
+    stability = commands.add_parser(
+        "stability", help="spectral-radius map of an implicit coupling method on paper 003's test model (PNG and JSON)")
+    stability.add_argument("--method", required=True, choices=("baumgarte", "weighted-multiplier", "projection"))
+    stability.add_argument("--decomposition", required=True,
+                           choices=("force-force", "force-displacement", "displacement-displacement"))
+    stability.add_argument("--k", type=int, required=True, choices=(0, 1, 2), help="degree of the Lagrange polynomials")
+    stability.add_argument("--grid", type=int, default=41, metavar="N", help="N x N points (default 41)")
+    stability.add_argument("--out", required=True, metavar="PNG", help="the map as a PNG plot")
+    stability.add_argument("--json", metavar="FILE", help="the numbers as JSON (default: PNG path with .json)")
+    stability.add_argument("--mu-bar", type=float, help="Baumgarte: beta_bar = 2 mu_bar, gamma_bar = mu_bar^2 (default 1)")
+    stability.add_argument("--index", type=int, choices=(1, 2, 3), help="Baumgarte: 1, 2 (gamma = 0), 3 (beta = gamma = 0)")
+    stability.add_argument("--a", type=float, help="weighted multiplier: weight of the velocity level (default 1)")
+    stability.add_argument("--b", type=float, help="weighted multiplier: weight of the acceleration level (default 1)")
+    stability.add_argument("--alpha-m21", type=float, default=1.0, help="mass ratio m2/m1 (default 1)")
+    stability.add_argument("--alpha-lambda-r21", type=float, default=1.0, help="damping ratio of Eq. 71 (default 1)")
+    stability.add_argument("--alpha-lambda-i21", type=float, default=1.0, help="frequency ratio of Eq. 71 (default 1)")
+    stability.add_argument("--lambda-r1", type=float, nargs=2, default=(-2.0, 0.0), metavar=("FROM", "TO"),
+                           help="range of the real part of mass 1's eigenvalue (default -2 0)")
+    stability.add_argument("--lambda-i1", type=float, nargs=2, default=(0.0, 2.0), metavar=("FROM", "TO"),
+                           help="range of the imaginary part (default 0 2)")
+    stability.set_defaults(handler=cmd_stability)
 
     sub = commands.add_parser("subsystem", help="serve one subsystem of a scene over Zenoh (for runs across hosts)")
     _add_scene_arguments(sub)
