@@ -29,7 +29,7 @@ import numpy as np
 
 from manager.extrapolation import evaluate, lagrange_coefficients
 from manager.plan import Plan, SubsystemPlan
-from manager.protocol import Kind, ProtocolError, decode, encode
+from manager.protocol import HEADER, VERSION, Kind, ProtocolError, decode, encode
 from manager.residual import residual_power
 from manager.status import StatusReport
 
@@ -88,15 +88,19 @@ class RunRecord:
 
 
 def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
+    """The outputs a reply of ``sub`` carries for ``step``; anything else is a named error."""
+    n = len(sub.outputs)
+    if len(data) == HEADER.size + 8 * n:  # the expected reply: one header check, a view on the values
+        version, kind, _, count, reply_step, _, _ = HEADER.unpack_from(data)
+        if version == VERSION and kind == Kind.OUTPUT and reply_step == step and count == n:
+            return np.frombuffer(data, dtype="<f8", count=n, offset=HEADER.size)
     message = decode(data, f"subsystem {sub.name}")
     if message.kind == Kind.ERROR:
         raise SubsystemFailure(sub.name, f"failed at step {step}: {message.text()}")
     if message.kind != Kind.OUTPUT or message.step != step:
         raise ProtocolError(f"subsystem {sub.name}: expected OUTPUT for step {step}, "
                             f"got {message.kind.name} for step {message.step}")
-    if message.values.size != len(sub.outputs):
-        raise ProtocolError(f"subsystem {sub.name}: expected {len(sub.outputs)} outputs, got {message.values.size}")
-    return message.values
+    raise ProtocolError(f"subsystem {sub.name}: expected {n} outputs, got {message.values.size}")
 
 
 def _index(positions: tuple[int, ...]) -> slice | np.ndarray:

@@ -5,6 +5,16 @@ the input polynomial at every micro-step, and returns the outputs at the new poi
 direct feedthrough are evaluated with the input polynomial at the *end* of the step, i.e. with the
 extrapolated input ``ũ_{k+1} = p_k(t_{k+1})`` (paper 002 Eq. 4): for zero-order extrapolation that is
 ``u_k``. This choice decides the discrete poles of the co-simulation (see docs/numerics.md).
+
+A linear, time-invariant model (``linear_dynamics()``: no external forces of time, no nonlinear
+effect) under an integrator that is a linear map per micro-step (``linear_step``:
+``z_{j+1} = Φ z_j + Σ_i Γ_i w(τ_j + θ_i h)``) is advanced by the composition of its ``m`` micro-steps
+over the input polynomial ``w(τ) = Σ_r c_r τ^r``::
+
+    z_m = Φ^m z_0 + Σ_r Ψ_r c_r,   Ψ_r = Σ_j Σ_i Φ^{m-1-j} Γ_i (τ_j + θ_i h)^r,
+
+the same integrator and micro-step in one matrix product per communication step (it differs from
+stepping only by rounding). This is the one-step map the exact discrete analysis uses.
 """
 from __future__ import annotations
 
@@ -37,6 +47,8 @@ class Subsystem:
         self.t_ns = 0
         self.w = np.zeros(len(model.inputs))  # input values at t_ns, as the last step or INIT used them
         self.integrator = integrator_cls(model, self.z)
+        self._linear = _linear_dynamics(model, integrator_cls)
+        self._steps: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (micro-steps, rows) -> (Φ^m, Ψ)
 
     @property
     def inputs(self) -> tuple[Port, ...]:
@@ -65,13 +77,33 @@ class Subsystem:
             raise ValueError(f"subsystem {self.name}: step of {span} ns is not a positive multiple "
                              f"of the micro-step {h_ns} ns")
         h = h_ns * 1e-9
-        step = self.integrator.step
-        for j in range(span // h_ns):
-            offset_ns = j * h_ns
-            step((t0_ns + offset_ns) * 1e-9, offset_ns * 1e-9, h, inputs)
+        if self._linear is not None:
+            Phi_m, Psi = self._composed_step(span // h_ns, inputs.coefficients.shape[0], h)
+            self.z[:] = Phi_m.dot(self.z) + Psi.dot(inputs.coefficients.ravel())
+        else:
+            step = self.integrator.step
+            for j in range(span // h_ns):
+                offset_ns = j * h_ns
+                step((t0_ns + offset_ns) * 1e-9, offset_ns * 1e-9, h, inputs)
         self.t_ns = t1_ns
         self.w = inputs.at(span * 1e-9)
         return self.model.outputs_at(t1_ns * 1e-9, self.z, self.w)
+
+    def _composed_step(self, micro_steps: int, rows: int, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(Φ^m, Ψ)`` with ``Ψ`` of shape ``(2n, rows * n_inputs)`` (module docstring), cached."""
+        key = (micro_steps, rows)
+        if key not in self._steps:
+            A_a, B_a = self._linear
+            Phi, Gamma = self.integrator.linear_step(A_a, B_a, h)
+            nodes = np.asarray(self.integrator.input_nodes) * h
+            Phi_m = np.eye(Phi.shape[0])
+            Psi = np.zeros((Phi.shape[0], rows, B_a.shape[1]))
+            for j in range(micro_steps):  # Horner: Ψ ← Φ Ψ + Σ_i Γ_i (τ_j + θ_i h)^r
+                powers = (j * h + nodes)[:, None] ** np.arange(rows)[None, :]  # (nodes, rows)
+                Psi = np.einsum("ab,brk->ark", Phi, Psi) + np.einsum("iak,ir->ark", Gamma, powers)
+                Phi_m = Phi @ Phi_m
+            self._steps[key] = (Phi_m, Psi.reshape(Phi.shape[0], -1))
+        return self._steps[key]
 
     def project(self, corrections: np.ndarray) -> np.ndarray:
         """Projection step of a rigid joint (paper 003 Eqs. 30, 55, 68): correct the state by
@@ -86,3 +118,13 @@ class Subsystem:
     def restore(self, saved: SavedState) -> None:
         self.z[:] = np.frombuffer(saved.z, dtype="<f8")
         self.t_ns = saved.t_ns
+
+
+def _linear_dynamics(model, integrator_cls: type) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(A_a, B_a)`` when the model is linear and time-invariant and the integrator a linear map."""
+    if not hasattr(integrator_cls, "linear_step") or not hasattr(model, "linear_dynamics"):
+        return None
+    try:
+        return model.linear_dynamics()
+    except ValueError:  # external forces of time or nonlinear effects: step micro-step by micro-step
+        return None
