@@ -34,16 +34,8 @@ TOLERANCE = 1e-12  # rtol = atol of the solve_ivp reference here (the summary's 
 CONVERGENCE_MODEL = TwoMassOscillator(m1=1.0, m2=2.0, c1=1000.0, c2=1000.0, d1=10.0, d2=10.0)  # §3.7
 
 
-def _signal(record, name: str) -> np.ndarray:
-    for sub, trajectory in zip(record.plan.subsystems, record.trajectories):
-        names = [p.name for p in sub.outputs]
-        if name in names:
-            return trajectory[:, names.index(name)]
-    raise KeyError(name)
-
-
 def _distance(record, reference, names=JOINT) -> float:
-    return max(float(np.nanmax(np.abs(_signal(record, n) - reference.signals[n]))) for n in names)
+    return max(float(np.nanmax(np.abs(record.signal(n) - reference.signals[n]))) for n in names)
 
 
 def speed() -> None:

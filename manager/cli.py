@@ -256,7 +256,7 @@ def cmd_subsystem(args: argparse.Namespace) -> int:
     from manager.subsystem_host import serve
     scene = load_scene(args.scene, args.overrides)
     return serve(scene, args.name, args.connect, args.run_id, ZenohOptions(lowlatency=not args.no_lowlatency),
-                 args.wait, args.listen, args.recorder)
+                 args.wait, args.listen)
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -372,7 +372,6 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_argument("--run-id", help="the run to join (default: the one run that waits for this subsystem)")
     sub.add_argument("--wait", type=float, default=30.0, metavar="SECONDS", help="how long to look for the run")
     sub.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
-    sub.add_argument("--recorder", metavar="ENDPOINT", help="Zenoh endpoint of the run's recorder (recorded runs)")
     sub.set_defaults(handler=cmd_subsystem)
 
     replay = commands.add_parser("replay", help="replay a recording in Rerun, or verify it by re-running its scene")

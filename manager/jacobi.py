@@ -85,6 +85,12 @@ class RunRecord:
     missed_deadlines: int
     corrections: tuple = ()  # the correctors' logs (manager.correction.CorrectionLog), one per corrected point
     implicit: ImplicitRecord | None = None  # what the implicit scheme adds (manager.implicit)
+    reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.summary)
+
+    def signal(self, name: str) -> np.ndarray:
+        """The trajectory of output ``name`` at its subsystem's communication points."""
+        sub_index, output = self.plan.signals[name]
+        return self.trajectories[sub_index][:, output]
 
 
 def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:

@@ -91,7 +91,7 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
         target_in = port_index[route.target][0][route.input]
         target_port = ports[route.target][0][target_in]
         if source_port.unit != target_port.unit:
-            problems.add(f"couplings", f"{route.source}.{route.output} [{source_port.unit}] feeds "
+            problems.add("couplings", f"{route.source}.{route.output} [{source_port.unit}] feeds "
                          f"{route.target}.{route.input} [{target_port.unit}]: units differ")
         fed[route.target][target_in] = (index[route.source], port_index[route.source][1][route.output])
 

@@ -66,6 +66,21 @@ def encode_error(step: int, time_ns: int, reason: str, ref: int = 0) -> bytes:
     return HEADER.pack(VERSION, Kind.ERROR, 0, len(text), step, time_ns, ref) + text
 
 
+def split_messages(batch: bytes, sender: str) -> list[bytes]:
+    """The messages of a batch: messages one after the other (the length of each from its header), as a
+    subsystem sends its replies to the manager (``manager.subsystem_host``)."""
+    messages, at = [], 0
+    while at < len(batch):
+        if len(batch) - at < HEADER.size:
+            raise ProtocolError(f"batch from {sender}: {len(batch) - at} bytes after the last message")
+        size = HEADER.size + _ITEMSIZE.get(batch[at + 1], 8) * HEADER.unpack_from(batch, at)[3]
+        messages.append(batch[at:at + size])
+        at += size
+    if at != len(batch):
+        raise ProtocolError(f"batch from {sender}: its last message is cut short")
+    return messages
+
+
 def command_ref(command: bytes) -> int:
     """The reference a reply carries for ``command``."""
     return zlib.crc32(command)

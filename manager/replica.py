@@ -12,10 +12,11 @@ every command. So every process of a run runs the *same* scheme:
   the reply header). A replica that diverged (different software, different arithmetic) is named at
   the first reply that shows it.
 
-A ``tap(source, channel, message)`` sees what a replica produces: every command (``<sub>,
-"commands"``), every reply of a local subsystem (``<sub>, "y"``) and, when the scheme reports it,
-the status after every macro-step (``"manager", "status"``). A recorded run taps the in-process
-replica, or the manager's replica on the Zenoh bus.
+A ``tap(source, channel, message)`` sees what a replica goes through: every command (``<sub>,
+"commands"``), every reply when the scheme takes it (``<sub>, "y"``, in simulation order whether
+the reply was computed here or came from the network) and, when the scheme reports it, the status
+after every macro-step (``"manager", "status"``). A recorded run taps the in-process replica, or the
+manager's replica that follows a Zenoh run.
 """
 from __future__ import annotations
 
@@ -85,13 +86,14 @@ class Replica:
                 reply = endpoint.handle(command)
                 if self.publish is not None:
                     self.publish(name, reply)
-                if tap is not None:
-                    tap(name, "y", reply)
                 self.replies[name].append(reply)
 
     def _advance(self) -> None:
         while all(self.replies[name] for name in self.request.awaits):
             replies = {name: self.replies[name].popleft() for name in self.request.awaits}
+            if self.tap is not None:
+                for name, reply in replies.items():
+                    self.tap(name, "y", reply)
             if self.verify:
                 for name, reply in replies.items():
                     self._check(name, reply)

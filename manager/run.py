@@ -2,8 +2,8 @@
 
 A run may be recorded: the caller passes a recorder (``recordings.recorder.Recorder``; the manager
 only knows the :class:`RunRecorder` interface), the scheme then reports its status after every
-macro-step, and the recorder sees every message — through a tap on the in-process replica, or by
-subscribing to the run's keys on the Zenoh bus.
+macro-step, and the recorder sees every message through a tap on the manager's replica — the
+in-process one, or the one that follows a Zenoh run, which holds every command, reply and status.
 """
 from __future__ import annotations
 
@@ -30,15 +30,14 @@ class RunRecorder(Protocol):
 
     result: dict | None  # the recorder's end record, once finished
 
-    def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool,
-              options: ZenohOptions, host: str) -> str | None:
-        """Start recording; return the Zenoh endpoint the manager and subsystems connect to (None in process)."""
+    def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
+        """Start recording."""
 
     def tap(self, source: str, channel: str, message: bytes) -> None:
         """A message of the in-process replica (see ``manager.replica``)."""
 
-    def finish(self, outcome: str, published: dict[str, int] | None = None) -> dict:
-        """Close the recording; ``published``: what the manager published and received per key (Zenoh bus)."""
+    def finish(self, outcome: str) -> dict:
+        """Close the recording (what the tap handed over is what was published)."""
 
     def close(self) -> None:
         """Release the recorder, finished or not."""
@@ -46,11 +45,6 @@ class RunRecorder(Protocol):
 
 def _outcome(error: BaseException) -> str:
     return "interrupted" if isinstance(error, KeyboardInterrupt) else f"failed: {error}"
-
-
-def _listen_host(listen: str | None) -> str:
-    """The host part of a ``tcp/HOST:PORT`` endpoint (the recorder listens beside the manager)."""
-    return listen.split("/", 1)[-1].rsplit(":", 1)[0] if listen else "127.0.0.1"
 
 
 def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
@@ -66,33 +60,32 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
         raise ValueError(f"unknown bus {bus!r}; expected one of {', '.join(BUSES)}")
     realtime = scene.manager.realtime if realtime is None else realtime
     plan, subsystems = plan_scene(scene)
-    status = StatusReport(plan, realtime) if recorder is not None else None
+    # the status's lateness is measured where the steps are paced: in process only (over Zenoh each
+    # subsystem paces its own replica and reports its lateness at the end)
+    status = StatusReport(plan, realtime and bus == "inproc") if recorder is not None else None
     run_id = new_run_id()
-    started, zbus = False, None
+    started = False
     try:
-        endpoint = None
         if recorder is not None:
-            endpoint = recorder.start(scene, plan, status, bus, run_id, realtime, zenoh_options, _listen_host(listen))
+            recorder.start(scene, plan, status, bus, run_id, realtime)
             started = True
+        tap = None if recorder is None else recorder.tap
         if bus == "inproc":
             replica = Replica(make_scheme(scene, plan, realtime, None, progress, status), [s.name for s in plan.subsystems],
-                              endpoints(plan, subsystems), tap=None if recorder is None else recorder.tap)
+                              endpoints(plan, subsystems), tap=tap)
             start = time.perf_counter()
             record = replica.run()
             wall_s = time.perf_counter() - start
-            if recorder is not None:
-                recorder.finish("completed")
-            return record, wall_s
-        with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id,
-                      recorder=endpoint) as zbus:
-            record, wall_s = zbus.drive(realtime, progress, status)
-            if recorder is not None:
-                recorder.finish("completed", zbus.counts)  # before the bus stops the subsystems
-            return record, wall_s
+        else:
+            with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id) as zbus:
+                record, wall_s = zbus.drive(realtime, progress, status, tap)
+        if recorder is not None:
+            recorder.finish("completed")
+        return record, wall_s
     except BaseException as error:
         if started and recorder.result is None:
             try:
-                recorder.finish(_outcome(error), None if zbus is None else zbus.counts)
+                recorder.finish(_outcome(error))
             except Exception as failure:  # the run's own error matters more
                 error.add_note(f"the recording could not be finished: {failure}")
         raise

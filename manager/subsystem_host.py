@@ -4,12 +4,16 @@ Started by ``zencosim run --bus zenoh`` for every subsystem, or by hand on anoth
 ``zencosim subsystem SCENE NAME --connect tcp/HOST:PORT``. The process runs its own replica of the
 run's scheme (``manager.replica``): it executes its own commands, publishes its replies and takes the
 other subsystems' replies from the network, in the Zenoh subscriber callback, so no thread hand-off
-sits on the critical path. It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears. In a
-recorded run it also connects to the recorder, and is ready only once it sees the recorder's token
-(declared after the recorder subscribed): then the recorder has every reply from the first one.
+sits on the critical path. Every reply goes at once to the other subsystems (``<sub>/y``); the
+manager, which only follows the run, gets them in batches (``<sub>/log``: at most ``LOG_REPLIES``
+replies or ``LOG_INTERVAL_S`` old, at once after an error and at the end), because on a machine with
+fewer cores than processes every message a process handles costs CPU that the critical path needs.
+When its replica has finished, the process reports the timing of the steps as it released them
+(``<sub>/timing``). It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import signal
@@ -19,10 +23,12 @@ import time
 
 import zenoh
 
+from manager.protocol import Kind
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.zenoh_session import concrete_endpoint, RECORDER, ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
+from manager.summary import step_timing
+from manager.zenoh_session import concrete_endpoint, ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
 
 
 class HostError(RuntimeError):
@@ -64,6 +70,10 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
         time.sleep(0.2)
 
 
+LOG_REPLIES = 64  # replies per batch for the manager, at most
+LOG_INTERVAL_S = 0.01  # the oldest reply of a batch waits this long at most
+
+
 class _Host:
     """The state of one subsystem process during a run (all callbacks take ``lock``)."""
 
@@ -80,13 +90,29 @@ class _Host:
         self.replica: Replica | None = None
         self.seen: set[str] = set()
         self.replies = coupling_publisher(session, key(run_id, name, "y"))
+        self.log = coupling_publisher(session, key(run_id, name, "log"))
+        self.unsent: list[bytes] = []  # replies not yet sent to the manager
+        self.last_sent = time.monotonic()
 
     def stop(self, why: str) -> None:
         self.reasons.append(why)
         self.finished.set()
 
-    def on_reply(self, sample: zenoh.Sample) -> None:
-        sender = str(sample.key_expr).split("/")[-2]
+    def publish(self, _name: str, reply: bytes) -> None:
+        """A reply of this subsystem: to the other subsystems now, to the manager in the next batch."""
+        self.replies.put(reply)
+        self.unsent.append(reply)
+        if (len(self.unsent) >= LOG_REPLIES or reply[1] == Kind.ERROR
+                or time.monotonic() - self.last_sent >= LOG_INTERVAL_S):
+            self.send_log()
+
+    def send_log(self) -> None:
+        if self.unsent:
+            self.log.put(b"".join(self.unsent))
+            self.unsent.clear()
+        self.last_sent = time.monotonic()
+
+    def on_reply(self, sender: str, sample: zenoh.Sample) -> None:
         data = sample.payload.to_bytes()
         with self.lock:
             if self.replica is None:
@@ -98,11 +124,21 @@ class _Host:
         go = json.loads(sample.payload.to_bytes())
         with self.lock:
             scheme = make_scheme(self.scene, self.plan, go["realtime"], go["start_ns"])
-            self.replica = Replica(scheme, self.names, self.local, lambda _name, reply: self.replies.put(reply))
+            self.replica = Replica(scheme, self.names, self.local, self.publish)
             self._guarded(self.replica.start)
             for sender, data in self.early:
                 self._guarded(self.replica.deliver, sender, data)
             self.early.clear()
+
+    def on_timing(self, query: zenoh.Query) -> None:
+        """The timing of the steps as this process released them, once its replica has finished."""
+        with self.lock:
+            finished = self.replica is not None and self.replica.finished
+            report = step_timing(self.replica.result) if finished else None
+        if report is None:
+            query.reply_err(b"the run has not finished here")
+        else:
+            query.reply(key(self.run_id, self.name, "timing"), json.dumps(report).encode())
 
     def _guarded(self, action, *args) -> None:
         """Run a replica action; an error here (a diverged or failed run) ends this process."""
@@ -110,6 +146,8 @@ class _Host:
             action(*args)
         except Exception as error:
             self.stop(f"{type(error).__name__}: {error}")
+        if self.replica is not None and self.replica.finished:
+            self.send_log()  # the last replies: the manager finishes the run once it has them
 
     def on_control(self, sample: zenoh.Sample) -> None:
         self.stop("stopped by the manager")
@@ -123,12 +161,11 @@ class _Host:
 
 
 def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, options: ZenohOptions,
-          wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0", recorder: str | None = None) -> int:
+          wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0") -> int:
     """Serve subsystem ``name`` until the run ends; return the process exit code."""
     if name not in scene.subsystems:
         raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
     listen = concrete_endpoint(listen)
-    connect = connect + ([recorder] if recorder else [])
     if run_id is None:
         # started by hand: find the run, then connect to every process already in it (gossip would
         # too, but not reliably in time), so that every pair of processes has a direct link
@@ -145,7 +182,9 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, lambda s, _f: host.stop(f"signal {signal.Signals(s).name}"))
         entities = [
-            session.declare_subscriber(key(run_id, "*", "y"), host.on_reply, allowed_origin=zenoh.Locality.REMOTE),
+            *(session.declare_subscriber(key(run_id, peer, "y"), functools.partial(host.on_reply, peer))
+              for peer in host.names if peer != name),
+            session.declare_queryable(key(run_id, name, "timing"), host.on_timing),
             session.declare_subscriber(key(run_id, name, "u"), host.on_control),
             session.declare_subscriber(key(run_id, "manager", "go"), host.on_go),
             session.declare_queryable(key(run_id, name, "ctl"), lambda query: query.reply(
@@ -153,7 +192,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
             session.liveliness().declare_token(key(run_id, name, "alive")),
         ]
-        others = set(host.names) - {name} | {"manager"} | ({RECORDER} if recorder else set())
+        others = set(host.names) - {name} | {"manager"}
         deadline = time.monotonic() + wait_s
         while not others <= host.seen and not host.finished.is_set():
             if time.monotonic() > deadline:
@@ -161,8 +200,11 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             time.sleep(0.01)
         entities.append(session.liveliness().declare_token(key(run_id, name, "ready")))
         host.finished.wait()
+        with host.lock:
+            host.send_log()
         for entity in reversed(entities):
             entity.undeclare()
         host.replies.undeclare()
+        host.log.undeclare()
     print(f"subsystem {name}: {host.reasons[0]}", file=sys.stderr)
     return 0 if host.reasons[0] == "stopped by the manager" else 1

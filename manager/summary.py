@@ -67,6 +67,29 @@ def _percentiles_us(values_ns: np.ndarray) -> dict[str, float]:
             "max": float(np.max(values_ns)) * 1e-3}
 
 
+def step_timing(record: RunRecord) -> dict:
+    """Wall-clock statistics of the macro-steps as the process that ran ``record`` released them: time
+    between consecutive releases, and in real-time mode lateness (release minus deadline) and missed
+    deadlines. Over Zenoh every subsystem reports these of its own replica (``manager.subsystem_host``)."""
+    timing = {}
+    steps = np.diff(record.send_time_ns)
+    if len(steps):
+        per_step = _percentiles_us(steps)
+        timing.update(step_us_median=per_step["median"], step_us_p99=per_step["p99"], step_us_max=per_step["max"])
+    if record.lateness_ns is not None:
+        late = _percentiles_us(record.lateness_ns)
+        timing.update(lateness_us_median=late["median"], lateness_us_p99=late["p99"], lateness_us_max=late["max"],
+                      missed_deadlines=record.missed_deadlines, realtime=True)
+    return timing
+
+
+def worst_timing(reports: dict[str, dict]) -> dict:
+    """The subsystems' step timings combined: each statistic at its worst (largest) over the subsystems."""
+    keys = {k for report in reports.values() for k in report}
+    return {k: (True if k == "realtime" else max(report[k] for report in reports.values() if k in report))
+            for k in sorted(keys)}
+
+
 def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
               reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
@@ -79,7 +102,7 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
     for name in scene.outputs.signals:
         sub_index, output = plan.signals[name]
         sub = plan.subsystems[sub_index]
-        x = record.trajectories[sub_index][:, output]
+        x = record.signal(name)
         entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
         if reference is not None:
             ref = reference.signals[name][::sub.ratio]
@@ -95,15 +118,11 @@ def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dic
     }
     if reference is not None:
         energy_summary["reference_final"] = float(reference.energy[-1])
-    steps = np.diff(record.send_time_ns)
     timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
-    if len(steps):
-        per_step = _percentiles_us(steps)
-        timing.update(step_us_median=per_step["median"], step_us_p99=per_step["p99"], step_us_max=per_step["max"])
-    if record.lateness_ns is not None:
-        late = _percentiles_us(record.lateness_ns)
-        timing.update(lateness_us_median=late["median"], lateness_us_p99=late["p99"], lateness_us_max=late["max"],
-                      missed_deadlines=record.missed_deadlines, realtime=True)
+    if record.reported_timing:  # over Zenoh: as the subsystems released the steps
+        timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing)
+    else:
+        timing.update(step_timing(record))
     summary = {
         "scene": scene.name,
         "bus": bus,

@@ -5,13 +5,11 @@ subsystem process per subsystem (or waits for the ones started by hand), checks 
 the same scene and ports and is connected to every other process, then gives the start signal. Every
 process runs a replica of the scheme (``manager.replica``); the manager's replica holds no subsystem:
 it follows the replies, checks that every subsystem executed the commands the manager computed, and
-produces the run record. A watchdog on the main thread names any subsystem that dies or stops
-answering and ends the run within the scene's timeout; no child process outlives the bus.
-
-A recorded run names the recorder's endpoint: the manager and every subsystem connect to it (Zenoh
-peers do not forward), wait for its liveliness token before the start signal, and the manager's
-replica publishes what only it computes — every command (``<sub>/commands``) and the status after
-every macro-step (``manager/status``) — counting, per key, what it published and received.
+produces the run record; it takes the replies in the batches the subsystems send it (``<sub>/log``,
+see ``manager.subsystem_host``), off the critical path. A recorded run taps the manager's replica,
+as in process: it holds every command, reply and status of the run. A watchdog on the main thread
+names any subsystem that dies or stops answering and ends the run within the scene's timeout; no
+child process outlives the bus.
 """
 from __future__ import annotations
 
@@ -23,7 +21,6 @@ import sys
 import tempfile
 import threading
 import time
-from collections import Counter
 from pathlib import Path
 from typing import Callable
 
@@ -31,13 +28,12 @@ import zenoh
 
 from manager.jacobi import RunRecord, SubsystemFailure
 from manager.plan import Plan
-from manager.protocol import Kind, encode
+from manager.protocol import Kind, encode, split_messages
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import make_scheme
 from manager.status import StatusReport
-from manager.zenoh_session import (RECORDER, ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id,
-                                   peer_config, token_seen, wait_for_listener)
+from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id, peer_config
 
 STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
@@ -56,8 +52,7 @@ class ZenohBus:
 
     def __init__(self, scene: Scene, plan: Plan, options: ZenohOptions = ZenohOptions(),
                  listen: str | None = None, external: tuple[str, ...] = (), wait_external_s: float = 60.0,
-                 announce: Callable[[str], None] | None = None, run_id: str | None = None,
-                 recorder: str | None = None) -> None:
+                 announce: Callable[[str], None] | None = None, run_id: str | None = None) -> None:
         unknown = set(external) - set(scene.subsystems)
         if unknown:
             raise ValueError(f"--external names no subsystem of scene {scene.name}: {', '.join(sorted(unknown))}")
@@ -65,8 +60,6 @@ class ZenohBus:
         self.plan = plan
         self.options = options
         self.run_id = run_id or new_run_id()
-        self.recorder = recorder  # Zenoh endpoint of the run's recorder, if it is recorded
-        self.counts: Counter[str] = Counter()  # messages the manager published or received, per key under the run
         self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
         self.external = tuple(external)
         self.wait_external_s = wait_external_s
@@ -99,13 +92,10 @@ class ZenohBus:
         self.close()
 
     def _open(self) -> None:
-        if self.recorder:
-            wait_for_listener(self.recorder, STARTUP_TIMEOUT_S)
-        self._session = zenoh.open(peer_config(listen=[self.endpoint], connect=[self.recorder] if self.recorder else [],
-                                               options=self.options))
+        self._session = zenoh.open(peer_config(listen=[self.endpoint], options=self.options))
         session = self._session
         self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
-        self._entities.append(session.declare_subscriber(key(self.run_id, "*", "y"), self._on_reply))
+        self._entities.append(session.declare_subscriber(key(self.run_id, "*", "log"), self._on_log))
         self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "alive"), self._on_alive,
                                                                       history=True))
         self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "ready"), self._on_ready,
@@ -113,15 +103,6 @@ class ZenohBus:
         self._entities.append(session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
         self._publishers = {name: coupling_publisher(session, key(self.run_id, name, "u")) for name in self.names}
         self._go = session.declare_publisher(key(self.run_id, "manager", "go"))
-        self._recorded = {}
-        if self.recorder:
-            self._recorded = {(name, "commands"): coupling_publisher(session, key(self.run_id, name, "commands"))
-                              for name in self.names}
-            self._recorded["manager", "status"] = coupling_publisher(session, key(self.run_id, "manager", "status"))
-            self._entities += self._recorded.values()
-            # the recorder declares its token after its subscriber: once the token is seen, nothing is lost
-            if not token_seen(session, key(self.run_id, RECORDER, "alive"), STARTUP_TIMEOUT_S):
-                raise SubsystemFailure(RECORDER, f"not reachable at {self.recorder} within {STARTUP_TIMEOUT_S:g} s")
 
     def _on_run_query(self, query: zenoh.Query) -> None:
         info = {"run_id": self.run_id, "scene": self.scene.name, "scene_digest": self.scene.digest,
@@ -157,8 +138,6 @@ class ZenohBus:
         command += ["--run-id", self.run_id]
         for override in self.scene.overrides:
             command += ["--set", override]
-        if self.recorder:
-            command += ["--recorder", self.recorder.replace("0.0.0.0", "127.0.0.1")]
         if not self.options.lowlatency:
             command.append("--no-lowlatency")
         return command
@@ -230,13 +209,16 @@ class ZenohBus:
                                          f"{expected[0]} -> {expected[1]}")
 
     # -- running ---------------------------------------------------------------------------------
-    def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None
-              ) -> tuple[RunRecord, float]:
-        """Start the run, follow it to the end; return its record and the wall-clock time [s]. With
-        ``status`` (a recorded run), the status and the commands are published for the recorder."""
+    def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None,
+              tap: Callable[[str, str, bytes], None] | None = None) -> tuple[RunRecord, float]:
+        """Start the run, follow it to the end; return its record and the wall-clock time [s].
+
+        The subsystems pace their replicas (``realtime``); the manager's replica follows the batches of
+        replies unpaced, and the record's timing is what the subsystems report of their own steps.
+        ``tap`` sees every message of the manager's replica (a recorded run)."""
         start_ns = time.perf_counter_ns() + START_DELAY_NS
-        scheme = make_scheme(self.scene, self.plan, realtime, start_ns, progress, status)
-        self._replica = Replica(scheme, self.names, verify=True, tap=self._publish if self._recorded else None)
+        scheme = make_scheme(self.scene, self.plan, False, None, progress, status)
+        self._replica = Replica(scheme, self.names, verify=True, tap=tap)
         self._done = threading.Event()
         self._error: BaseException | None = None
         self._driving = True
@@ -257,20 +239,32 @@ class ZenohBus:
         self._driving = False
         if self._error is not None:
             raise self._error
-        return self._replica.result, wall_s
+        record = self._replica.result
+        record.reported_timing = self._timing_reports()
+        return record, wall_s
 
-    def _publish(self, source: str, channel: str, message: bytes) -> None:
-        """The manager replica's tap in a recorded run: commands and status go to the recorder."""
-        self._recorded[source, channel].put(message)
-        self.counts[f"{source}/{channel}"] += 1
+    def _timing_reports(self) -> dict[str, dict]:
+        """Every subsystem's timing of its own steps (asked together)."""
+        pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=self.timeout_s)
+                   for name in self.names}
+        reports = {}
+        for name, replies in pending.items():
+            answers = [reply.ok for reply in replies if reply.ok is not None]
+            if not answers:
+                raise SubsystemFailure(name, "did not report the timing of its steps")
+            reports[name] = json.loads(answers[0].payload.to_bytes())
+        return reports
 
-    def _on_reply(self, sample: zenoh.Sample) -> None:
+    def _on_log(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).split("/")[-2]
         data = sample.payload.to_bytes()
         with self._lock:
-            self.counts[f"{name}/y"] += 1
             if self._driving and not self._done.is_set():
-                self._guarded(self._replica.deliver, name, data)
+                self._guarded(self._deliver_batch, name, data)
+
+    def _deliver_batch(self, name: str, batch: bytes) -> None:
+        for reply in split_messages(batch, f"subsystem {name}"):
+            self._replica.deliver(name, reply)
 
     def _guarded(self, action, *args) -> None:
         """Advance the manager's replica (under the lock); the end or any error finishes the run."""

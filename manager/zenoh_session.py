@@ -1,14 +1,14 @@
 """Zenoh sessions and key expressions of a run.
 
-Every run lives under ``zencosim/<run-id>/``: ``<sub>/y`` a subsystem's replies (read by every other
-process), ``<sub>/u`` control from the manager (STOP), ``<sub>/ctl`` a queryable that describes it,
-``<sub>/alive`` and ``manager/alive`` liveliness tokens (a crashed process is seen at once),
-``<sub>/ready`` a token declared once the subsystem is connected to every other process,
-``manager/go`` the start signal, ``manager/run`` a queryable that lets a subsystem started by hand
-find the run; in a recorded run, ``<sub>/commands`` and ``manager/status`` what the manager's replica
-computed (for the recorder) and ``recorder/alive`` the recorder's token. Sessions are peers with explicit endpoints and multicast scouting off; gossip over the
-links they already have connects the subsystems to each other directly, so that a reply reaches
-every process in one hop.
+Every run lives under ``zencosim/<run-id>/``: ``<sub>/y`` a subsystem's replies (read by the other
+subsystems), ``<sub>/log`` the same replies in batches (read by the manager), ``<sub>/u`` control
+from the manager (STOP), ``<sub>/ctl`` a queryable that describes a subsystem, ``<sub>/timing`` one
+that reports the timing of its steps at the end, ``<sub>/alive`` and ``manager/alive`` liveliness
+tokens (a crashed process is seen at once), ``<sub>/ready`` a token declared once the subsystem is
+connected to every other process, ``manager/go`` the start signal, ``manager/run`` a queryable that
+lets a subsystem started by hand find the run. Sessions are peers with explicit endpoints and
+multicast scouting off; a subsystem connects to every other process of the run (gossip over existing
+links is a fallback), so that a reply reaches every process in one hop.
 """
 from __future__ import annotations
 
@@ -21,7 +21,6 @@ from dataclasses import dataclass
 import zenoh
 
 ROOT = "zencosim"
-RECORDER = "recorder"  # the name under the run of the process that records it (recordings.recorder_process)
 
 
 def new_run_id() -> str:
@@ -90,16 +89,6 @@ def peer_config(listen: list[str] = (), connect: list[str] = (), options: ZenohO
         config.insert_json5("transport/unicast/lowlatency", "true")
         config.insert_json5("transport/unicast/qos/enabled", "false")
     return config
-
-
-def token_seen(session: zenoh.Session, token: str, wait_s: float) -> bool:
-    """Whether liveliness token ``token`` is visible to ``session`` now or becomes so within ``wait_s``."""
-    deadline = time.monotonic() + wait_s
-    while not list(session.liveliness().get(token, timeout=1.0)):
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
 
 
 def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:

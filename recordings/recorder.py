@@ -1,12 +1,12 @@
 """The manager's handle on a recorder process (recordings.recorder_process).
 
 ``start`` spawns the process (it dies with the manager), sends it the run's description and waits
-until it is ready; with the in-process bus, ``tap`` hands it every message through a pipe — the tap
-only appends the message and its channel to two lists, and every ``BATCH_MESSAGES`` messages (after
-every step of a real-time run) they go down the pipe as one frame, so validation, encoding and
-compression run in the other process, on the other core; with the Zenoh bus the process subscribes
-to the run itself. ``finish`` sends the outcome and what the manager published and returns the
-recorder's end record (outcome, per-channel published / received / lost).
+until it is ready; ``tap`` (on the manager's replica, in process or following a Zenoh run) hands it
+every message through a pipe — the tap only appends the message and its channel to two lists, and
+every ``BATCH_MESSAGES`` messages (after every step of a real-time run) they go down the pipe as one
+frame, so validation, encoding and compression run in the other process, on the other core. A full
+pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
+handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
 """
 from __future__ import annotations
 
@@ -27,7 +27,6 @@ from manager.plan import Plan
 from manager.scene import Scene
 from manager.status import StatusReport
 from manager.zenoh_bus import die_with_parent
-from manager.zenoh_session import ZenohOptions, free_tcp_port
 from recordings import RecordingError
 from recordings.layout import STATUS_TOPIC, ChannelSpec, channel_specs, run_metadata
 from recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
@@ -56,16 +55,13 @@ class Recorder:
         self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
         self._paced = False  # a real-time run: the tap hands each step over at once
 
-    def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool,
-              options: ZenohOptions = ZenohOptions(), host: str = "127.0.0.1") -> str | None:
-        """Start the recorder process; return the Zenoh endpoint it listens on (None in process)."""
+    def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
+        """Start the recorder process and wait until it is ready."""
         specs = channel_specs(plan, status)
         self._declare(specs, realtime)
-        endpoint = f"tcp/{host}:{free_tcp_port(host)}" if bus == "zenoh" else None
         start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime),
                  "scene_toml": tomli_w.dumps(scene.resolved),
-                 "channels": [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs],
-                 "zenoh": {"run_id": run_id, "endpoint": endpoint, "lowlatency": options.lowlatency} if endpoint else None}
+                 "channels": [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]}
         self._process = subprocess.Popen(
             [sys.executable, "-m", "recordings.recorder_process"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
             stderr=self._log, preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
@@ -77,7 +73,6 @@ class Recorder:
         ready = self._event(READY_TIMEOUT_S, "start")
         if ready["event"] != "ready":
             raise RecordingError(ready.get("reason", f"recorder of {self.path} failed to start"))
-        return endpoint
 
     def _declare(self, specs: list[ChannelSpec], realtime: bool) -> None:
         """What the tap needs to know of the channels."""
@@ -113,12 +108,12 @@ class Recorder:
 
     @property
     def published(self) -> dict[str, int]:
-        """In-process bus: the messages the tap handed over, per channel."""
+        """The messages the tap handed over, per channel."""
         return {topic: self._tapped[index] for index, topic in enumerate(self._topics)}
 
-    def finish(self, outcome: str, published: dict[str, int] | None = None) -> dict:
-        """Tell the recorder how the run ended and what was published (default: what the tap handed
-        over); wait for the file to be complete and return its end record."""
+    def finish(self, outcome: str) -> dict:
+        """Tell the recorder how the run ended and what the tap handed over; wait for the file to be
+        complete and return its end record."""
         if self.result is not None:
             return self.result
         if self._process is None:
@@ -126,7 +121,7 @@ class Recorder:
         if not self._process.stdin.closed:
             try:
                 self.flush()
-                self._send_control({"outcome": outcome, "published": dict(self.published if published is None else published)})
+                self._send_control({"outcome": outcome, "published": self.published})
                 self._process.stdin.close()
             except BrokenPipeError:
                 pass  # the recorder is gone; its exit is reported below

@@ -36,16 +36,8 @@ def _run(method: str, decomposition: str, k: int):
     return execute(scene)[0]
 
 
-def _signal(record, name: str) -> np.ndarray:
-    for sub, trajectory in zip(record.plan.subsystems, record.trajectories):
-        names = [p.name for p in sub.outputs]
-        if name in names:
-            return trajectory[:, names.index(name)]
-    raise KeyError(name)
-
-
 def _joint_gap(record) -> np.ndarray:
-    return np.max([np.abs(_signal(record, f"joint.x2_{a}") - _signal(record, f"joint.x1_{a}")) for a in "xy"], axis=0)
+    return np.max([np.abs(record.signal(f"joint.x2_{a}") - record.signal(f"joint.x1_{a}")) for a in "xy"], axis=0)
 
 
 STABLE = [pytest.param(m, d, k, id=f"{m}-{d}-k{k}") for k in (0, 1, 2) for d in ("force-force", "force-displacement")
@@ -59,7 +51,7 @@ def test_stable_methods_follow_the_monolithic_reference(method, decomposition, k
     record = _run(method, decomposition, k)
     assert record.implicit.diverged_at is None
     assert np.max(_joint_gap(record)) < GAP
-    error = max(np.max(np.abs(_signal(record, name) - reference.signals[name])) for name in JOINT)
+    error = max(np.max(np.abs(record.signal(name) - reference.signals[name])) for name in JOINT)
     assert error < DISTANCE[k]
 
 

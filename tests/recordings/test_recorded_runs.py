@@ -54,7 +54,7 @@ def test_a_zenoh_run_at_1_ms_over_10_s_is_recorded_without_loss_and_replays(proc
     recorder = wait_for(lambda: _child(manager.pid, "recordings.recorder_process"), 30, "the recorder process")
     wait_for(lambda: mcap.exists() and mcap.stat().st_size > 100_000, 60, "the recording to grow")
     slowed = time.monotonic()
-    while time.monotonic() - slowed < 4.0:  # a recorder at a tenth of its speed: Zenoh must block, not drop
+    while time.monotonic() - slowed < 4.0:  # a recorder at a tenth of its speed: its pipe must block the run, not drop
         os.kill(recorder, signal.SIGSTOP)
         time.sleep(0.09)
         os.kill(recorder, signal.SIGCONT)
