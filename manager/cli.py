@@ -368,7 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="Zenoh endpoint of the manager, e.g. tcp/192.0.2.10:7447")
     sub.add_argument("--listen", default="tcp/127.0.0.1:0", metavar="ENDPOINT",
                      help="where the other processes of the run reach this one (default: a free loopback port; "
-                          "across hosts e.g. tcp/0.0.0.0:7448)")
+                          "across hosts this host's address, e.g. tcp/192.0.2.11:7448)")
     sub.add_argument("--run-id", help="the run to join (default: the one run that waits for this subsystem)")
     sub.add_argument("--wait", type=float, default=30.0, metavar="SECONDS", help="how long to look for the run")
     sub.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")

@@ -1,7 +1,9 @@
 """Real-time pacing: release every macro-step at an absolute wall-clock deadline.
 
 Step j is released at ``t_start + j * macro_step``; every process of a Zenoh run paces its replica of
-the scheme to the same start time, which the manager announces on the shared monotonic clock. The loop sleeps until just before the deadline
+the scheme to the same start time, which the manager announces on the wall clock (Unix time, so
+that processes on hosts with synchronised clocks agree on it) and each process converts once to its
+monotonic clock, which then paces (the wall clock may be stepped). The loop sleeps until just before the deadline
 and spins for the last ``spin_ns`` (a sleeping thread wakes late, and Zenoh latency grows when the
 receiving threads have gone idle). A step whose predecessor returned after its release time is a
 missed deadline; lateness is release time minus deadline.
@@ -17,7 +19,7 @@ class Pacer:
     def __init__(self, macro_step_ns: int, n_steps: int, start_ns: int | None = None, spin_ns: int = 200_000) -> None:
         self.macro_step_ns = macro_step_ns
         self.spin_ns = spin_ns
-        self.start_ns = start_ns  # on time.perf_counter_ns's clock (CLOCK_MONOTONIC: shared by the processes of a host)
+        self.start_ns = start_ns  # on time.perf_counter_ns's clock (CLOCK_MONOTONIC)
         self.lateness_ns = np.zeros(n_steps, dtype=np.int64)
         self.missed = 0
 

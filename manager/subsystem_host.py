@@ -28,7 +28,8 @@ from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
 from manager.summary import step_timing
-from manager.zenoh_session import concrete_endpoint, ZenohOptions, coupling_publisher, key, peer_config, wait_for_listener
+from manager.zenoh_session import (ZenohOptions, concrete_endpoint, coupling_publisher, endpoint_host, key, peer_config,
+                                   reachable, wait_for_listener)
 
 
 class HostError(RuntimeError):
@@ -122,8 +123,10 @@ class _Host:
 
     def on_go(self, sample: zenoh.Sample) -> None:
         go = json.loads(sample.payload.to_bytes())
+        # the start on this process's monotonic clock (which paces; the wall clock may be stepped)
+        start_ns = time.perf_counter_ns() + (go["start_unix_ns"] - time.time_ns())
         with self.lock:
-            scheme = make_scheme(self.scene, self.plan, go["realtime"], go["start_ns"])
+            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns)
             self.replica = Replica(scheme, self.names, self.local, self.publish)
             self._guarded(self.replica.start)
             for sender, data in self.early:
@@ -174,7 +177,9 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         with zenoh.open(peer_config(connect=connect, options=options)) as probe:
             info = find_run(probe, scene, name, wait_s)
         run_id = info["run_id"]
-        connect = connect + [ep for peer, ep in info.get("endpoints", {}).items() if peer != name and ep not in connect]
+        via_host = endpoint_host(connect[0])  # the manager's host, where its spawned subsystems listen
+        peers = [reachable(ep, via_host) for peer, ep in info.get("endpoints", {}).items() if peer != name]
+        connect = connect + [ep for ep in peers if ep not in connect]
     for endpoint in connect:
         wait_for_listener(endpoint, wait_s)
     with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:

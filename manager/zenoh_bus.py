@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import ctypes
 import json
+import os
+import queue
 import signal
 import subprocess
 import sys
@@ -33,7 +35,8 @@ from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import make_scheme
 from manager.status import StatusReport
-from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, key, new_run_id, peer_config
+from manager.zenoh_session import (ZenohOptions, coupling_publisher, endpoint_host, free_tcp_port, key, new_run_id,
+                                   peer_config, reachable)
 
 STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
@@ -130,7 +133,7 @@ class ZenohBus:
         A spawned subsystem listens on ``listen`` and connects to the manager and to ``peers``, the
         subsystems spawned before it, so that every pair of processes has a direct link."""
         command = [sys.executable, "-m", "manager.cli", "subsystem", self.scene.path, name,
-                   "--connect", self.endpoint.replace("0.0.0.0", "127.0.0.1")]
+                   "--connect", reachable(self.endpoint, "127.0.0.1")]
         for peer in peers:
             command += ["--connect", peer]
         if listen is not None:
@@ -151,14 +154,15 @@ class ZenohBus:
                     command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
                     self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
                 continue
-            listen = f"tcp/127.0.0.1:{free_tcp_port()}"
+            host = endpoint_host(self.endpoint)  # where the manager listens: loopback, or every interface
+            listen = f"tcp/{host}:{free_tcp_port(host)}"
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
             self.children[name] = subprocess.Popen(
                 self.spawn_command(name, listen, tuple(spawned)), stdin=subprocess.DEVNULL, stdout=log,
                 stderr=subprocess.STDOUT, preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
             log.close()
-            spawned.append(listen)
-            self._endpoints[name] = listen
+            spawned.append(reachable(listen, "127.0.0.1"))
+            self._endpoints[name] = listen  # a subsystem started by hand elsewhere connects to it (manager.subsystem_host)
 
     def log_tail(self, name: str, lines: int = 15) -> str:
         path = Path(self._logs.name) / f"{name}.log"
@@ -216,25 +220,32 @@ class ZenohBus:
         The subsystems pace their replicas (``realtime``); the manager's replica follows the batches of
         replies unpaced, and the record's timing is what the subsystems report of their own steps.
         ``tap`` sees every message of the manager's replica (a recorded run)."""
-        start_ns = time.perf_counter_ns() + START_DELAY_NS
+        start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
         scheme = make_scheme(self.scene, self.plan, False, None, progress, status)
         self._replica = Replica(scheme, self.names, verify=True, tap=tap)
         self._done = threading.Event()
+        self._batches: queue.SimpleQueue = queue.SimpleQueue()  # (subsystem, batch of replies); None ends
         self._error: BaseException | None = None
         self._driving = True
         self._progress = (0, time.monotonic())
         started = time.perf_counter()
         if self.announce is not None:
             self.announce(f"run {self.run_id}: {len(self.names)} subsystem processes connected, starting")
+        follower = threading.Thread(target=self._follow, name="zencosim-follower", daemon=True)
+        follower.start()
         with self._lock:
-            self._go.put(json.dumps({"start_ns": start_ns, "realtime": realtime}).encode())
+            self._go.put(json.dumps({"start_unix_ns": start_unix_ns, "realtime": realtime}).encode())
             self._guarded(self._replica.start)
-        while not self._done.wait(0.05):
-            failure = self._watchdog()
-            if failure is not None:
-                with self._lock:
-                    self._error = self._error or failure
-                    self._done.set()
+        try:
+            while not self._done.wait(0.05):
+                failure = self._watchdog()
+                if failure is not None:
+                    with self._lock:
+                        self._error = self._error or failure
+                        self._done.set()
+        finally:
+            self._batches.put(None)
+            follower.join()
         wall_s = time.perf_counter() - started - (START_DELAY_NS * 1e-9 if realtime else 0.0)
         self._driving = False
         if self._error is not None:
@@ -256,11 +267,31 @@ class ZenohBus:
         return reports
 
     def _on_log(self, sample: zenoh.Sample) -> None:
-        name = str(sample.key_expr).split("/")[-2]
-        data = sample.payload.to_bytes()
-        with self._lock:
-            if self._driving and not self._done.is_set():
-                self._guarded(self._deliver_batch, name, data)
+        """A batch of replies: handed to the follower thread (Zenoh's thread returns at once)."""
+        self._batches.put((str(sample.key_expr).split("/")[-2], sample.payload.to_bytes()))
+
+    def _follow(self) -> None:
+        """The follower thread: advance the manager's replica with every batch, at idle priority.
+
+        The manager's replica repeats the whole scheme (about 50 µs of Python per macro-step of
+        two_mass_damped); run at normal priority on a machine with fewer free cores than processes, its
+        bursts preempt a subsystem on the critical path. SCHED_IDLE (Linux; ignored elsewhere) gives
+        the core to the subsystems whenever they want it; the follower still gets the time they wait
+        for the network, and if it fell behind, the subsystems' batches would wait (backpressure),
+        never be lost. Measured on two_mass_damped over Zenoh: docs/protocol.md."""
+        if hasattr(os, "SCHED_IDLE"):
+            try:
+                os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+            except OSError:
+                pass  # a platform that refuses it: the follower runs at normal priority
+        while True:
+            item = self._batches.get()
+            if item is None:
+                return
+            name, batch = item
+            with self._lock:
+                if self._driving and not self._done.is_set():
+                    self._guarded(self._deliver_batch, name, batch)
 
     def _deliver_batch(self, name: str, batch: bytes) -> None:
         for reply in split_messages(batch, f"subsystem {name}"):

@@ -32,13 +32,27 @@ def key(run_id: str, *parts: str) -> str:
     return "/".join((ROOT, run_id) + parts)
 
 
+EVERY_INTERFACE = "0.0.0.0"  # a listening host that is no address to connect to
+
+
+def endpoint_host(endpoint: str) -> str:
+    """The host of a ``tcp/HOST:PORT`` endpoint."""
+    return endpoint.split("/", 1)[-1].rpartition(":")[0]
+
+
+def reachable(endpoint: str, via_host: str) -> str:
+    """Where a process connects to ``endpoint``: a process listening on every interface is reached at
+    the host through which the connecting process reached the run (``127.0.0.1`` on the same host)."""
+    host = endpoint_host(endpoint)
+    return endpoint.replace(host, via_host, 1) if host == EVERY_INTERFACE else endpoint
+
+
 def wait_for_listener(endpoint: str, timeout_s: float) -> None:
     """Block until a ``tcp/HOST:PORT`` endpoint accepts connections (Zenoh peers do not reliably retry
     a connect endpoint that was not listening when the session opened)."""
     if not endpoint.startswith("tcp/"):
         return
-    host, _, port = endpoint.removeprefix("tcp/").rpartition(":")
-    host = "127.0.0.1" if host == "0.0.0.0" else host
+    host, _, port = reachable(endpoint, "127.0.0.1").removeprefix("tcp/").rpartition(":")
     deadline = time.monotonic() + timeout_s
     while True:
         try:

@@ -55,9 +55,10 @@ def processes():
     """Start real processes; whatever happens in the test, none of them (or their children) survives it."""
     started: list[subprocess.Popen] = []
 
-    def start(*args: str, **kwargs) -> subprocess.Popen:
-        proc = subprocess.Popen([sys.executable, "-m", "manager.cli", *args], cwd=REPO, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, **kwargs)
+    def start(*args: str, prefix: tuple[str, ...] = (), **kwargs) -> subprocess.Popen:
+        """``zencosim ARGS``; ``prefix`` runs it through another command that execs it (``ip netns exec NS``)."""
+        proc = subprocess.Popen([*prefix, sys.executable, "-m", "manager.cli", *args], cwd=REPO,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
         started.append(proc)
         return proc
 
