@@ -71,6 +71,15 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
         time.sleep(0.2)
 
 
+EXIT_LIMIT_S = 10.0  # once stopped, the process has this long to leave the run in order
+
+
+def _exit_now(name: str, reason: str) -> None:
+    print(f"subsystem {name}: {reason}; leaving the Zenoh session took over {EXIT_LIMIT_S:g} s, exiting now",
+          file=sys.stderr, flush=True)
+    os._exit(1)
+
+
 LOG_REPLIES = 64  # replies per batch for the manager, at most
 LOG_INTERVAL_S = 0.01  # the oldest reply of a batch waits this long at most
 
@@ -116,6 +125,8 @@ class _Host:
     def on_reply(self, sender: str, sample: zenoh.Sample) -> None:
         data = sample.payload.to_bytes()
         with self.lock:
+            if self.finished.is_set():  # stopping: the peers' replies no longer advance the run
+                return
             if self.replica is None:
                 self.early.append((sender, data))
             else:
@@ -205,11 +216,16 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             time.sleep(0.01)
         entities.append(session.liveliness().declare_token(key(run_id, name, "ready")))
         host.finished.wait()
+        # leaving must not hang on a peer or a manager that is gone: past this limit the process exits as it is
+        deadline_timer = threading.Timer(EXIT_LIMIT_S, _exit_now, (name, host.reasons[0]))
+        deadline_timer.daemon = True
+        deadline_timer.start()
         with host.lock:
             host.send_log()
         for entity in reversed(entities):
             entity.undeclare()
         host.replies.undeclare()
         host.log.undeclare()
+    deadline_timer.cancel()
     print(f"subsystem {name}: {host.reasons[0]}", file=sys.stderr)
     return 0 if host.reasons[0] == "stopped by the manager" else 1

@@ -153,7 +153,10 @@ def test_a_killed_manager_takes_the_recorder_with_it_and_leaves_a_readable_file(
     children = children_of(manager.pid)
     manager.kill()
     manager.communicate(timeout=30)
-    wait_for(lambda: not any(alive(pid) for pid in children), 30, "the subsystems and the recorder to exit")
+    try:
+        wait_for(lambda: not any(alive(pid) for pid in children), 30, "the subsystems and the recorder to exit")
+    except AssertionError as error:
+        raise AssertionError(f"{error}; still alive: {[cmdline(pid) for pid in children if alive(pid)]}") from None
     recording = read_recording(mcap)
     assert recording.truncated is None  # the recorder got SIGTERM from the kernel and finished the file
     assert NO_END in recording.end["outcome"]  # seen as SIGTERM or as the end of its input, whichever came first
