@@ -54,11 +54,20 @@ def test_a_zenoh_run_at_1_ms_over_10_s_is_recorded_without_loss_and_replays(proc
     recorder = wait_for(lambda: _child(manager.pid, "recordings.recorder_process"), 30, "the recorder process")
     wait_for(lambda: mcap.exists() and mcap.stat().st_size > 100_000, 60, "the recording to grow")
     slowed = time.monotonic()
-    while time.monotonic() - slowed < 4.0:  # a recorder at a tenth of its speed: its pipe must block the run, not drop
-        os.kill(recorder, signal.SIGSTOP)
-        time.sleep(0.09)
-        os.kill(recorder, signal.SIGCONT)
-        time.sleep(0.01)
+    # a recorder at a tenth of its speed for up to 4 s: its pipe must hold up the manager's replica, not
+    # drop; it may finish within the window (the subsystems do not wait for it), which ends the slowing
+    try:
+        while time.monotonic() - slowed < 4.0:
+            os.kill(recorder, signal.SIGSTOP)
+            time.sleep(0.09)
+            os.kill(recorder, signal.SIGCONT)
+            time.sleep(0.01)
+    except ProcessLookupError:
+        pass
+    finally:
+        if alive(recorder):
+            os.kill(recorder, signal.SIGCONT)
+    record_property("recorder_slowed_s", time.monotonic() - slowed)
     _, stderr = manager.communicate(timeout=150)
     assert manager.returncode == 0, stderr
 
