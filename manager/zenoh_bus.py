@@ -220,7 +220,6 @@ class ZenohBus:
         The subsystems pace their replicas (``realtime``); the manager's replica follows the batches of
         replies unpaced, and the record's timing is what the subsystems report of their own steps.
         ``tap`` sees every message of the manager's replica (a recorded run)."""
-        start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
         scheme = make_scheme(self.scene, self.plan, False, None, progress, status)
         self._replica = Replica(scheme, self.names, verify=True, tap=tap)
         self._done = threading.Event()
@@ -228,7 +227,9 @@ class ZenohBus:
         self._error: BaseException | None = None
         self._driving = True
         self._progress = (0, time.monotonic())
+        self._heard = time.monotonic()  # when the last batch of replies arrived
         started = time.perf_counter()
+        start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
         if self.announce is not None:
             self.announce(f"run {self.run_id}: {len(self.names)} subsystem processes connected, starting")
         follower = threading.Thread(target=self._follow, name="zencosim-follower", daemon=True)
@@ -268,6 +269,7 @@ class ZenohBus:
 
     def _on_log(self, sample: zenoh.Sample) -> None:
         """A batch of replies: handed to the follower thread (Zenoh's thread returns at once)."""
+        self._heard = time.monotonic()
         self._batches.put((str(sample.key_expr).split("/")[-2], sample.payload.to_bytes()))
 
     def _follow(self) -> None:
@@ -314,11 +316,12 @@ class ZenohBus:
         if self._lost:
             name = self._lost[0]
             return SubsystemFailure(name, "its process is gone (liveliness token lost)")
-        with self._lock:
-            steps, missing = self._replica.steps_done, self._replica.waiting_for()
+        # read without the lock, which the idle-priority follower may hold while it waits for a core
+        steps, missing = self._replica.steps_done, self._replica.waiting_for()
         if steps != self._progress[0]:
             self._progress = (steps, time.monotonic())
-        elif missing and time.monotonic() - self._progress[1] > self.timeout_s:
+        # a stall is the subsystems' only when no batch arrives either (an idle-priority follower may lag)
+        elif missing and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s:
             # every replica waits when one subsystem stalls: name the ones whose process does not respond
             frozen = self._unresponsive()
             name = frozen[0] if frozen else missing[0]
