@@ -15,8 +15,16 @@ import time
 import numpy as np
 
 
+# how long before a deadline the pacer stops sleeping and spins (measured, docs/realtime.md): a run
+# alone in its process spins longer (wake-ups come late on this machine), subsystem processes that
+# share the cores with each other and with Zenoh's threads spin less (spinning takes those cores)
+SPIN_ALONE_NS = 500_000
+SPIN_SHARED_NS = 200_000
+
+
 class Pacer:
-    def __init__(self, macro_step_ns: int, n_steps: int, start_ns: int | None = None, spin_ns: int = 200_000) -> None:
+    def __init__(self, macro_step_ns: int, n_steps: int, start_ns: int | None = None,
+                 spin_ns: int = SPIN_ALONE_NS) -> None:
         self.macro_step_ns = macro_step_ns
         self.spin_ns = spin_ns
         self.start_ns = start_ns  # on time.perf_counter_ns's clock (CLOCK_MONOTONIC)

@@ -8,7 +8,7 @@ from manager.correction import build_correctors
 from manager.endpoint import SubsystemEndpoint
 from manager.implicit import compile_joint, implicit
 from manager.jacobi import jacobi
-from manager.pacing import Pacer
+from manager.pacing import SPIN_ALONE_NS, Pacer
 from manager.plan import Plan, compile_plan
 from manager.scene import Scene
 from manager.status import StatusReport
@@ -22,12 +22,13 @@ def plan_scene(scene: Scene) -> tuple[Plan, dict]:
 
 
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
-                progress: Callable[[int], None] | None = None, status: StatusReport | None = None):
+                progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
+                spin_ns: int = SPIN_ALONE_NS):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
-    ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on the shared monotonic clock; None: the
+    ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
-    recorded run)."""
-    pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns) if realtime else None
+    recorded run); ``spin_ns``: see ``manager.pacing``."""
+    pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns, spin_ns) if realtime else None
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction), status)

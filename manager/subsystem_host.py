@@ -23,6 +23,7 @@ import time
 
 import zenoh
 
+from manager.pacing import SPIN_SHARED_NS
 from manager.protocol import Kind
 from manager.replica import Replica
 from manager.scene import Scene
@@ -137,7 +138,7 @@ class _Host:
         # the start on this process's monotonic clock (which paces; the wall clock may be stepped)
         start_ns = time.perf_counter_ns() + (go["start_unix_ns"] - time.time_ns())
         with self.lock:
-            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns)
+            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS)
             self.replica = Replica(scheme, self.names, self.local, self.publish)
             self._guarded(self.replica.start)
             for sender, data in self.early:
