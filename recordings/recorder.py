@@ -10,12 +10,15 @@ handed over and returns the recorder's end record (outcome, per-channel publishe
 """
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import select
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from array import array
 from collections import Counter
 from pathlib import Path
@@ -36,6 +39,32 @@ FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
 PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
 BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
 F_SETPIPE_SZ = 1031  # Linux fcntl
+
+
+@contextlib.contextmanager
+def _interrupts_deferred():
+    """SIGINT and SIGTERM that arrive inside the block act when it ends.
+
+    Python runs signal handlers, and raises their KeyboardInterrupt, only in the main thread; so only
+    there is anything deferred (a recorded Zenoh run flushes from the follower thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    arrived: list[tuple[int, object]] = []
+    previous = {signum: signal.signal(signum, lambda *received: arrived.append(received))
+                for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if arrived:
+            signum, frame = arrived[0]
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, frame)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
 
 
 class Recorder:
@@ -86,25 +115,34 @@ class Recorder:
     def tap(self, source: str, channel: str, data: bytes) -> None:
         """A message of the in-process replica (``manager.replica``)."""
         index = self._index[source, channel]
+        status = index == self._status
+        if status:
+            self._stamps.append(time_ns())
         self._channels.append(index)
         self._messages.append(data)
-        if index == self._status:  # the status opens a step: the batch holds whole steps
-            self._stamps.append(time_ns())
-            if self._paced or len(self._messages) >= BATCH_MESSAGES:
-                self.flush()
+        if status and (self._paced or len(self._messages) >= BATCH_MESSAGES):
+            self.flush()  # the status opens a step: the batch holds whole steps
 
     def flush(self) -> None:
-        """Hand what the tap holds to the recorder process now."""
-        if not self._messages:
+        """Hand what the tap holds to the recorder process now.
+
+        SIGINT and SIGTERM end a run by an exception wherever it is (``manager.cli``): one that cut a
+        ``tap`` short leaves a channel index (or a stamp) without its message, which is dropped here,
+        uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
+        is sent whole and counted exactly once."""
+        n = min(len(self._channels), len(self._messages))
+        if not n:
             return
-        n = len(self._messages)
-        self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(self._stamps)), self._channels,
-                                           array("I", map(len, self._messages)).tobytes(),
-                                           array("q", self._stamps).tobytes(), *self._messages)))
-        self._tapped.update(self._channels)
-        self._channels.clear()
-        self._messages.clear()
-        self._stamps.clear()
+        with _interrupts_deferred():
+            channels = bytes(self._channels[:n])
+            stamps = self._stamps[:channels.count(self._status)]
+            self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
+                                               array("I", map(len, self._messages[:n])).tobytes(),
+                                               array("q", stamps).tobytes(), *self._messages[:n])))
+            self._tapped.update(channels)
+            self._channels.clear()
+            self._messages.clear()
+            self._stamps.clear()
 
     @property
     def published(self) -> dict[str, int]:

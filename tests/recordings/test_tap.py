@@ -1,0 +1,93 @@
+"""The recorder's tap under SIGINT/SIGTERM, which end a run by an exception wherever it happens to be.
+
+The frames the tap would send down the pipe are captured instead (no recorder process), so the test
+can look at each one: its declared message count must match its channel indices, and what was
+counted as handed over must be exactly what was sent.
+"""
+from __future__ import annotations
+
+import os
+import signal
+
+import pytest
+
+from manager.scene import load_scene
+from manager.schemes import plan_scene
+from manager.status import StatusReport
+from recordings.layout import channel_specs
+from recordings.recorder import Recorder
+from recordings.recorder_process import BATCH_HEAD
+
+pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+
+
+class CapturingRecorder(Recorder):
+    """A tap whose frames are kept here; ``during_write`` runs while a frame is being sent."""
+
+    def __init__(self, tmp_path) -> None:
+        super().__init__(tmp_path / "unused.mcap")
+        plan, _ = plan_scene(load_scene("two_mass_damped"))
+        self._declare(channel_specs(plan, StatusReport(plan, False)), realtime=False)
+        self.frames: list[bytes] = []
+        self.during_write = lambda: None
+
+    def _write_frame(self, kind: int, payload: bytes) -> None:
+        self.during_write()
+        self.frames.append(payload)
+
+
+def _messages_in(frame: bytes) -> tuple[int, int]:
+    """(messages, status stamps) a batch frame declares; checks that its channel indices agree."""
+    n, stamps = BATCH_HEAD.unpack_from(frame)
+    channels = frame[BATCH_HEAD.size:BATCH_HEAD.size + n]
+    assert len(channels) == n
+    return n, stamps
+
+
+class _InterruptOnce(list):
+    """A list whose first append is interrupted, as by a signal between two statements of ``tap``."""
+
+    interrupted = False
+
+    def append(self, item) -> None:
+        if not self.interrupted:
+            self.interrupted = True
+            raise KeyboardInterrupt
+        super().append(item)
+
+
+def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
+    recorder = CapturingRecorder(tmp_path)
+    for step in range(3):
+        recorder.tap("S1", "commands", b"c%d" % step)
+        recorder.tap("manager", "status", b"s%d" % step)
+    recorder._messages = _InterruptOnce(recorder._messages)  # the channel index goes in, the message does not
+    with pytest.raises(KeyboardInterrupt):
+        recorder.tap("S2", "y", b"cut")
+    recorder.flush()  # what finish() does after an interrupted run
+    assert [_messages_in(frame) for frame in recorder.frames] == [(6, 3)]
+    assert sum(recorder.published.values()) == 6
+    assert recorder.published["S2/y"] == 0
+
+
+def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_path):
+    recorder = CapturingRecorder(tmp_path)
+    recorder.tap("S1", "commands", b"c")
+    recorder.tap("manager", "status", b"s")
+    sent_before_interrupt = []
+
+    def interrupt(*_) -> None:  # as manager.cli's SIGTERM handler
+        sent_before_interrupt.append(len(recorder.frames))
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    recorder.during_write = lambda: os.kill(os.getpid(), signal.SIGTERM)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            recorder.flush()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert sent_before_interrupt == [1]  # the handler ran once, after the frame was sent
+    assert [_messages_in(frame) for frame in recorder.frames] == [(2, 1)]
+    assert sum(recorder.published.values()) == 2 and not recorder._messages  # counted and cleared once
+    assert signal.getsignal(signal.SIGTERM) is previous
