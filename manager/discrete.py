@@ -42,6 +42,7 @@ from compensation.eigenstructure import normalize_mode_shape
 from manager.extrapolation import extrapolation_matrix
 from manager.plan import Plan, compile_plan
 from manager.scene import Scene
+from subsystems.integrators import composed_linear_step
 from subsystems.masses import MassesModel
 from subsystems.subsystem import Subsystem
 
@@ -70,21 +71,9 @@ def subsystem_map(sub: Subsystem, span_ns: int, order: int) -> SubsystemMap:
     if not isinstance(model, MassesModel) or model.nonlinear:
         raise LinearSceneError(f"subsystem {sub.name}: the discrete analysis needs linear '{MassesModel.name}' "
                                f"models, got {type(model).__name__} with effects {', '.join(model.effects)}")
-    integrator = type(sub.integrator)
-    h_ns = sub.micro_step_ns
-    h = h_ns * 1e-9
-    Phi_h, Gamma_h = integrator.linear_step(model.A_a, model.B_a, h)
-    Phi = np.eye(Phi_h.shape[0])
-    Gamma = np.zeros((order + 1, Phi_h.shape[0], model.B_a.shape[1]))
-    for j in range(span_ns // h_ns):
-        tau = j * h_ns * 1e-9
-        Phi = Phi_h @ Phi
-        Gamma = np.einsum("ab,qbc->qac", Phi_h, Gamma)
-        for node, Gamma_node in zip(integrator.input_nodes, Gamma_h):
-            at = tau + node * h
-            for q in range(order + 1):
-                Gamma[q] += at ** q * Gamma_node
-    return SubsystemMap(Phi, Gamma, model.C_y, model.D_y, span_ns * 1e-9)
+    Phi, Gamma = composed_linear_step(type(sub.integrator), model.A_a, model.B_a, sub.micro_step_ns * 1e-9,
+                                      span_ns // sub.micro_step_ns, order + 1)
+    return SubsystemMap(Phi, Gamma.transpose(1, 0, 2), model.C_y, model.D_y, span_ns * 1e-9)
 
 
 @dataclass(frozen=True)

@@ -7,12 +7,8 @@ extrapolated input ``ũ_{k+1} = p_k(t_{k+1})`` (paper 002 Eq. 4): for zero-order
 ``u_k``. This choice decides the discrete poles of the co-simulation (see docs/numerics.md).
 
 A linear, time-invariant model (``linear_dynamics()``: no external forces of time, no nonlinear
-effect) under an integrator that is a linear map per micro-step (``linear_step``:
-``z_{j+1} = Φ z_j + Σ_i Γ_i w(τ_j + θ_i h)``) is advanced by the composition of its ``m`` micro-steps
-over the input polynomial ``w(τ) = Σ_r c_r τ^r``::
-
-    z_m = Φ^m z_0 + Σ_r Ψ_r c_r,   Ψ_r = Σ_j Σ_i Φ^{m-1-j} Γ_i (τ_j + θ_i h)^r,
-
+effect) under an integrator that is a linear map per micro-step (``linear_step``) is advanced by the
+composition of its micro-steps over the input polynomial (``subsystems.integrators.composed_linear_step``):
 the same integrator and micro-step in one matrix product per communication step (it differs from
 stepping only by rounding). This is the one-step map the exact discrete analysis uses.
 """
@@ -23,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from subsystems.inputs import InputPolynomial
+from subsystems.integrators import composed_linear_step
 from subsystems.ports import Port
 
 
@@ -90,19 +87,11 @@ class Subsystem:
         return self.model.outputs_at(t1_ns * 1e-9, self.z, self.w)
 
     def _composed_step(self, micro_steps: int, rows: int, h: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(Φ^m, Ψ)`` with ``Ψ`` of shape ``(2n, rows * n_inputs)`` (module docstring), cached."""
+        """``(Φ^m, Ψ)`` with ``Ψ`` flattened to ``(2n, rows * n_inputs)``, cached."""
         key = (micro_steps, rows)
         if key not in self._steps:
-            A_a, B_a = self._linear
-            Phi, Gamma = self.integrator.linear_step(A_a, B_a, h)
-            nodes = np.asarray(self.integrator.input_nodes) * h
-            Phi_m = np.eye(Phi.shape[0])
-            Psi = np.zeros((Phi.shape[0], rows, B_a.shape[1]))
-            for j in range(micro_steps):  # Horner: Ψ ← Φ Ψ + Σ_i Γ_i (τ_j + θ_i h)^r
-                powers = (j * h + nodes)[:, None] ** np.arange(rows)[None, :]  # (nodes, rows)
-                Psi = np.einsum("ab,brk->ark", Phi, Psi) + np.einsum("iak,ir->ark", Gamma, powers)
-                Phi_m = Phi @ Phi_m
-            self._steps[key] = (Phi_m, Psi.reshape(Phi.shape[0], -1))
+            Phi_m, Psi = composed_linear_step(type(self.integrator), *self._linear, h, micro_steps, rows)
+            self._steps[key] = (Phi_m, Psi.reshape(Phi_m.shape[0], -1))
         return self._steps[key]
 
     def project(self, corrections: np.ndarray) -> np.ndarray:
