@@ -42,9 +42,9 @@ from compensation.implicit_coupling_laws import CouplingMethod, corrected_coupli
 from compensation.lagrange_polynomials import extrapolation_weights
 from manager.couplings import RigidJoint
 from manager.extrapolation import lagrange_coefficients
-from manager.jacobi import PROGRESS_EVERY, Exchange, RunRecord, SubsystemFailure, decode_output
+from manager.jacobi import PROGRESS_EVERY, Exchange, RunRecord, decode_output, expect_reply
 from manager.plan import Plan, SubsystemPlan
-from manager.protocol import Kind, ProtocolError, decode, encode
+from manager.protocol import Kind, encode
 from manager.scene import ImplicitSettings, Scene
 from manager.status import StatusReport
 
@@ -119,15 +119,6 @@ def sensitivity_steps(coupling: np.ndarray, relative_step: float) -> np.ndarray:
     return relative_step * np.maximum(np.abs(coupling), 1.0)
 
 
-def _expect_ack(data: bytes, sub: SubsystemPlan, kind: Kind, step: int) -> None:
-    message = decode(data, f"subsystem {sub.name}")
-    if message.kind == Kind.ERROR:
-        raise SubsystemFailure(sub.name, f"cannot {kind.name.lower()} at step {step}: {message.text()}")
-    if message.kind != Kind.ACK or message.step != step:
-        raise ProtocolError(f"subsystem {sub.name}: expected ACK for {kind.name} at step {step}, "
-                            f"got {message.kind.name} for step {message.step}")
-
-
 def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=None,
              progress: Callable[[int], None] | None = None, status: StatusReport | None = None
              ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
@@ -164,7 +155,7 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
         sends = {s.name: encode(kind, tick, tick * base) for s in targets}
         replies = yield Exchange(sends, tuple(sends), step_status)
         for s in targets:
-            _expect_ack(replies[s.name], s, kind, tick)
+            expect_reply(replies[s.name], s, Kind.ACK, tick, kind)
 
     def run(tick: int, targets: tuple[SubsystemPlan, ...], newest: int, offset_ns: int):
         """STEP ``targets`` from ``tick`` with their coupling variables through history row ``newest``."""

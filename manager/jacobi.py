@@ -100,13 +100,22 @@ def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
         version, kind, _, count, reply_step, _, _ = HEADER.unpack_from(data)
         if version == VERSION and kind == Kind.OUTPUT and reply_step == step and count == n:
             return np.frombuffer(data, dtype="<f8", count=n, offset=HEADER.size)
+    message = expect_reply(data, sub, Kind.OUTPUT, step)
+    raise ProtocolError(f"subsystem {sub.name}: expected {n} outputs, got {message.values.size}")
+
+
+def expect_reply(data: bytes, sub: SubsystemPlan, expected: Kind, step: int, command: Kind | None = None):
+    """The reply of ``sub`` for ``step``, which must be of kind ``expected`` (answering ``command``):
+    an ERROR is the subsystem's failure, anything else a protocol error; both name the subsystem."""
     message = decode(data, f"subsystem {sub.name}")
     if message.kind == Kind.ERROR:
-        raise SubsystemFailure(sub.name, f"failed at step {step}: {message.text()}")
-    if message.kind != Kind.OUTPUT or message.step != step:
-        raise ProtocolError(f"subsystem {sub.name}: expected OUTPUT for step {step}, "
+        doing = "failed" if command is None else f"cannot {command.name.lower()}"
+        raise SubsystemFailure(sub.name, f"{doing} at step {step}: {message.text()}")
+    if message.kind != expected or message.step != step:
+        awaited = expected.name if command is None else f"{expected.name} to {command.name}"
+        raise ProtocolError(f"subsystem {sub.name}: expected {awaited} for step {step}, "
                             f"got {message.kind.name} for step {message.step}")
-    raise ProtocolError(f"subsystem {sub.name}: expected {n} outputs, got {message.values.size}")
+    return message
 
 
 def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
