@@ -5,7 +5,6 @@ import json
 import subprocess
 import sys
 
-import pytest
 
 from manager.scene import bundled_scene_names
 from tests.conftest import REPO
