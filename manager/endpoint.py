@@ -19,7 +19,6 @@ class SubsystemEndpoint:
         self.comm_step_ns = ratio * base_step_ns
         self.n_inputs = len(subsystem.inputs)
         self.saved: tuple[int, SavedState] | None = None  # (step, state): SAVE replaces the previous one
-        self.stopped = False
 
     def handle(self, data: bytes) -> bytes:
         """One command in, one reply out (carrying the command's reference); a failing command is
@@ -63,8 +62,5 @@ class SubsystemEndpoint:
             if message.time_ns != sub.t_ns:
                 raise ProtocolError(f"subsystem {sub.name}: PROJECT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")
             return encode(Kind.OUTPUT, message.step, message.time_ns, sub.project(message.values), ref=ref)
-        if kind == Kind.STOP:
-            self.stopped = True
-            return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
         raise ProtocolError(f"subsystem {sub.name}: cannot handle a {kind.name} message")
 

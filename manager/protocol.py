@@ -25,7 +25,7 @@ class Kind(IntEnum):
     STEP = 2  # manager → subsystem: input polynomial over the next communication step; reply OUTPUT
     SAVE = 3  # manager → subsystem: keep the state at this step; reply ACK
     RESTORE = 4  # manager → subsystem: go back to the state saved at this step; reply ACK
-    STOP = 5  # manager → subsystem: end the process; reply ACK
+    STOP = 5  # manager → subsystem process, on <sub>/u: end the process (no reply)
     PROJECT = 6  # manager → subsystem: move joint points by the given corrections; reply OUTPUT (same step)
     OUTPUT = 16  # subsystem → manager: output values at a communication point
     ACK = 17  # subsystem → manager

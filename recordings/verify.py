@@ -4,9 +4,7 @@ The re-run is the in-process replica with a tap that compares each message, as i
 the next recorded message of the same channel: kind, step, time, rows, reference, and every float64
 value by its bits (NaN included). The status's measured fields (wall-clock times) are not compared. The first
 difference stops the re-run and is reported with its channel, step, value name and both values; a
-recording that ends early (a failed or interrupted run) is compared up to its last message. STOP
-commands and their ACKs, which the Zenoh bus sends after a failed run and which the scheme never
-produces, are passed over.
+recording that ends early (a failed or interrupted run) is compared up to its last message.
 """
 from __future__ import annotations
 
@@ -61,15 +59,6 @@ def _value_text(x: float) -> str:
     return f"{x!r} (0x{np.float64(x).view(np.uint64):016x})"
 
 
-LIFECYCLE = (Kind.STOP, Kind.ACK)  # messages of the bus, not of the scheme
-
-
-def _skip_lifecycle(messages: list, index: int) -> int:
-    while index < len(messages) and messages[index].kind in LIFECYCLE:
-        index += 1
-    return index
-
-
 class _Comparer:
     """The tap of the re-run: compares every message with the recording's next one on the same channel."""
 
@@ -91,8 +80,6 @@ class _Comparer:
         messages = self.recording.channels[topic].messages
         message = decode(wire, topic)
         index = self.cursor[topic]
-        if message.kind not in LIFECYCLE:  # a scheme's own ACKs (SAVE, RESTORE of the implicit scheme) count
-            index = _skip_lifecycle(messages, index)
         if index >= len(messages):
             self.exhausted = f"{topic} has no message after step {messages[-1].step if messages else 'none'}"
             raise _Stop
@@ -159,8 +146,7 @@ def verify(recording: Recording) -> Verification:
         pass
     note = comparer.exhausted or ""
     if comparer.divergence is None and not note:
-        extra = {t: n for t, c in recording.channels.items()
-                 if (n := sum(m.kind not in LIFECYCLE for m in c.messages[comparer.cursor[t]:]))}
+        extra = {t: n for t, c in recording.channels.items() if (n := len(c.messages) - comparer.cursor[t])}
         if extra:
             note = "the recording holds more messages than the re-run: " + ", ".join(f"{t} {n}" for t, n in extra.items())
     completed = recording.end is not None and recording.end["outcome"] == "completed"

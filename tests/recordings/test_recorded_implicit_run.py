@@ -1,6 +1,6 @@
 """A recorded rolled-back run (the implicit scheme of paper 003): its SAVE, RESTORE, STEP and PROJECT
 commands, their replies and the per-step status are recorded, and re-running the recording's scene
-gives every message bit for bit (the scheme's ACKs count; the bus's STOP and its ACK do not)."""
+gives every message bit for bit (the scheme's ACKs included)."""
 from __future__ import annotations
 
 import pytest
