@@ -54,6 +54,19 @@ def components(signal: str | tuple[str, ...]) -> tuple[str, ...]:
     return (signal,) if isinstance(signal, str) else signal
 
 
+def side_problems(settings, first: str, second: str) -> list[tuple[str, str]]:
+    """Problems of a coupling's two ``"<subsystem>.<point>"`` keys ``first`` and ``second``: each must
+    name a point, and the two points must be in different subsystems."""
+    found = []
+    for key in (first, second):
+        value = getattr(settings, key)
+        if value.count(".") != 1 or not all(value.split(".")):
+            found.append((key, f"expected '<subsystem>.<point>', got {value!r}"))
+    if not found and getattr(settings, first).split(".")[0] == getattr(settings, second).split(".")[0]:
+        found.append((second, f"expected a different subsystem than {first}"))
+    return found
+
+
 def starred(names: tuple[str, ...]) -> tuple[str, ...]:
     """Input port names of received signals: ``x2`` arrives as ``x2*``."""
     return tuple(f"{n}*" for n in names)
@@ -69,13 +82,7 @@ class ForceDisplacementSettings:
     velocity: str | tuple[str, ...]  # velocity signal [m/s] of the motion-side point
 
     def problems(self) -> list[tuple[str, str]]:
-        found = []
-        for key in ("force_side", "motion_side"):
-            value = getattr(self, key)
-            if value.count(".") != 1 or not all(value.split(".")):
-                found.append((key, f"expected '<subsystem>.<point>', got {value!r}"))
-        if not found and self.force_side.split(".")[0] == self.motion_side.split(".")[0]:
-            found.append(("motion_side", "expected a different subsystem than force_side"))
+        found = side_problems(self, "force_side", "motion_side")
         signals = {key: components(getattr(self, key)) for key in ("force", "displacement", "velocity")}
         sizes = {key: len(names) for key, names in signals.items()}
         if 0 in sizes.values() or len(set(sizes.values())) != 1:
@@ -209,13 +216,7 @@ class RigidJointSettings:
     axes: tuple[str, ...] = ("x",)  # components of the joint: ["x"] on a line, ["x", "y"] in the plane
 
     def problems(self) -> list[tuple[str, str]]:
-        found = []
-        for key in ("side_1", "side_2"):
-            value = getattr(self, key)
-            if value.count(".") != 1 or not all(value.split(".")):
-                found.append((key, f"expected '<subsystem>.<point>', got {value!r}"))
-        if not found and self.side_1.split(".")[0] == self.side_2.split(".")[0]:
-            found.append(("side_2", "expected a different subsystem than side_1"))
+        found = side_problems(self, "side_1", "side_2")
         if len(self.axes) not in (1, 2) or len(set(self.axes)) != len(self.axes):
             found.append(("axes", f"expected one or two distinct axis names, got {list(self.axes)}"))
         return found
