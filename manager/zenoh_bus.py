@@ -179,23 +179,21 @@ class ZenohBus:
     def _handshake(self) -> None:
         for name in self.names:
             wait_s = self.wait_external_s if name in self.external else STARTUP_TIMEOUT_S
-            deadline = time.monotonic() + wait_s
-            while not self._joined[name].wait(0.05):
-                failure = self._exited(name)
-                if failure:
-                    raise failure
-                if time.monotonic() > deadline:
-                    raise SubsystemFailure(name, f"did not join run {self.run_id} within {wait_s:g} s")
+            self._await(name, self._joined[name], wait_s, f"did not join run {self.run_id}")
             self._check_description(name)
         for name in self.names:
-            deadline = time.monotonic() + STARTUP_TIMEOUT_S
-            while not self._ready[name].wait(0.05):
-                failure = self._exited(name)
-                if failure:
-                    raise failure
-                if time.monotonic() > deadline:
-                    raise SubsystemFailure(name, f"is not connected to every other process of run {self.run_id} "
-                                                 f"within {STARTUP_TIMEOUT_S:g} s")
+            self._await(name, self._ready[name], STARTUP_TIMEOUT_S,
+                        f"is not connected to every other process of run {self.run_id}")
+
+    def _await(self, name: str, event: threading.Event, wait_s: float, failing: str) -> None:
+        """Wait for ``event`` of subsystem ``name``; its process exiting, or ``wait_s`` passing, fails."""
+        deadline = time.monotonic() + wait_s
+        while not event.wait(0.05):
+            failure = self._exited(name)
+            if failure:
+                raise failure
+            if time.monotonic() > deadline:
+                raise SubsystemFailure(name, f"{failing} within {wait_s:g} s")
 
     def _check_description(self, name: str) -> None:
         replies = [r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=self.timeout_s) if r.ok]
