@@ -103,7 +103,6 @@ class ZenohBus:
                                                                       history=True))
         self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "ready"), self._on_ready,
                                                                       history=True))
-        self._entities.append(session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
         self._publishers = {name: coupling_publisher(session, key(self.run_id, name, "u")) for name in self.names}
         self._go = session.declare_publisher(key(self.run_id, "manager", "go"))
 
@@ -163,6 +162,9 @@ class ZenohBus:
             log.close()
             spawned.append(reachable(listen, "127.0.0.1"))
             self._endpoints[name] = listen  # a subsystem started by hand elsewhere connects to it (manager.subsystem_host)
+        # a subsystem started by hand finds the run only now, with every spawned subsystem's endpoint in the
+        # answer: asked earlier, it would miss one, and the two would never link directly
+        self._entities.append(self._session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
 
     def log_tail(self, name: str, lines: int = 15) -> str:
         path = Path(self._logs.name) / f"{name}.log"
