@@ -28,6 +28,7 @@ from manager.protocol import Kind
 from manager.replica import Replica
 from manager.scene import Scene
 from manager.schemes import endpoints, make_scheme, plan_scene
+from manager.signals import SignalNote
 from manager.summary import step_timing
 from manager.zenoh_session import (ZenohOptions, concrete_endpoint, coupling_publisher, endpoint_host, key, peer_config,
                                    reachable, wait_for_listener)
@@ -72,6 +73,7 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
         time.sleep(0.2)
 
 
+SIGNAL_LOOK_S = 0.1  # the main thread looks this often for a signal (manager.signals)
 EXIT_LIMIT_S = 10.0  # once stopped, the process has this long to leave the run in order
 
 
@@ -108,6 +110,12 @@ class _Host:
     def stop(self, why: str) -> None:
         self.reasons.append(why)
         self.finished.set()
+
+    def ended(self, signals: SignalNote) -> bool:
+        """Whether the run has ended for this process; a signal noted since its last look ends it now."""
+        if signals.received is not None and not self.finished.is_set():
+            self.stop(signals.received)
+        return self.finished.is_set()
 
     def publish(self, _name: str, reply: bytes) -> None:
         """A reply of this subsystem: to the other subsystems now, to the manager in the next batch."""
@@ -196,8 +204,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         wait_for_listener(endpoint, wait_s)
     with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:
         host = _Host(scene, name, run_id, session)
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, lambda s, _f: host.stop(f"signal {signal.Signals(s).name}"))
+        signals = SignalNote(signal.SIGINT, signal.SIGTERM)
         entities = [
             *(session.declare_subscriber(key(run_id, peer, "y"), functools.partial(host.on_reply, peer))
               for peer in host.names if peer != name),
@@ -211,12 +218,13 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         ]
         others = set(host.names) - {name} | {"manager"}
         deadline = time.monotonic() + wait_s
-        while not others <= host.seen and not host.finished.is_set():
+        while not others <= host.seen and not host.ended(signals):
             if time.monotonic() > deadline:
                 host.stop(f"not connected to {', '.join(sorted(others - host.seen))} within {wait_s:g} s")
             time.sleep(0.01)
         entities.append(session.liveliness().declare_token(key(run_id, name, "ready")))
-        host.finished.wait()
+        while not host.ended(signals):
+            host.finished.wait(SIGNAL_LOOK_S)
         # leaving must not hang on a peer or a manager that is gone: past this limit the process exits as it is
         deadline_timer = threading.Timer(EXIT_LIMIT_S, _exit_now, (name, host.reasons[0]))
         deadline_timer.daemon = True

@@ -188,10 +188,11 @@ class ZenohBus:
                         f"is not connected to every other process of run {self.run_id}")
 
     def _await(self, name: str, event: threading.Event, wait_s: float, failing: str) -> None:
-        """Wait for ``event`` of subsystem ``name``; its process exiting, or ``wait_s`` passing, fails."""
+        """Wait for ``event`` of subsystem ``name``; ``wait_s`` passing fails, and so does any spawned process
+        exiting (named: a subsystem that waits to connect to it is not the cause)."""
         deadline = time.monotonic() + wait_s
         while not event.wait(0.05):
-            failure = self._exited(name)
+            failure = next(filter(None, map(self._exited, self.names)), None)
             if failure:
                 raise failure
             if time.monotonic() > deadline:

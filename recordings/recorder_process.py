@@ -23,10 +23,10 @@ import select
 import signal
 import struct
 import sys
-import threading
 import time
 from array import array
 
+from manager.signals import SignalNote
 from recordings import RecordingError
 from recordings.layout import ChannelSpec
 from recordings.writer import RecordingWriter
@@ -42,7 +42,7 @@ class FrameReader:
     """Frames from a file descriptor; ``next`` returns None at end of input, or on SIGTERM once nothing is
     pending; ``idle`` is called while no input arrives."""
 
-    def __init__(self, fd: int, stop: threading.Event, idle=lambda: None) -> None:
+    def __init__(self, fd: int, stop: SignalNote, idle=lambda: None) -> None:
         self.fd = fd
         self.stop = stop
         self.idle = idle
@@ -50,7 +50,7 @@ class FrameReader:
         self.at = 0
 
     def _fill(self) -> bool:
-        while not self.stop.is_set():
+        while self.stop.received is None:
             if not select.select([self.fd], [], [], IDLE_S)[0]:
                 self.idle()
                 continue
@@ -106,7 +106,7 @@ def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict
             end = json.loads(data)
             return end["outcome"], end["published"]
         stamp = record_batch(writer, data, stamp, status)
-    return ("stopped by SIGTERM: " if frames.stop.is_set() else "") + NO_END, None
+    return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 
 def _announce(event: dict) -> None:
@@ -115,9 +115,8 @@ def _announce(event: dict) -> None:
 
 
 def main() -> int:
-    stop = threading.Event()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    stop = SignalNote(signal.SIGTERM)
     frames = FrameReader(sys.stdin.fileno(), stop)
     first = frames.next()
     if first is None or first[0] != CONTROL:

@@ -52,25 +52,29 @@ def cmdline(pid: int) -> str:
 
 @pytest.fixture
 def processes():
-    """Start real processes; whatever happens in the test, none of them (or their children) survives it."""
+    """Start real processes; whatever happens in the test, none of them (or their children) survives it.
+
+    Each starts a process group of its own, which its children join; at the end the whole group is
+    killed, so that children orphaned by a killed manager are found too."""
     started: list[subprocess.Popen] = []
 
     def start(*args: str, prefix: tuple[str, ...] = (), **kwargs) -> subprocess.Popen:
         """``zencosim ARGS``; ``prefix`` runs it through another command that execs it (``ip netns exec NS``)."""
         proc = subprocess.Popen([*prefix, sys.executable, "-m", "manager.cli", *args], cwd=REPO,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                **kwargs)
         started.append(proc)
         return proc
 
     yield start
     for proc in started:
-        descendants = children_of(proc.pid) if alive(proc.pid) else []
         if proc.poll() is None:
             proc.kill()
         proc.communicate()
-        for pid in descendants:
-            if alive(pid):
-                os.kill(pid, signal.SIGKILL)
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass  # the group is empty
 
 
 def read_until(stream, text: str, timeout_s: float) -> list[str]:
