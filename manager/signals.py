@@ -13,13 +13,18 @@ import signal
 
 
 class SignalNote:
-    """Installs itself as the handler of ``signums``; ``received`` names the first that arrived, or is None."""
+    """Installs itself as the handler of ``signums``; ``signum`` is the first that arrived, or None."""
 
     def __init__(self, *signums: int) -> None:
-        self.received: str | None = None
+        self.signum: int | None = None
         for signum in signums:
             signal.signal(signum, self._note)
 
     def _note(self, signum: int, _frame) -> None:
-        if self.received is None:
-            self.received = f"signal {signal.Signals(signum).name}"
+        if self.signum is None:
+            self.signum = signum
+
+    @property
+    def received(self) -> str | None:
+        """``"signal SIGTERM"`` (say) once a signal arrived, else None."""
+        return None if self.signum is None else f"signal {signal.Signals(self.signum).name}"

@@ -28,6 +28,7 @@ import tomli_w
 
 from manager.plan import Plan
 from manager.scene import Scene
+from manager.signals import SignalNote
 from manager.status import StatusReport
 from manager.zenoh_bus import die_with_parent
 from recordings import RecordingError
@@ -50,21 +51,19 @@ def _interrupts_deferred():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    arrived: list[tuple[int, object]] = []
-    previous = {signum: signal.signal(signum, lambda *received: arrived.append(received))
-                for signum in (signal.SIGINT, signal.SIGTERM)}
+    previous = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
+    arrived = SignalNote(*previous)
     try:
         yield
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-        if arrived:
-            signum, frame = arrived[0]
-            handler = previous[signum]
+        if arrived.signum is not None:
+            handler = previous[arrived.signum]
             if callable(handler):
-                handler(signum, frame)
+                handler(arrived.signum, None)
             elif handler == signal.SIG_DFL:
-                signal.raise_signal(signum)
+                signal.raise_signal(arrived.signum)
 
 
 class Recorder:
