@@ -28,10 +28,11 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from manager.build import scene_compensator
-from manager.replica import Replica
-from manager.scene import load_scene
-from manager.schemes import endpoints, make_scheme, plan_scene
+from zencosim.manager.analysis.compensator import scene_compensator
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.replica import Replica
 
 SCENES = ("two_mass_undamped", "four_mass")
 

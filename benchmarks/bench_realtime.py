@@ -21,8 +21,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
-from manager.run import run_scene  # noqa: E402
-from manager.scene import load_scene  # noqa: E402
+from zencosim.manager.run import run_scene  # noqa: E402
+from zencosim.manager.scene.load import load_scene  # noqa: E402
 
 SCENE = "two_mass_damped"  # macro-step 1 ms: 1 kHz
 

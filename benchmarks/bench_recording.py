@@ -34,17 +34,18 @@ from mcap.writer import CompressionType, Writer  # noqa: E402
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
-from manager.protocol import HEADER, encode  # noqa: E402
-from manager.replica import Replica  # noqa: E402
-from manager.run import execute  # noqa: E402
-from manager.scene import load_scene  # noqa: E402
-from manager.schemes import endpoints, make_scheme, plan_scene  # noqa: E402
-from manager.status import StatusReport  # noqa: E402
-from recordings.layout import channel_specs  # noqa: E402
-from recordings.reader import read_recording  # noqa: E402
-from recordings.recorder import Recorder  # noqa: E402
-from recordings.schema import decode_stored, encode_wire  # noqa: E402
-from recordings.writer import CHUNK_BYTES, RecordingWriter  # noqa: E402
+from zencosim.manager.assembly import make_scheme, plan_scene  # noqa: E402
+from zencosim.manager.bus.inproc import endpoints  # noqa: E402
+from zencosim.manager.run import execute  # noqa: E402
+from zencosim.manager.scene.load import load_scene  # noqa: E402
+from zencosim.manager.scheme.replica import Replica  # noqa: E402
+from zencosim.manager.wire.protocol import HEADER, encode  # noqa: E402
+from zencosim.manager.wire.status import StatusReport  # noqa: E402
+from zencosim.recordings.layout import channel_specs  # noqa: E402
+from zencosim.recordings.reader import read_recording  # noqa: E402
+from zencosim.recordings.recorder import Recorder  # noqa: E402
+from zencosim.recordings.schema import decode_stored, encode_wire  # noqa: E402
+from zencosim.recordings.writer import CHUNK_BYTES, RecordingWriter  # noqa: E402
 
 SCENE = "two_mass_damped"
 

@@ -16,16 +16,16 @@ import statistics
 
 import numpy as np
 
-from compensation.implicit_convergence import global_error
-from compensation.implicit_coupling_laws import Baumgarte, Projection, WeightedMultiplier
-from compensation.implicit_recurrence import build_recurrence
-from compensation.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
-from manager.build import build_subsystems
-from manager.extrapolation import lagrange_coefficients
-from manager.reference import solve_ivp_reference
-from manager.run import execute
-from manager.scene import load_scene
-from subsystems.inputs import InputPolynomial
+from zencosim.compensation.implicit.convergence import global_error
+from zencosim.compensation.implicit.coupling_laws import Baumgarte, Projection, WeightedMultiplier
+from zencosim.compensation.implicit.recurrence import build_recurrence
+from zencosim.compensation.implicit.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.results.reference import solve_ivp_reference
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.extrapolation import lagrange_coefficients
+from zencosim.subsystems.inputs import InputPolynomial
 
 H = 1e-3  # [s]
 PAPER_METHODS = {"baumgarte": Baumgarte(2.0, 1.0), "weighted-multiplier": WeightedMultiplier(), "projection": Projection()}

@@ -17,9 +17,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from manager.run import execute, references  # noqa: E402
-from manager.scene import load_scene  # noqa: E402
-from manager.summary import summarize, total_energy  # noqa: E402
+from zencosim.manager.results.summary import summarize, total_energy  # noqa: E402
+from zencosim.manager.run import execute, references  # noqa: E402
+from zencosim.manager.scene.load import load_scene  # noqa: E402
 
 ON = "manager.correction.enabled=true"
 MULTI_RATE = ("manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001")

@@ -17,7 +17,7 @@ import time
 
 import zenoh
 
-from manager.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, peer_config
+from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, peer_config
 
 PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
 

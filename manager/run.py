@@ -10,17 +10,17 @@ from __future__ import annotations
 import time
 from typing import Callable, Protocol
 
-from manager.build import monolithic_unavailable
-from manager.jacobi import RunRecord
-from manager.plan import Plan
-from manager.reference import analytic_reference, monolithic_reference, solve_ivp_reference
-from manager.replica import Replica
-from manager.scene import Scene
-from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.status import StatusReport
-from manager.summary import summarize
-from manager.zenoh_bus import ZenohBus
-from manager.zenoh_session import ZenohOptions, new_run_id
+from zencosim.manager.analysis.monolithic import monolithic_unavailable
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.zenoh_bus import ZenohBus
+from zencosim.manager.bus.zenoh_session import ZenohOptions, new_run_id
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.results.reference import analytic_reference, monolithic_reference, solve_ivp_reference
+from zencosim.manager.results.summary import summarize
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.wire.status import StatusReport
 
 BUSES = ("inproc", "zenoh")
 
@@ -71,10 +71,9 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             started = True
         tap = None if recorder is None else recorder.tap
         if bus == "inproc":
-            replica = Replica(make_scheme(scene, plan, realtime, None, progress, status), [s.name for s in plan.subsystems],
-                              endpoints(plan, subsystems), tap=tap)
+            scheme = make_scheme(scene, plan, realtime, None, progress, status)
             start = time.perf_counter()
-            record = replica.run()
+            record = run_in_process(scheme, plan, subsystems, tap)
             wall_s = time.perf_counter() - start
         else:
             with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id) as zbus:

@@ -23,9 +23,9 @@ from importlib.metadata import version
 
 import numpy as np
 
-from manager.plan import Plan
-from manager.scene import Scene
-from manager.status import StatusReport
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.wire.status import StatusReport
 
 FORMAT = "zencosim-recording/1"
 RUN_METADATA = "zencosim"

@@ -16,10 +16,10 @@ from mcap.exceptions import McapError
 from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
-from manager.protocol import Kind
-from recordings import RecordingError
-from recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, STATUS_TOPIC, ChannelSpec
-from recordings.schema import SCHEMA_NAME, StoredMessage, decode_stored
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings import RecordingError
+from zencosim.recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, STATUS_TOPIC, ChannelSpec
+from zencosim.recordings.schema import SCHEMA_NAME, StoredMessage, decode_stored
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 

@@ -16,7 +16,6 @@ import json
 import select
 import signal
 import subprocess
-import sys
 import tempfile
 import threading
 from array import array
@@ -26,14 +25,14 @@ from time import time_ns
 
 import tomli_w
 
-from manager.plan import Plan
-from manager.scene import Scene
-from manager.signals import SignalNote
-from manager.status import StatusReport
-from manager.zenoh_bus import die_with_parent
-from recordings import RecordingError
-from recordings.layout import STATUS_TOPIC, ChannelSpec, channel_specs, run_metadata
-from recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
+from zencosim.manager.bus.children import start_child
+from zencosim.manager.bus.signals import SignalNote
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings import RecordingError
+from zencosim.recordings.layout import STATUS_TOPIC, ChannelSpec, channel_specs, run_metadata
+from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
 
 READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
 FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
@@ -90,9 +89,8 @@ class Recorder:
         start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime),
                  "scene_toml": tomli_w.dumps(scene.resolved),
                  "channels": [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]}
-        self._process = subprocess.Popen(
-            [sys.executable, "-m", "recordings.recorder_process"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-            stderr=self._log, preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
+        self._process = start_child("zencosim.recordings.recorder_process", [], stdin=subprocess.PIPE,
+                                    stdout=subprocess.PIPE, stderr=self._log)
         try:
             fcntl.fcntl(self._process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
         except OSError:

@@ -26,10 +26,10 @@ import sys
 import time
 from array import array
 
-from manager.signals import SignalNote
-from recordings import RecordingError
-from recordings.layout import ChannelSpec
-from recordings.writer import RecordingWriter
+from zencosim.manager.bus.signals import SignalNote
+from zencosim.recordings import RecordingError
+from zencosim.recordings.layout import ChannelSpec
+from zencosim.recordings.writer import RecordingWriter
 
 FRAME = struct.Struct("<HIq")
 CONTROL, BATCH = 0xFFFF, 0xFFFE

@@ -16,9 +16,9 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from manager.protocol import Kind
-from recordings.layout import STATUS_TOPIC
-from recordings.reader import ChannelRecord, Recording
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.layout import STATUS_TOPIC
+from zencosim.recordings.reader import ChannelRecord, Recording
 
 APPLICATION = "zencosim"
 TIMING = "timing"

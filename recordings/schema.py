@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from manager.protocol import HEADER, Kind, decode_header
+from zencosim.manager.wire.protocol import HEADER, Kind, decode_header
 
 SCHEMA_NAME = "zencosim.Message"
 SCHEMA_ENCODING = "protobuf"

@@ -12,14 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from manager.protocol import Kind, decode
-from manager.replica import Replica
-from manager.scene import SceneError, scene_from_text
-from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.status import StatusReport
-from recordings import RecordingError
-from recordings.layout import SCENE_ATTACHMENT, STATUS_TOPIC, channel_specs
-from recordings.reader import Recording
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.scene.load import SceneError, scene_from_text
+from zencosim.manager.wire.protocol import Kind, decode
+from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings import RecordingError
+from zencosim.recordings.layout import SCENE_ATTACHMENT, STATUS_TOPIC, channel_specs
+from zencosim.recordings.reader import Recording
 
 
 @dataclass(frozen=True)
@@ -138,10 +138,8 @@ def verify(recording: Recording) -> Verification:
             raise RecordingError(f"{recording.path}: channel {topic} holds {', '.join(recorded.names)}; "
                                  f"this zencosim has {', '.join(spec.names)}")
     comparer = _Comparer(recording, tuple(f.name for f in status.fields))
-    replica = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                      endpoints(plan, subsystems), tap=comparer.tap)
     try:
-        replica.run()
+        run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, comparer.tap)
     except _Stop:
         pass
     note = comparer.exhausted or ""

@@ -13,11 +13,11 @@ import json
 import time
 from pathlib import Path
 
-from manager.protocol import ProtocolError
-from recordings import RecordingError
-from recordings.layout import END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
-from recordings.mcap_file import McapFile
-from recordings.schema import FILE_DESCRIPTOR_SET, MESSAGE_ENCODING, SCHEMA_ENCODING, SCHEMA_NAME, encode_wire
+from zencosim.manager.wire.protocol import ProtocolError
+from zencosim.recordings import RecordingError
+from zencosim.recordings.layout import END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
+from zencosim.recordings.mcap_file import McapFile
+from zencosim.recordings.schema import FILE_DESCRIPTOR_SET, MESSAGE_ENCODING, SCHEMA_ENCODING, SCHEMA_NAME, encode_wire
 
 CHUNK_BYTES = 256 * 1024  # uncompressed bytes of messages per chunk
 FLUSH_INTERVAL_S = 0.5  # a chunk older than this is written out at the next message

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from subsystems.inputs import InputPolynomial
-from subsystems.integrators import composed_linear_step
-from subsystems.ports import Port
+from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.integrators.base import composed_linear_step
+from zencosim.subsystems.ports import Port
 
 
 @dataclass(frozen=True)

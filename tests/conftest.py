@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from manager.run import execute, run_scene
-from manager.scene import load_scene
+from zencosim.manager.run import execute, run_scene
+from zencosim.manager.scene.load import load_scene
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -60,7 +60,7 @@ def processes():
 
     def start(*args: str, prefix: tuple[str, ...] = (), **kwargs) -> subprocess.Popen:
         """``zencosim ARGS``; ``prefix`` runs it through another command that execs it (``ip netns exec NS``)."""
-        proc = subprocess.Popen([*prefix, sys.executable, "-m", "manager.cli", *args], cwd=REPO,
+        proc = subprocess.Popen([*prefix, sys.executable, "-m", "zencosim", *args], cwd=REPO,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
                                 **kwargs)
         started.append(proc)

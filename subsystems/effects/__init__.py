@@ -18,12 +18,12 @@ On a line ``η = x_a − x_b`` (signed; ``free_length`` is 0); in the plane ``η
 """
 from dataclasses import dataclass
 
-from subsystems.effects.chirp_force import ChirpForce
-from subsystems.effects.damper import Damper
-from subsystems.effects.quadratic_damper import QuadraticDamper
-from subsystems.effects.spring import Spring
-from subsystems.effects.sqrt_spring import SqrtSpring
-from subsystems.params import Problems, read_table
+from zencosim.subsystems.effects.chirp_force import ChirpForce
+from zencosim.subsystems.effects.damper import Damper
+from zencosim.subsystems.effects.quadratic_damper import QuadraticDamper
+from zencosim.subsystems.effects.spring import Spring
+from zencosim.subsystems.effects.sqrt_spring import SqrtSpring
+from zencosim.subsystems.params import Problems, read_table
 
 EFFECTS: dict[str, type] = {
     "spring": Spring,

@@ -5,7 +5,7 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from subsystems.params import quantity
+from zencosim.subsystems.params import quantity
 
 
 @dataclass(frozen=True)

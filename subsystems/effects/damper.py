@@ -6,8 +6,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from subsystems.effects.spring import stamp_pair
-from subsystems.params import quantity
+from zencosim.subsystems.effects.spring import stamp_pair
+from zencosim.subsystems.params import quantity
 
 
 @dataclass(frozen=True)

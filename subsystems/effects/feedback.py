@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from subsystems.params import quantity
+from zencosim.subsystems.params import quantity
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from subsystems.params import quantity
+from zencosim.subsystems.params import quantity
 
 
 @dataclass(frozen=True)

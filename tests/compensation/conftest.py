@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.linear_model import ForceDisplacementBond, LinearModel
+from zencosim.compensation.linear_model import ForceDisplacementBond, LinearModel
 
 
 def _chain(ground_left: float, links: list[float], ground_right: float) -> np.ndarray:

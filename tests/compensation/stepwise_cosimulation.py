@@ -16,9 +16,9 @@ import numpy as np
 from numpy.polynomial import polynomial
 from scipy.linalg import expm
 
-from compensation.coupling_decompositions import Decomposition
-from compensation.implicit_coupling_laws import Baumgarte, corrected_coupling, project_onto_constraint
-from compensation.two_mass_test_model import DimensionlessTwoMass
+from zencosim.compensation.implicit.coupling_laws import Baumgarte, corrected_coupling, project_onto_constraint
+from zencosim.compensation.implicit.decompositions import Decomposition
+from zencosim.compensation.implicit.two_mass_test_model import DimensionlessTwoMass
 
 
 class Mass:

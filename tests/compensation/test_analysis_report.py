@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from compensation.analysis import analyze
-from compensation.architecture import full_feedback, rank_one
-from compensation.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.analysis import analyze
+from zencosim.compensation.eigenstructure.architecture import full_feedback, rank_one
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
 
 
 def test_assignable_architecture_report(two_mass):

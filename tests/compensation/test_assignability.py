@@ -6,16 +6,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from compensation.architecture import Architecture, ArchitectureError, full_feedback, rank_one
-from compensation.assignment import (
+from zencosim.compensation.eigenstructure.architecture import Architecture, ArchitectureError, full_feedback, rank_one
+from zencosim.compensation.eigenstructure.assignment import (
     RANK_RTOL,
     NotAssignableError,
     assess_assignability,
     assignment_system,
     design_compensator,
 )
-from compensation.eigenstructure import monolithic_eigenstructure
-from compensation.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.modes import monolithic_eigenstructure
 
 # The three systems of §4.3: undamped at 1 ms, damped at 1 and 4 ms.
 SYSTEMS = [(0.0, 1e-3), (0.1, 1e-3), (0.1, 4e-3)]

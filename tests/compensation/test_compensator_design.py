@@ -4,11 +4,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.architecture import full_feedback
-from compensation.assignment import MIN_MASS_RATIO, assignment_system, design_compensator, mass_ratio
-from compensation.eigenstructure import cosimulated_eigenstructure, monolithic_eigenstructure
-from compensation.interface import InterfaceModel
-from compensation.perturbation import cosimulated_stiffness
+from zencosim.compensation.eigenstructure.architecture import full_feedback
+from zencosim.compensation.eigenstructure.assignment import (
+    MIN_MASS_RATIO,
+    assignment_system,
+    design_compensator,
+    mass_ratio,
+)
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.modes import cosimulated_eigenstructure, monolithic_eigenstructure
+from zencosim.compensation.eigenstructure.perturbation import cosimulated_stiffness
 
 PADE_ORDER = 6
 

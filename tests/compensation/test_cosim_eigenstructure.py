@@ -8,9 +8,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.eigenstructure import cosimulated_eigenstructure, monolithic_eigenstructure
-from compensation.interface import InterfaceModel
-from compensation.perturbation import cosimulated_stiffness, interface_perturbation, monolithic_stiffness
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.modes import cosimulated_eigenstructure, monolithic_eigenstructure
+from zencosim.compensation.eigenstructure.perturbation import (
+    cosimulated_stiffness,
+    interface_perturbation,
+    monolithic_stiffness,
+)
 
 PADE_ORDER = 6  # §2.3.2: "6-th order Padé approximation"
 

@@ -17,10 +17,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.implicit_convergence import convergence_study
-from compensation.implicit_coupling_laws import Baumgarte, Projection, WeightedMultiplier
-from compensation.implicit_recurrence import spectral_radius
-from compensation.two_mass_test_model import TwoMassOscillator
+from zencosim.compensation.implicit.convergence import convergence_study
+from zencosim.compensation.implicit.coupling_laws import Baumgarte, Projection, WeightedMultiplier
+from zencosim.compensation.implicit.recurrence import spectral_radius
+from zencosim.compensation.implicit.two_mass_test_model import TwoMassOscillator
 
 MODEL = TwoMassOscillator(m1=1.0, m2=2.0, c1=1000.0, c2=1000.0, d1=10.0, d2=10.0)
 POSITION_0, VELOCITY_0 = 0.1, 0.0  # [m], [m/s]

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from compensation.coupling_decompositions import DECOMPOSITIONS
-from compensation.implicit_coupling_laws import METHODS, Baumgarte, check_supported
-from compensation.implicit_recurrence import build_recurrence
-from compensation.lagrange_polynomials import extrapolation_weights
-from compensation.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
+from zencosim.compensation.implicit.coupling_laws import METHODS, Baumgarte, check_supported
+from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
+from zencosim.compensation.implicit.recurrence import build_recurrence
+from zencosim.compensation.implicit.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
+from zencosim.compensation.lagrange_polynomials import extrapolation_weights
 
 from .stepwise_cosimulation import StepwiseCosimulation
 

@@ -4,7 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.interface import InterfaceModel, InterfaceSpecError, lagrange_extrapolation_basis
+from zencosim.compensation.eigenstructure.interface import (
+    InterfaceModel,
+    InterfaceSpecError,
+    lagrange_extrapolation_basis,
+)
 
 T_S = 1e-3
 # Points of the s-plane [1/s] covering both branches of the exact evaluation (|sT| < 1 and >= 1)

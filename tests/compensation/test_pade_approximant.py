@@ -7,8 +7,8 @@ from math import log2
 
 import pytest
 
-from compensation.interface import InterfaceModel
-from compensation.pade import MAX_PADE_ORDER, PadeOrderError, pade_coefficients
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.pade import MAX_PADE_ORDER, PadeOrderError, pade_coefficients
 
 
 def test_first_order_coefficients_are_the_bilinear_approximant():

@@ -6,14 +6,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from compensation.interface import InterfaceModel
-from compensation.linear_model import ForceDisplacementBond
-from compensation.perturbation import (
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.perturbation import (
     BondSpecError,
     cosimulated_stiffness,
     interface_perturbation,
     monolithic_stiffness,
 )
+from zencosim.compensation.linear_model import ForceDisplacementBond
 
 S = [0.3 + 12.0j, -40.0 + 7.0j, 250.0j]  # arbitrary test points [1/s]
 

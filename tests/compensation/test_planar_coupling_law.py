@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.coupling_decompositions import DECOMPOSITIONS
-from compensation.implicit_coupling_laws import Baumgarte, Projection, WeightedMultiplier, corrected_coupling
+from zencosim.compensation.implicit.coupling_laws import Baumgarte, Projection, WeightedMultiplier, corrected_coupling
+from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
 
 METHODS = [Baumgarte(0.3, 0.02), WeightedMultiplier(1.0, 1.0), Projection()]
 CASES = [(method, name) for name in DECOMPOSITIONS for method in METHODS

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.architecture import full_feedback, rank_one
-from compensation.interface import InterfaceModel
-from compensation.perturbation import cosimulated_stiffness
-from compensation.realization import SingularMassError, realize
+from zencosim.compensation.eigenstructure.architecture import full_feedback, rank_one
+from zencosim.compensation.eigenstructure.interface import InterfaceModel
+from zencosim.compensation.eigenstructure.perturbation import cosimulated_stiffness
+from zencosim.compensation.eigenstructure.realization import SingularMassError, realize
 
 
 def _systems(two_mass, four_mass):

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from compensation.stability_map import STABILITY_TOLERANCE, stability_map, write_stability_map
+from zencosim.compensation.implicit.stability_map import STABILITY_TOLERANCE, stability_map, write_stability_map
 
 # the four fixed parameter sets (alpha_m21, alpha_lambda_r21, alpha_lambda_i21) that §3.1.1 lists for
 # Fig. 9; reading: Figs. 10–15 (figures not in the extracted text) use the same four sets

@@ -6,7 +6,7 @@ from dataclasses import astuple
 import numpy as np
 import pytest
 
-from compensation.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
+from zencosim.compensation.implicit.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
 
 
 def _eigenvalue(mass, stiffness, damping):

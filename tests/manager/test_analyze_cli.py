@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from manager.cli import main
 from tests.manager.test_cli import zencosim
 from tests.manager.test_compensation import FOUR_MS
+from zencosim.cli.main import main
 
 
 def test_analyze_writes_the_documented_json_and_a_pole_map(tmp_path):

@@ -13,8 +13,8 @@ import time
 import numpy as np
 import pytest
 
-from manager.zenoh_session import free_tcp_port
 from tests.conftest import alive, children_of, cmdline, read_until, record_of, summary_of
+from zencosim.manager.bus.zenoh_session import free_tcp_port
 
 pytestmark = pytest.mark.multiprocess
 

@@ -5,13 +5,12 @@ import json
 import subprocess
 import sys
 
-
-from manager.scene import bundled_scene_names
 from tests.conftest import REPO
+from zencosim.manager.scene.load import bundled_scene_names
 
 
 def zencosim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "manager.cli", *args], capture_output=True, text=True, cwd=REPO,
+    return subprocess.run([sys.executable, "-m", "zencosim", *args], capture_output=True, text=True, cwd=REPO,
                           timeout=120)
 
 
@@ -62,8 +61,8 @@ def test_bad_arguments_exit_2():
 
 def test_docker_compose_commands_are_valid_zencosim_command_lines():
     # no Docker engine runs here; what can be checked is that every container's command parses and names a real scene
-    from manager.cli import build_parser
-    from manager.scene import load_scene
+    from zencosim.cli.main import build_parser
+    from zencosim.manager.scene.load import load_scene
     commands = [json.loads(line.split("command:", 1)[1]) for line in (REPO / "docker" / "compose.yaml").read_text().splitlines()
                 if line.strip().startswith("command:")]
     assert len(commands) == 3

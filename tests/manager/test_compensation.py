@@ -7,14 +7,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from compensation.eigenstructure import monolithic_eigenstructure
-from compensation.perturbation import monolithic_stiffness
-from manager import compensator
-from manager.build import build_subsystem, compensated_linear_model, coupling_attachments, scene_compensator
-from manager.discrete import MARGINAL, LinearSceneError, discrete_scheme, scene_scheme
-from manager.schemes import plan_scene
-from manager.scene import SceneError, load_scene
 from tests.conftest import record_of, summary_of
+from zencosim.compensation.eigenstructure.modes import monolithic_eigenstructure
+from zencosim.compensation.eigenstructure.perturbation import monolithic_stiffness
+from zencosim.manager.analysis import compensator
+from zencosim.manager.analysis.compensator import scene_compensator
+from zencosim.manager.analysis.discrete import MARGINAL, LinearSceneError, discrete_scheme, scene_scheme
+from zencosim.manager.analysis.monolithic import compensated_linear_model
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
+from zencosim.manager.scene.load import SceneError, load_scene
 
 FOUR_MS = ["manager.macro_step=0.004", "subsystems.S1.micro_step=0.004", "subsystems.S2.micro_step=0.004"]
 COMPENSATED = ["manager.compensation=eigenstructure"]

@@ -16,8 +16,8 @@ import subprocess
 
 import pytest
 
-from manager.zenoh_session import free_tcp_port, reachable
 from tests.conftest import summary_of
+from zencosim.manager.bus.zenoh_session import free_tcp_port, reachable
 
 pytestmark = pytest.mark.multiprocess
 

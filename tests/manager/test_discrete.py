@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.build import linear_model, linear_unavailable
-from manager.discrete import ZERO_EIGENVALUE, DiscreteScheme, discrete_scheme
-from manager.replica import Replica
-from manager.run import execute
-from manager.scene import bundled_scene_names, load_scene
-from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.summary import energy_growth_rate, total_energy
+from zencosim.manager.analysis.discrete import ZERO_EIGENVALUE, DiscreteScheme, discrete_scheme
+from zencosim.manager.analysis.monolithic import linear_model, linear_unavailable
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.results.summary import energy_growth_rate, total_energy
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import bundled_scene_names, load_scene
+from zencosim.manager.scheme.replica import Replica
 
 FOUR_MS = ["manager.macro_step=0.004", "subsystems.S1.micro_step=0.004", "subsystems.S2.micro_step=0.004"]
 MULTI_RATE = ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001"]

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.reference import solve_ivp_reference
-from manager.run import execute, run_scene
-from manager.scene import SceneError, load_scene
+from zencosim.manager.results.reference import solve_ivp_reference
+from zencosim.manager.run import execute, run_scene
+from zencosim.manager.scene.load import SceneError, load_scene
 
 DURATION = ["manager.duration=0.5"]
 JOINT = ("joint.x2_x", "joint.x2_y")

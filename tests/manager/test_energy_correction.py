@@ -8,13 +8,13 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from compensation.energy_correction import EnergyCorrection, correction_coefficient
-from manager.correction import EnergyCorrector
-from manager.reference import analytic_reference
-from manager.schemes import plan_scene
-from manager.scene import load_scene
-from manager.summary import total_energy
 from tests.conftest import record_of, summary_of
+from zencosim.compensation.energy_correction import EnergyCorrection, correction_coefficient
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.results.reference import analytic_reference
+from zencosim.manager.results.summary import total_energy
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.correction import EnergyCorrector
 
 CORRECTED = ["manager.correction.enabled=true", "manager.correction.mu=0.5", "manager.correction.nu=0", "manager.correction.cap_fraction=1.0"]
 CASE_7 = ["subsystems.M1.bodies.m1.mass=10"]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.summary import total_energy
 from tests.conftest import record_of, summary_of
+from zencosim.manager.results.summary import total_energy
 
 FOUR_MS = ["manager.macro_step=0.004", "subsystems.S1.micro_step=0.004", "subsystems.S2.micro_step=0.004"]
 

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from manager.extrapolation import evaluate, extrapolation_matrix, lagrange_matrix
+from zencosim.manager.scheme.extrapolation import evaluate, extrapolation_matrix, lagrange_matrix
 
 coefficient = st.floats(-1e3, 1e3, allow_nan=False)
 

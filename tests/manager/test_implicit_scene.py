@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from manager.scene import SceneError, load_scene
+from zencosim.manager.scene.load import SceneError, load_scene
 
 
 def _problems(name: str, overrides: list[str]) -> dict[str, str]:

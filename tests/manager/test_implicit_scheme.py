@@ -12,16 +12,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compensation.coupling_decompositions import DECOMPOSITIONS
-from compensation.implicit_convergence import global_error
-from compensation.implicit_coupling_laws import METHODS, Baumgarte, Projection, WeightedMultiplier, check_supported
-from compensation.implicit_recurrence import build_recurrence
-from compensation.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
-from manager.jacobi import SubsystemFailure
-from manager.protocol import Kind, decode, encode, encode_error
-from manager.replica import Replica
-from manager.scene import load_scene
-from manager.schemes import endpoints, make_scheme, plan_scene
+from zencosim.compensation.implicit.convergence import global_error
+from zencosim.compensation.implicit.coupling_laws import (
+    METHODS,
+    Baumgarte,
+    Projection,
+    WeightedMultiplier,
+    check_supported,
+)
+from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
+from zencosim.compensation.implicit.recurrence import build_recurrence
+from zencosim.compensation.implicit.two_mass_test_model import DimensionlessTwoMass, TwoMassOscillator
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.base import SubsystemFailure
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.protocol import Kind, decode, encode, encode_error
 
 H = 1e-3  # [s], the scene's macro-step
 MASS_1 = 1.0  # [kg]

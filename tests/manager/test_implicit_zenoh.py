@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.summary import digest
 from tests.conftest import record_of
+from zencosim.manager.results.summary import digest
 
 pytestmark = pytest.mark.multiprocess
 

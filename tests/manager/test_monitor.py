@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from manager.monitor import flag_spikes, spike_intervals
+from zencosim.manager.results.monitor import flag_spikes, spike_intervals
 
 T = np.arange(1, 10_001) * 1e-3  # 10 s of 1 ms points
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.monitor import residual_power_spikes
-from manager.reference import solve_ivp_reference
-from manager.scene import load_scene
-from manager.summary import nrms, total_energy
 from tests.conftest import record_of
+from zencosim.manager.results.monitor import residual_power_spikes
+from zencosim.manager.results.reference import solve_ivp_reference
+from zencosim.manager.results.summary import nrms, total_energy
+from zencosim.manager.scene.load import load_scene
 
 ON = "manager.correction.enabled=true"
 

@@ -6,13 +6,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manager.build import build_subsystems
-from manager.jacobi import SubsystemFailure, jacobi
-from manager.replica import Replica
-from manager.schemes import endpoints
-from manager.plan import compile_plan
-from manager.protocol import HEADER, Kind, ProtocolError, decode, encode
-from manager.scene import load_scene
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.plan.run_plan import compile_plan
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.base import SubsystemFailure
+from zencosim.manager.scheme.jacobi import jacobi
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.protocol import HEADER, Kind, ProtocolError, decode, encode
 
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=64), st.integers(0, 2 ** 40),

@@ -11,12 +11,12 @@ import math
 import numpy as np
 import pytest
 
-from manager import compensator
-from manager.build import scene_compensator
-from manager.discrete import discrete_scheme
-from manager.schemes import plan_scene
-from manager.scene import load_scene
 from tests.manager.test_discrete import assert_prediction_agrees, late_growth
+from zencosim.manager.analysis import compensator
+from zencosim.manager.analysis.compensator import scene_compensator
+from zencosim.manager.analysis.discrete import discrete_scheme
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.scene.load import load_scene
 
 SEED = 0
 N_SYSTEMS = 100

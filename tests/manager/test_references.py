@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from compensation.analytic import linear_response
-from manager.build import build_monolithic, linear_model
-from manager.reference import analytic_reference, monolithic_reference
-from manager.scene import load_scene
-from manager.summary import nrms
+from zencosim.compensation.analytic import linear_response
+from zencosim.manager.analysis.monolithic import build_monolithic, linear_model
+from zencosim.manager.results.reference import analytic_reference, monolithic_reference
+from zencosim.manager.results.summary import nrms
+from zencosim.manager.scene.load import load_scene
 
 
 def test_free_response_matches_the_closed_form_of_a_damped_oscillator():

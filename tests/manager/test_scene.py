@@ -7,10 +7,10 @@ import sys
 
 import pytest
 
-from manager.build import build_subsystems
-from manager.plan import compile_plan
-from manager.scene import SceneError, bundled_scene_names, load_scene
 from tests.conftest import REPO
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.plan.run_plan import compile_plan
+from zencosim.manager.scene.load import SceneError, bundled_scene_names, load_scene
 
 BUNDLED = bundled_scene_names()
 
@@ -116,7 +116,7 @@ effects.k = { type = "spring", stiffness = 1.0 }
 
 
 def test_cli_exits_2_naming_file_key_and_reason():
-    result = subprocess.run([sys.executable, "-m", "manager.cli", "check", "two_mass_damped",
+    result = subprocess.run([sys.executable, "-m", "zencosim", "check", "two_mass_damped",
                              "--set", "subsystems.S2.bodies.m2.mass=0"], capture_output=True, text=True, cwd=REPO)
     assert result.returncode == 2
     assert "two_mass_damped.toml: subsystems.S2.bodies.m2.mass: expected a number > 0.0 [kg], got 0" in result.stderr

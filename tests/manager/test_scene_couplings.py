@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from manager.schemes import plan_scene
-from manager.scene import SceneError, load_scene
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.scene.load import SceneError, load_scene
 
 
 def _problems(name: str, overrides: list[str]) -> dict[str, str]:

@@ -19,13 +19,13 @@ import time
 
 import pytest
 
-from manager.zenoh_session import new_run_id
-from manager.scene import load_scene
-from manager.schemes import plan_scene
-from manager.status import StatusReport
-from recordings.reader import read_recording
-from recordings.recorder import Recorder
 from tests.conftest import alive, children_of, cmdline, wait_for
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.bus.zenoh_session import new_run_id
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings.reader import read_recording
+from zencosim.recordings.recorder import Recorder
 
 pytestmark = [pytest.mark.skipif(not os.name == "posix", reason="POSIX signals"), pytest.mark.multiprocess]
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.reference import analytic_reference, solve_ivp_reference
-from manager.scene import load_scene
+from zencosim.manager.results.reference import analytic_reference, solve_ivp_reference
+from zencosim.manager.scene.load import load_scene
 
 
 @pytest.mark.parametrize("scene_name", ["two_mass_damped", "multiple_oscillator_n3"])

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import pytest
 
-from manager.protocol import Kind
-from manager.run import execute
-from manager.scene import load_scene
-from recordings.reader import read_recording
-from recordings.recorder import Recorder
-from recordings.verify import verify
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.reader import read_recording
+from zencosim.recordings.recorder import Recorder
+from zencosim.recordings.verify import verify
 
 pytestmark = pytest.mark.multiprocess
 

@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from manager.protocol import Kind
-from recordings.reader import read_recording
-from recordings.recorder_process import NO_END
-from recordings.rerun_replay import signal_series
-from recordings.verify import verify
 from tests.conftest import alive, children_of, cmdline, wait_for
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.reader import read_recording
+from zencosim.recordings.recorder_process import NO_END
+from zencosim.recordings.rerun_replay import signal_series
+from zencosim.recordings.verify import verify
 
 pytestmark = pytest.mark.multiprocess
 
@@ -51,7 +51,7 @@ def test_a_zenoh_run_at_1_ms_over_10_s_is_recorded_without_loss_and_replays(proc
     mcap, summary, rrd = tmp_path / "run.mcap", tmp_path / "summary.json", tmp_path / "run.rrd"
     manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--record", str(mcap),
                         "--summary", str(summary))
-    recorder = wait_for(lambda: _child(manager.pid, "recordings.recorder_process"), 30, "the recorder process")
+    recorder = wait_for(lambda: _child(manager.pid, "zencosim.recordings.recorder_process"), 30, "the recorder process")
     wait_for(lambda: mcap.exists() and mcap.stat().st_size > 100_000, 60, "the recording to grow")
     slowed = time.monotonic()
     # a recorder at a tenth of its speed for up to 4 s: its pipe must hold up the manager's replica, not
@@ -84,7 +84,7 @@ def test_a_zenoh_run_at_1_ms_over_10_s_is_recorded_without_loss_and_replays(proc
     names = recording.channels["manager/status"].spec.names
     record_property("longest_step_s", float(np.max(status[:, names.index("step_wall_time")])))
 
-    replay = subprocess.run([sys.executable, "-m", "manager.cli", "replay", str(mcap), "--verify", "--rrd", str(rrd)],
+    replay = subprocess.run([sys.executable, "-m", "zencosim", "replay", str(mcap), "--verify", "--rrd", str(rrd)],
                             capture_output=True, text=True, timeout=120)
     assert replay.returncode == 0, replay.stdout + replay.stderr
     assert "verify passed: 50004 messages" in replay.stdout
@@ -114,7 +114,7 @@ def _start_long_recorded_run(processes, mcap: Path, bus: str, timeout_s: float =
     """A recorded run of 600 s of simulated time, well under way when this returns."""
     manager = processes("run", "two_mass_damped", "--bus", bus, "--quiet", "--record", str(mcap),
                         "--set", "manager.duration=600", "--set", f"manager.timeout={timeout_s}")
-    wait_for(lambda: _child(manager.pid, "recordings.recorder_process"), 30, "the recorder process")
+    wait_for(lambda: _child(manager.pid, "zencosim.recordings.recorder_process"), 30, "the recorder process")
     wait_for(lambda: mcap.exists() and mcap.stat().st_size > 50_000, 60, "the recording to grow")
     assert manager.poll() is None, manager.communicate()
     return manager

@@ -15,19 +15,20 @@ import time
 import numpy as np
 import pytest
 
-from manager.protocol import Kind
-from manager.replica import Replica
-from manager.run import execute
-from manager.scene import load_scene, scene_from_text
-from manager.schemes import endpoints, make_scheme, plan_scene
-from manager.status import StatusReport
-from recordings.layout import SCENE_ATTACHMENT
-from recordings.reader import read_recording
-from recordings.recorder import Recorder
-from recordings.recorder_process import IDLE_S
-from recordings.verify import verify
-from recordings.writer import FLUSH_INTERVAL_S, RecordingWriter
 from tests.conftest import REPO, children_of, cmdline
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import load_scene, scene_from_text
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.protocol import Kind
+from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings.layout import SCENE_ATTACHMENT
+from zencosim.recordings.reader import read_recording
+from zencosim.recordings.recorder import Recorder
+from zencosim.recordings.recorder_process import IDLE_S
+from zencosim.recordings.verify import verify
+from zencosim.recordings.writer import FLUSH_INTERVAL_S, RecordingWriter
 
 pytestmark = pytest.mark.multiprocess
 
@@ -127,7 +128,7 @@ def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_pat
                          endpoints(plan, subsystems), tap=recorder.tap).run()
         recorder.flush()
         time.sleep(FLUSH_INTERVAL_S + 2 * IDLE_S + 0.5)  # the idle recorder writes its open chunk out
-        recorder_pid = next(pid for pid in children_of(os.getpid()) if "recordings.recorder_process" in cmdline(pid))
+        recorder_pid = next(pid for pid in children_of(os.getpid()) if "zencosim.recordings.recorder_process" in cmdline(pid))
         os.kill(recorder_pid, signal.SIGKILL)
     finally:
         recorder.close()
@@ -139,7 +140,7 @@ def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_pat
 
 
 def _zencosim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "manager.cli", *args], capture_output=True, text=True, cwd=REPO,
+    return subprocess.run([sys.executable, "-m", "zencosim", *args], capture_output=True, text=True, cwd=REPO,
                           timeout=120)
 
 

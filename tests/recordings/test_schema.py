@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from manager.protocol import Kind, encode, encode_error
-from recordings.schema import FILE_DESCRIPTOR_SET, SCHEMA_NAME, decode_stored, encode_wire
+from zencosim.manager.wire.protocol import Kind, encode, encode_error
+from zencosim.recordings.schema import FILE_DESCRIPTOR_SET, SCHEMA_NAME, decode_stored, encode_wire
 
 
 def _protobuf_class():

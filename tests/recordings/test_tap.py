@@ -11,12 +11,12 @@ import signal
 
 import pytest
 
-from manager.scene import load_scene
-from manager.schemes import plan_scene
-from manager.status import StatusReport
-from recordings.layout import channel_specs
-from recordings.recorder import Recorder
-from recordings.recorder_process import BATCH_HEAD
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings.layout import channel_specs
+from zencosim.recordings.recorder import Recorder
+from zencosim.recordings.recorder_process import BATCH_HEAD
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 

@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manager.build import attachments, build_subsystem
-from manager.scene import bundled_scene_names, load_scene
-from subsystems.inputs import InputPolynomial
-from subsystems.models import MODELS
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.scene.load import bundled_scene_names, load_scene
+from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.models import MODELS
 
 SI_UNITS = {"m", "m/s", "m/s^2", "N", "1/kg", "J"}
 SUBSYSTEMS = [(name, sub) for name in bundled_scene_names() for sub in load_scene(name).subsystems]
@@ -36,8 +36,7 @@ def _drive(subsystem, seed: int, steps: int, comm_step_ns: int) -> np.ndarray:
 def test_model_conformance(scene_name, sub_name):
     scene = load_scene(scene_name)
     comm = scene.comm_step_ns(sub_name)
-    first = build_subsystem(scene, sub_name, attachments(scene)[sub_name])
-    second = build_subsystem(scene, sub_name)
+    first, second = build_subsystems(scene)[sub_name], build_subsystems(scene)[sub_name]
 
     ports = first.inputs + first.outputs
     assert {p.unit for p in ports} <= SI_UNITS
@@ -68,6 +67,6 @@ def _drive_from(subsystem, start: int, comm: int) -> np.ndarray:
 
 def test_advance_rejects_a_step_that_is_not_a_multiple_of_the_micro_step():
     scene = load_scene("two_mass_damped", ["subsystems.S2.micro_step=0.0005"])
-    sub = build_subsystem(scene, "S2")
+    sub = build_subsystems(scene)["S2"]
     with pytest.raises(ValueError, match="not a positive multiple of the micro-step"):
         sub.advance(0, 1_250_000, InputPolynomial(np.zeros((1, 1))))

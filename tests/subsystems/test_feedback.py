@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from subsystems.effects import PlacedEffect, Spring
-from subsystems.effects.feedback import Feedback
-from subsystems.masses import Body, MassesModel, MassesSpec
-from subsystems.ports import Attachments, EffectForceOutput, RelayedForce, Terminal
+from zencosim.subsystems.effects import PlacedEffect, Spring
+from zencosim.subsystems.effects.feedback import Feedback
+from zencosim.subsystems.models.masses import Body, MassesModel, MassesSpec
+from zencosim.subsystems.ports import Attachments, EffectForceOutput, RelayedForce, Terminal
 
 M1, M2, K1, KC = 2.0, 3.0, 50.0, 100.0  # [kg], [kg], [N/m], [N/m]
 TERMINAL = Terminal("far", ("x*",), ("v*",))

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from manager.build import attachments, build_subsystems
-from manager.reference import CoupledSystem
-from manager.scene import load_scene
-from subsystems.hydraulic_cylinder import SpoolLaw
+from zencosim.manager.assembly import attachments, build_subsystems
+from zencosim.manager.results.reference import CoupledSystem
+from zencosim.manager.scene.load import load_scene
+from zencosim.subsystems.models.hydraulic_cylinder import SpoolLaw
 
 
 def test_the_solved_spool_position_is_the_papers():

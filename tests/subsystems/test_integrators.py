@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from subsystems.inputs import InputPolynomial
-from subsystems.integrators import INTEGRATORS
-from subsystems.masses import Body, MassesModel, MassesSpec
-from subsystems.effects import PlacedEffect, Spring
-from subsystems.ports import Attachments, ForceInput
-from subsystems.subsystem import Subsystem
+from zencosim.subsystems.effects import PlacedEffect, Spring
+from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.integrators import INTEGRATORS
+from zencosim.subsystems.models.masses import Body, MassesModel, MassesSpec
+from zencosim.subsystems.ports import Attachments, ForceInput
+from zencosim.subsystems.subsystem import Subsystem
 
 OMEGA = 10.0  # [rad/s]: k = 100 N/m, m = 1 kg
 # x0 != 0: with x0 = 0 the kick-drift scheme happens to be second order (it is leapfrog with v0 read as v(h/2))
@@ -56,9 +56,9 @@ def test_symplectic_euler_keeps_the_energy_error_bounded():
 def test_linear_step_is_the_step_the_integrator_takes(integrator):
     # the one-step map (Φ, Γ) the exact discrete analysis is built from, against step() itself, for a
     # damped two-body model with terminal and force inputs driven by a quadratic input polynomial
-    from manager.build import build_subsystem
-    from manager.scene import load_scene
-    sub = build_subsystem(load_scene("four_mass", [f"subsystems.S1.integrator={integrator}"]), "S1")
+    from zencosim.manager.assembly import build_subsystems
+    from zencosim.manager.scene.load import load_scene
+    sub = build_subsystems(load_scene("four_mass", [f"subsystems.S1.integrator={integrator}"]))["S1"]
     model, h, tau = sub.model, 1e-3, 2e-3
     rng = np.random.default_rng(7)
     z0 = rng.normal(size=2 * model.n_dof)
@@ -101,10 +101,10 @@ def test_composed_communication_step_equals_micro_stepping(integrator, rows):
     # a linear model is advanced by the composition of its micro-steps (subsystems.subsystem); it must
     # be the same map as stepping: agreement to rounding (1e-12 of the state) over 200 communication
     # steps of 10 micro-steps with polynomial inputs of every order the protocol sends
-    from manager.build import build_subsystem
-    from manager.scene import load_scene
+    from zencosim.manager.assembly import build_subsystems
+    from zencosim.manager.scene.load import load_scene
     scene = load_scene("two_mass_damped", ["subsystems.S1.micro_step=0.0001", f"subsystems.S1.integrator={integrator}"])
-    composed, stepped = build_subsystem(scene, "S1"), build_subsystem(scene, "S1")
+    composed, stepped = build_subsystems(scene)["S1"], build_subsystems(scene)["S1"]
     stepped._linear = None  # force micro-stepping
     rng = np.random.default_rng(3)
     for k in range(200):

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from manager.build import build_subsystems
-from manager.scene import load_scene
-from subsystems.effects import QuadraticDamper, SqrtSpring
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.scene.load import load_scene
+from zencosim.subsystems.effects import QuadraticDamper, SqrtSpring
 
 
 @pytest.mark.parametrize("eta", [-2.0, -1e-6, 0.0, 0.25, 9.0])
@@ -42,6 +42,6 @@ def test_point_masses_with_nonlinear_coupling_give_the_force_law_and_feedthrough
 
 def test_a_nonlinear_scene_has_no_analytic_reference():
     scene = load_scene("nonlinear_oscillator_case2", ["outputs.reference=analytic"])
-    from manager.run import references
+    from zencosim.manager.run import references
     refs, note = references(scene)
     assert refs == {} and "nonlinear effects" in note

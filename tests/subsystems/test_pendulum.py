@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from manager.build import build_subsystems
-from manager.scene import load_scene
-from subsystems.inputs import InputPolynomial
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.scene.load import load_scene
+from zencosim.subsystems.inputs import InputPolynomial
 
 
 def _free_pendulum(micro_step_ns: int):

@@ -1,0 +1,54 @@
+"""A run's objects from its scene — built the same way in every process that runs a replica of it.
+
+The subsystems with everything attached to them (couplings, and the compensator the scene asks for),
+the run plan, and the scheme generator with the correctors the scene asks for.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from zencosim.manager.analysis.compensator import scene_compensator
+from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
+from zencosim.manager.plan.run_plan import Plan, compile_plan
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.correction import build_correctors
+from zencosim.manager.scheme.implicit import compile_joint, implicit
+from zencosim.manager.scheme.jacobi import jacobi
+from zencosim.manager.scheme.pacing import SPIN_ALONE_NS, Pacer
+from zencosim.manager.wire.status import StatusReport
+from zencosim.subsystems.ports import Attachments
+from zencosim.subsystems.subsystem import Subsystem
+
+
+def attachments(scene: Scene) -> dict[str, Attachments]:
+    """What every coupling, then the compensator the scene asks for, adds to every subsystem."""
+    result = coupling_attachments(scene)
+    if scene.manager.compensation == "eigenstructure":
+        for sub, added in scene_compensator(scene).attachments.items():
+            result[sub] = result[sub] + added
+    return result
+
+
+def build_subsystems(scene: Scene) -> dict[str, Subsystem]:
+    attached = attachments(scene)
+    return {name: build_subsystem(scene, name, attached[name]) for name in scene.subsystems}
+
+
+def plan_scene(scene: Scene) -> tuple[Plan, dict]:
+    """The run plan and the built subsystems (the manager builds them too, to know their ports)."""
+    subsystems = build_subsystems(scene)
+    plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
+    return plan, subsystems
+
+
+def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
+                progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
+                spin_ns: int = SPIN_ALONE_NS):
+    """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
+    ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
+    first step starts the clock); reporting its status after every macro-step with ``status`` (a
+    recorded run); ``spin_ns``: see ``manager.pacing``."""
+    pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns, spin_ns) if realtime else None
+    if scene.manager.scheme == "implicit":
+        return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status)
+    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction), status)

@@ -1,0 +1,27 @@
+"""The child processes of a run (subsystem processes, the recorder): started from the installed zencosim,
+ending with their parent.
+
+A child runs ``python -P -m <module>`` with the parent's interpreter: ``-P`` keeps the working directory
+(and the script's directory) off the import path, so a ``manager.py`` or a ``recordings/`` folder
+where the user works cannot shadow zencosim's modules, while ``PYTHONPATH`` and the environment's
+site-packages still apply. On Linux a child gets SIGTERM when its parent dies, even by SIGKILL, so
+that none is orphaned.
+"""
+from __future__ import annotations
+
+import ctypes
+import signal
+import subprocess
+import sys
+
+
+def die_with_parent() -> None:
+    """Linux: the calling process gets SIGTERM when its parent dies (``PR_SET_PDEATHSIG``)."""
+    PR_SET_PDEATHSIG = 1
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def start_child(module: str, arguments: list[str], **popen_options) -> subprocess.Popen:
+    """Start ``python -P -m module arguments…`` as a child that ends with this process."""
+    return subprocess.Popen([sys.executable, "-P", "-m", module, *arguments],
+                            preexec_fn=die_with_parent if sys.platform.startswith("linux") else None, **popen_options)

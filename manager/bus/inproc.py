@@ -1,0 +1,26 @@
+"""The in-process bus: one replica of the scheme holds every subsystem and executes every command itself.
+
+Commands and replies still pass through the wire protocol's ``encode``/``decode``
+(``subsystems.process.endpoint``), so a codec bug shows on both buses.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.replica import Replica
+from zencosim.subsystems.process.endpoint import SubsystemEndpoint
+
+
+def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:
+    """Protocol endpoints of the built subsystems (all of them, or ``names``)."""
+    return {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns)
+            for s in plan.subsystems if names is None or s.name in names}
+
+
+def run_in_process(scheme, plan: Plan, subsystems: dict, tap: Callable[[str, str, bytes], None] | None = None
+                   ) -> RunRecord:
+    """Run ``scheme`` to its end with every subsystem of ``plan`` in this process; ``tap`` sees every
+    message (``manager.scheme.replica``)."""
+    return Replica(scheme, [s.name for s in plan.subsystems], endpoints(plan, subsystems), tap=tap).run()

@@ -1,0 +1,364 @@
+"""The Zenoh bus: every subsystem in its own OS process, replies over Zenoh on loopback.
+
+The manager listens on one TCP endpoint (a free port on 127.0.0.1 unless told otherwise), starts a
+subsystem process per subsystem (or waits for the ones started by hand), checks that each loaded
+the same scene and ports and is connected to every other process, then gives the start signal. Every
+process runs a replica of the scheme (``manager.replica``); the manager's replica holds no subsystem:
+it follows the replies, checks that every subsystem executed the commands the manager computed, and
+produces the run record; it takes the replies in the batches the subsystems send it (``<sub>/log``,
+see ``manager.subsystem_host``), off the critical path. A recorded run taps the manager's replica,
+as in process: it holds every command, reply and status of the run. A watchdog on the main thread
+names any subsystem that dies or stops answering and ends the run within the scene's timeout; no
+child process outlives the bus.
+"""
+from __future__ import annotations
+
+import json
+import os
+import queue
+import subprocess
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Callable
+
+import zenoh
+
+from zencosim.manager.assembly import make_scheme
+from zencosim.manager.bus.children import start_child
+from zencosim.manager.bus.zenoh_session import (
+    ZenohOptions,
+    coupling_publisher,
+    endpoint_host,
+    free_tcp_port,
+    key,
+    new_run_id,
+    peer_config,
+    reachable,
+)
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.protocol import Kind, encode, split_messages
+from zencosim.manager.wire.status import StatusReport
+
+STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this time
+STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
+START_DELAY_NS = 50_000_000  # the first step is released this long after the start signal (real time)
+PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
+
+
+class ZenohBus:
+    """Subsystem processes joined by Zenoh sessions; use as a context manager around :meth:`drive`."""
+
+    def __init__(self, scene: Scene, plan: Plan, options: ZenohOptions = ZenohOptions(),
+                 listen: str | None = None, external: tuple[str, ...] = (), wait_external_s: float = 60.0,
+                 announce: Callable[[str], None] | None = None, run_id: str | None = None) -> None:
+        unknown = set(external) - set(scene.subsystems)
+        if unknown:
+            raise ValueError(f"--external names no subsystem of scene {scene.name}: {', '.join(sorted(unknown))}")
+        self.scene = scene
+        self.plan = plan
+        self.options = options
+        self.run_id = run_id or new_run_id()
+        self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
+        self.external = tuple(external)
+        self.wait_external_s = wait_external_s
+        self.announce = announce
+        self.timeout_s = scene.manager.timeout
+        self.names = [s.name for s in plan.subsystems]
+        self.children: dict[str, subprocess.Popen] = {}
+        self._logs = tempfile.TemporaryDirectory(prefix="zencosim-")
+        self._lock = threading.Lock()
+        self._joined = {name: threading.Event() for name in self.names}
+        self._endpoints: dict[str, str] = {}  # where each subsystem process listens (for those started by hand)
+        self._ready = {name: threading.Event() for name in self.names}
+        self._lost: list[str] = []
+        self._driving = False
+        self._session: zenoh.Session | None = None
+        self._entities: list = []
+
+    # -- start-up --------------------------------------------------------------------------------
+    def __enter__(self) -> "ZenohBus":
+        try:
+            self._open()
+            self._spawn()
+            self._handshake()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        self.close()
+
+    def _open(self) -> None:
+        self._session = zenoh.open(peer_config(listen=[self.endpoint], options=self.options))
+        session = self._session
+        self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
+        self._entities.append(session.declare_subscriber(key(self.run_id, "*", "log"), self._on_log))
+        self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "alive"), self._on_alive,
+                                                                      history=True))
+        self._entities.append(session.liveliness().declare_subscriber(key(self.run_id, "*", "ready"), self._on_ready,
+                                                                      history=True))
+        self._publishers = {name: coupling_publisher(session, key(self.run_id, name, "u")) for name in self.names}
+        self._go = session.declare_publisher(key(self.run_id, "manager", "go"))
+
+    def _on_run_query(self, query: zenoh.Query) -> None:
+        info = {"run_id": self.run_id, "scene": self.scene.name, "scene_digest": self.scene.digest,
+                "waiting_for": [n for n in self.names if not self._joined[n].is_set()],
+                "endpoints": dict(self._endpoints)}
+        query.reply(key(self.run_id, "manager", "run"), json.dumps(info).encode())
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).split("/")[-2]
+        if name not in self._joined:
+            return
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._joined[name].set()
+        elif self._driving:
+            self._lost.append(name)
+
+    def _on_ready(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).split("/")[-2]
+        if name in self._ready and sample.kind == zenoh.SampleKind.PUT:
+            self._ready[name].set()
+
+    def spawn_arguments(self, name: str, listen: str | None = None, peers: tuple[str, ...] = ()) -> list[str]:
+        """The ``zencosim`` arguments of subsystem ``name``'s process (also what a user runs by hand, plus --run-id).
+
+        A spawned subsystem listens on ``listen`` and connects to the manager and to ``peers``, the
+        subsystems spawned before it, so that every pair of processes has a direct link."""
+        command = ["subsystem", self.scene.path, name, "--connect", reachable(self.endpoint, "127.0.0.1")]
+        for peer in peers:
+            command += ["--connect", peer]
+        if listen is not None:
+            command += ["--listen", listen]
+        command += ["--run-id", self.run_id]
+        for override in self.scene.overrides:
+            command += ["--set", override]
+        if not self.options.lowlatency:
+            command.append("--no-lowlatency")
+        return command
+
+    def _spawn(self) -> None:
+        spawned: list[str] = []
+        for name in self.names:
+            if name in self.external:
+                if self.announce is not None:
+                    arguments = self.spawn_arguments(name, "tcp/<its-address>:<port>")
+                    command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
+                    self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
+                continue
+            host = endpoint_host(self.endpoint)  # where the manager listens: loopback, or every interface
+            listen = f"tcp/{host}:{free_tcp_port(host)}"
+            log = open(Path(self._logs.name) / f"{name}.log", "wb")
+            self.children[name] = start_child("zencosim", self.spawn_arguments(name, listen, tuple(spawned)),
+                                              stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+            log.close()
+            spawned.append(reachable(listen, "127.0.0.1"))
+            self._endpoints[name] = listen  # a subsystem started by hand elsewhere connects to it (subsystems.process.host)
+        # a subsystem started by hand finds the run only now, with every spawned subsystem's endpoint in the
+        # answer: asked earlier, it would miss one, and the two would never link directly
+        self._entities.append(self._session.declare_queryable(key(self.run_id, "manager", "run"), self._on_run_query))
+
+    def log_tail(self, name: str, lines: int = 15) -> str:
+        path = Path(self._logs.name) / f"{name}.log"
+        text = path.read_text(errors="replace").strip() if path.exists() else ""
+        return "\n".join(text.splitlines()[-lines:])
+
+    def _exited(self, name: str) -> SubsystemFailure | None:
+        child = self.children.get(name)
+        if child is None or child.poll() is None:
+            return None
+        tail = self.log_tail(name)
+        return SubsystemFailure(name, f"process exited with code {child.returncode}" + (f":\n{tail}" if tail else ""))
+
+    def _handshake(self) -> None:
+        for name in self.names:
+            wait_s = self.wait_external_s if name in self.external else STARTUP_TIMEOUT_S
+            self._await(name, self._joined[name], wait_s, f"did not join run {self.run_id}")
+            self._check_description(name)
+        for name in self.names:
+            self._await(name, self._ready[name], STARTUP_TIMEOUT_S,
+                        f"is not connected to every other process of run {self.run_id}")
+
+    def _await(self, name: str, event: threading.Event, wait_s: float, failing: str) -> None:
+        """Wait for ``event`` of subsystem ``name``; ``wait_s`` passing fails, and so does any spawned process
+        exiting (named: a subsystem that waits to connect to it is not the cause)."""
+        deadline = time.monotonic() + wait_s
+        while not event.wait(0.05):
+            failure = next(filter(None, map(self._exited, self.names)), None)
+            if failure:
+                raise failure
+            if time.monotonic() > deadline:
+                raise SubsystemFailure(name, f"{failing} within {wait_s:g} s")
+
+    def _check_description(self, name: str) -> None:
+        replies = [r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=self.timeout_s) if r.ok]
+        if not replies:
+            raise SubsystemFailure(name, "did not describe itself")
+        info = json.loads(replies[0].ok.payload.to_bytes())
+        self._endpoints.setdefault(name, info["listen"])
+        if info["scene_digest"] != self.scene.digest:
+            raise SubsystemFailure(name, f"loaded a different scene (digest {info['scene_digest'][:12]}, manager has "
+                                         f"{self.scene.digest[:12]}): start it with the same scene file and --set options")
+        sub = self.plan.by_name(name)
+        expected = ([[p.name, p.unit] for p in sub.inputs], [[p.name, p.unit] for p in sub.outputs])
+        if (info["inputs"], info["outputs"]) != expected:
+            raise SubsystemFailure(name, f"declares ports {info['inputs']} -> {info['outputs']}, expected "
+                                         f"{expected[0]} -> {expected[1]}")
+
+    # -- running ---------------------------------------------------------------------------------
+    def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None,
+              tap: Callable[[str, str, bytes], None] | None = None) -> tuple[RunRecord, float]:
+        """Start the run, follow it to the end; return its record and the wall-clock time [s].
+
+        The subsystems pace their replicas (``realtime``); the manager's replica follows the batches of
+        replies unpaced, and the record's timing is what the subsystems report of their own steps.
+        ``tap`` sees every message of the manager's replica (a recorded run)."""
+        scheme = make_scheme(self.scene, self.plan, False, None, progress, status)
+        self._replica = Replica(scheme, self.names, verify=True, tap=tap)
+        self._done = threading.Event()
+        self._batches: queue.SimpleQueue = queue.SimpleQueue()  # (subsystem, batch of replies); None ends
+        self._error: BaseException | None = None
+        self._driving = True
+        self._progress = (0, time.monotonic())
+        self._heard = time.monotonic()  # when the last batch of replies arrived
+        started = time.perf_counter()
+        start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
+        if self.announce is not None:
+            self.announce(f"run {self.run_id}: {len(self.names)} subsystem processes connected, starting")
+        follower = threading.Thread(target=self._follow, name="zencosim-follower", daemon=True)
+        follower.start()
+        with self._lock:
+            self._go.put(json.dumps({"start_unix_ns": start_unix_ns, "realtime": realtime}).encode())
+            self._guarded(self._replica.start)
+        try:
+            while not self._done.wait(0.05):
+                failure = self._watchdog()
+                if failure is not None:
+                    with self._lock:
+                        self._error = self._error or failure
+                        self._done.set()
+        finally:
+            self._batches.put(None)
+            follower.join()
+        wall_s = time.perf_counter() - started - (START_DELAY_NS * 1e-9 if realtime else 0.0)
+        self._driving = False
+        if self._error is not None:
+            raise self._error
+        record = self._replica.result
+        record.reported_timing = self._timing_reports()
+        return record, wall_s
+
+    def _timing_reports(self) -> dict[str, dict]:
+        """Every subsystem's timing of its own steps (asked together)."""
+        pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=self.timeout_s)
+                   for name in self.names}
+        reports = {}
+        for name, replies in pending.items():
+            answers = [reply.ok for reply in replies if reply.ok is not None]
+            if not answers:
+                raise SubsystemFailure(name, "did not report the timing of its steps")
+            reports[name] = json.loads(answers[0].payload.to_bytes())
+        return reports
+
+    def _on_log(self, sample: zenoh.Sample) -> None:
+        """A batch of replies: handed to the follower thread (Zenoh's thread returns at once)."""
+        self._heard = time.monotonic()
+        self._batches.put((str(sample.key_expr).split("/")[-2], sample.payload.to_bytes()))
+
+    def _follow(self) -> None:
+        """The follower thread: advance the manager's replica with every batch, at idle priority.
+
+        The manager's replica repeats the whole scheme (about 50 µs of Python per macro-step of
+        two_mass_damped); run at normal priority on a machine with fewer free cores than processes, its
+        bursts preempt a subsystem on the critical path. SCHED_IDLE (Linux; ignored elsewhere) gives
+        the core to the subsystems whenever they want it; the follower still gets the time they wait
+        for the network, and if it fell behind, the subsystems' batches would wait (backpressure),
+        never be lost. Measured on two_mass_damped over Zenoh: docs/protocol.md."""
+        if hasattr(os, "SCHED_IDLE"):
+            try:
+                os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+            except OSError:
+                pass  # a platform that refuses it: the follower runs at normal priority
+        while True:
+            item = self._batches.get()
+            if item is None:
+                return
+            name, batch = item
+            with self._lock:
+                if self._driving and not self._done.is_set():
+                    self._guarded(self._deliver_batch, name, batch)
+
+    def _deliver_batch(self, name: str, batch: bytes) -> None:
+        for reply in split_messages(batch, f"subsystem {name}"):
+            self._replica.deliver(name, reply)
+
+    def _guarded(self, action, *args) -> None:
+        """Advance the manager's replica (under the lock); the end or any error finishes the run."""
+        try:
+            action(*args)
+        except BaseException as error:
+            self._error = error
+        if self._error is not None or self._replica.finished:
+            self._done.set()
+
+    def _watchdog(self) -> SubsystemFailure | None:
+        for name in self.names:
+            failure = self._exited(name)
+            if failure:
+                return failure
+        if self._lost:
+            name = self._lost[0]
+            return SubsystemFailure(name, "its process is gone (liveliness token lost)")
+        # read without the lock, which the idle-priority follower may hold while it waits for a core
+        steps, missing = self._replica.steps_done, self._replica.waiting_for()
+        if steps != self._progress[0]:
+            self._progress = (steps, time.monotonic())
+        # a stall is the subsystems' only when no batch arrives either (an idle-priority follower may lag)
+        elif missing and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s:
+            # every replica waits when one subsystem stalls: name the ones whose process does not respond
+            frozen = self._unresponsive()
+            name = frozen[0] if frozen else missing[0]
+            return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
+                                          + ("; its process does not respond" if frozen else ""))
+        return None
+
+    def _unresponsive(self) -> list[str]:
+        """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together)."""
+        pending = {name: self._session.get(key(self.run_id, name, "ctl"), timeout=PROBE_TIMEOUT_S)
+                   for name in self.names}
+        return [name for name, replies in pending.items() if not any(reply.ok for reply in replies)]
+
+    # -- shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop every subsystem process, then make sure none is left; close the session."""
+        self._driving = False
+        publishers = getattr(self, "_publishers", {})
+        if self._session is not None:
+            for publisher in publishers.values():
+                publisher.put(encode(Kind.STOP, 0, 0))
+        deadline = time.monotonic() + STOP_GRACE_S
+        for child in self.children.values():
+            try:
+                child.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                child.terminate()
+                try:
+                    child.wait(STOP_GRACE_S)
+                except subprocess.TimeoutExpired:
+                    child.kill()
+                    child.wait()
+        if self._session is not None:
+            for entity in reversed(self._entities):
+                entity.undeclare()
+            for publisher in publishers.values():
+                publisher.undeclare()
+            self._go.undeclare()
+            self._session.close()
+            self._session = None
+        self._logs.cleanup()

@@ -1,0 +1,42 @@
+"""The subsystems a scene names, built with what its couplings attach to each of them."""
+from __future__ import annotations
+
+import dataclasses
+
+from zencosim.manager.scene.load import Scene
+from zencosim.subsystems.integrators import INTEGRATORS
+from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.ports import Attachments
+from zencosim.subsystems.subsystem import Subsystem
+
+
+def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
+    """What every coupling adds to every subsystem, in scene order.
+
+    A force-side model that starts in equilibrium with its load (``starts_at_rest``) also gets the
+    motion side's rest state: its point's initial position and the coupling force that holds it.
+    """
+    result = {name: Attachments() for name in scene.subsystems}
+    for coupling in scene.couplings.values():
+        for sub, added in coupling.attachments().items():
+            result[sub] = result[sub] + added
+    for coupling in scene.couplings.values():
+        if coupling.kind == "rigid_joint":  # no force side: both sides are driven by the joint's variables
+            continue
+        if MODELS[scene.subsystems[coupling.force_sub].settings.model].starts_at_rest:
+            motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])
+            rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
+            result[coupling.force_sub] = result[coupling.force_sub] + Attachments(rest_states=(rest,))
+    return result
+
+
+def _model(scene: Scene, name: str, attached: Attachments):
+    sub = scene.subsystems[name]
+    return MODELS[sub.settings.model](sub.spec, attached)
+
+
+def build_subsystem(scene: Scene, name: str, attached: Attachments) -> Subsystem:
+    """The subsystem ``name`` of the scene with what is ``attached`` to it (``coupling_attachments`` and
+    what a compensator adds), and only the effects the scene names."""
+    settings = scene.subsystems[name].settings
+    return Subsystem(name, _model(scene, name, attached), INTEGRATORS[settings.integrator], settings.micro_step_ns)

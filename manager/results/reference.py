@@ -1,0 +1,180 @@
+"""References a run is compared with: the analytic solution and the monolithic run of a linear
+point-mass scene, and for any scene the coupled equations integrated by scipy ``solve_ivp``.
+
+The analytic and monolithic references are expressed through the monolithic model
+(``manager.analysis.monolithic.build_monolithic``), whose outputs are every coupling signal and the energy; the
+``solve_ivp`` reference resolves the couplings of the subsystems themselves. Either way a signal is
+computed by the same output equations as in the co-simulation.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from zencosim.compensation.analytic import linear_response
+from zencosim.manager.analysis.monolithic import build_monolithic
+from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.plan.run_plan import compile_plan
+from zencosim.manager.scene.couplings import RigidJoint
+from zencosim.manager.scene.load import Scene
+from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.integrators.base import state_derivative
+
+# LSODA switches between Adams (non-stiff) and BDF (stiff) by itself: the hydraulic crane is stiff (valve
+# flow ~4000 1/s), DOP853 needs 114 s there and LSODA 3 s for the same result (docs/numerics.md, "References")
+SOLVE_IVP_METHOD = "LSODA"
+SOLVE_IVP_RTOL = 1e-10  # relative tolerance of the solve_ivp reference
+SOLVE_IVP_ATOL = 1e-10  # absolute tolerance, in the units of each state (m, m/s, rad, rad/s, Pa)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Signals and energy of a reference on the base macro-step grid (``n_ticks + 1`` samples)."""
+
+    kind: str
+    signals: dict[str, np.ndarray]
+    energy: np.ndarray
+
+
+def _reference(kind: str, outputs: np.ndarray, ports) -> Reference:
+    signals = {p.name: outputs[:, j] for j, p in enumerate(ports) if p.quantity != "energy"}
+    return Reference(kind, signals, outputs[:, -1])
+
+
+def analytic_reference(scene: Scene) -> Reference:
+    """The exact solution of the monolithic linear system (matrix exponential, free and forced)."""
+    mono = build_monolithic(scene)
+    model = mono.model
+    n = model.n_dof
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    Minv = np.linalg.inv(model.M)
+    A[n:, :n] = -Minv @ model.K
+    A[n:, n:] = -Minv @ model.C
+    n_ticks = scene.manager.duration_ns // scene.manager.macro_step_ns
+    step = scene.manager.macro_step_ns * 1e-9
+    force = None
+    B = None
+    if model.external:
+        B = np.zeros((2 * n, len(model.external)))
+        for j, (_, body) in enumerate(model.external):
+            B[n:, j] = Minv[:, body]
+        force = lambda t: np.array([effect.force(t) for effect, _ in model.external])  # noqa: E731
+    Z = linear_response(A, model.initial_state(), step, n_ticks, B, force)
+    no_inputs = np.empty(0)
+    outputs = np.array([model.outputs_at(k * step, z, no_inputs) for k, z in enumerate(Z)])
+    return _reference("analytic", outputs, model.outputs)
+
+
+def monolithic_reference(scene: Scene) -> Reference:
+    """The monolithic system integrated with the subsystems' integrator (finest micro-step)."""
+    mono = build_monolithic(scene)
+    base = scene.manager.macro_step_ns
+    n_ticks = scene.manager.duration_ns // base
+    no_inputs = InputPolynomial(np.empty((1, 0)))
+    outputs = np.empty((n_ticks + 1, len(mono.outputs)))
+    outputs[0] = mono.output_values(np.empty(0))
+    for k in range(n_ticks):
+        outputs[k + 1] = mono.advance(k * base, (k + 1) * base, no_inputs)
+    return _reference("monolithic", outputs, mono.outputs)
+
+
+class CoupledSystem:
+    """Every subsystem of a scene as one ODE, the couplings resolved exactly at every evaluation.
+
+    At time t the outputs are evaluated in the plan's initialisation order (subsystems without
+    feedthrough first, then those whose feedthrough outputs need them), so every input is the exact
+    current value of its source output: the continuous system the co-simulation approximates,
+    without a hand-written monolithic model. A rigid joint is built force/force whatever its
+    decomposition, and its force solves the joint on acceleration level (:class:`JointForce`).
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        scene = dataclasses.replace(scene, couplings={
+            name: RigidJoint(name, dataclasses.replace(c.settings, decomposition="force-force"))
+            if isinstance(c, RigidJoint) else c for name, c in scene.couplings.items()})
+        subsystems = build_subsystems(scene)
+        self.plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
+        self.joints = [JointForce(c, self.plan) for c in scene.couplings.values() if isinstance(c, RigidJoint)]
+        self.models = [subsystems[s.name].model for s in self.plan.subsystems]
+        states = [m.initial_state() for m in self.models]
+        bounds = np.cumsum([0] + [len(z) for z in states])
+        self.slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        self.z0 = np.concatenate(states)
+
+    def _inputs(self, i: int, outputs: list) -> np.ndarray:
+        s = self.plan.subsystems[i]
+        w = np.zeros(len(s.inputs))
+        for feed in s.feeds:
+            if outputs[feed.source] is not None:
+                w[list(feed.inputs)] = outputs[feed.source][list(feed.outputs)]
+        return w
+
+    def resolve(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
+        """Every subsystem's input values at time t [s] and state ``Z``."""
+        outputs: list = [None] * len(self.models)
+        for round_ in self.plan.init_rounds:
+            for i in round_:
+                outputs[i] = self.models[i].outputs_at(t, Z[self.slices[i]], self._inputs(i, outputs))
+        inputs = [self._inputs(i, outputs) for i in range(len(self.models))]
+        for joint in self.joints:
+            joint.apply(outputs, inputs)
+        return inputs
+
+    def derivative(self, t: float, Z: np.ndarray) -> np.ndarray:
+        inputs = self.resolve(t, Z)
+        return np.concatenate([state_derivative(m, t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)])
+
+    def outputs(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
+        """Every subsystem's outputs (energy included) with the exact inputs."""
+        inputs = self.resolve(t, Z)
+        return [m.outputs_at(t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)]
+
+
+class JointForce:
+    """The force of a rigid joint (built force/force) that holds it on acceleration level (paper 003
+    Eq. 4, index 1). The sides' accelerations are affine in it, ``a_i(λ) = a_i(0) + s_i W_i λ`` with
+    ``s = +1, −1`` and ``W_i`` the points' inverse effective masses, both reported by the models, so
+    ``a_2(λ) = a_1(λ)`` gives ``λ = (W_1 + W_2)⁻¹ (a_2(0) − a_1(0))``. Position and velocity gaps then
+    only drift by the integration error."""
+
+    def __init__(self, joint: RigidJoint, plan) -> None:
+        self.axes = joint.dimension
+        self.sides = []
+        for index in (0, 1):
+            side, sub = joint.side(index), plan.by_name(joint.points[index][0])
+            out = {p.name: j for j, p in enumerate(sub.outputs)}
+            into = {p.name: j for j, p in enumerate(sub.inputs)}
+            self.sides.append((sub.index, [out[n] for n in side.accelerations], [out[n] for n in side.inverse_masses],
+                               [into[n] for n in side.inputs]))
+
+    def apply(self, outputs: list[np.ndarray], inputs: list[np.ndarray]) -> None:
+        """Set the joint force into ``inputs``; ``outputs`` were evaluated with the force zero."""
+        (s1, a1, W1, _), (s2, a2, W2, _) = self.sides
+        d = self.axes
+        force = np.linalg.solve(outputs[s1][W1].reshape(d, d) + outputs[s2][W2].reshape(d, d),
+                                outputs[s2][a2] - outputs[s1][a1])
+        for sub, _, _, ports in self.sides:
+            inputs[sub][ports] = force
+
+
+def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL) -> Reference:
+    """The scene's coupled equations (:class:`CoupledSystem`) integrated by scipy ``solve_ivp`` (LSODA,
+    tolerances ``rtol``, ``atol``), sampled on the base macro-step grid."""
+    system = CoupledSystem(scene)
+    base = scene.manager.macro_step_ns
+    n_ticks = scene.manager.duration_ns // base
+    t = np.arange(n_ticks + 1) * (base * 1e-9)
+    # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
+    # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
+    solution = solve_ivp(system.derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
+                         rtol=rtol, atol=atol, first_step=t[1])
+    if not solution.success:
+        raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
+    samples = [system.outputs(tk, Z) for tk, Z in zip(t, solution.y.T)]
+    signals = {name: np.array([y[sub][j] for y in samples]) for name, (sub, j) in system.plan.signals.items()}
+    energy = np.array([sum(y_i[-1] for y_i in y) for y in samples])
+    return Reference("solve_ivp", signals, energy)

@@ -1,0 +1,171 @@
+"""The run summary: accuracy against the references, energy, residual energy, stability, timing, digest.
+
+Definitions (docs/summary.md lists every key):
+
+* NRMS (paper 000 Eq. 42): ``sqrt(mean_k (x_k - x_ref,k)^2) / (max x_ref - min x_ref)`` over the
+  signal's communication points. Reading taken: Eq. 42's ``/T`` is the number of samples (a root
+  mean square), not the duration in seconds, which would make the error depend on the units of time.
+* stable: every recorded value is finite, an implicit run did not diverge, and the mechanical energy
+  does not grow exponentially: the least-squares slope of ``ln`` of the windowed energy maximum (20
+  windows over the run) over the second half of the run is below ``STABLE_GROWTH_RATE`` (energy
+  doubling time above 69 s). Meant for free or bounded-forcing runs.
+* digest: sha256 over every subsystem's output trajectory (scene order of subsystems, declared
+  order of outputs, each as float64 little-endian over its communication points). Equal digests
+  mean bit-identical runs.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+
+import numpy as np
+
+from zencosim.compensation.implicit.coupling_laws import method_name
+from zencosim.manager.bus.timing import step_timing, worst_timing
+from zencosim.manager.results.monitor import residual_power_spikes
+from zencosim.manager.results.reference import Reference
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.implicit import compile_joint
+
+STABLE_GROWTH_RATE = 0.01  # [1/s]
+ENERGY_WINDOWS = 20
+
+
+def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
+    """Normalised root-mean-square error of ``x`` against ``x_ref`` (paper 000 Eq. 42, reading above)."""
+    span = float(np.max(x_ref) - np.min(x_ref))
+    return float(np.sqrt(np.mean((x - x_ref) ** 2)) / span)
+
+
+def digest(record: RunRecord) -> str:
+    h = hashlib.sha256()
+    for trajectory in record.trajectories:
+        for j in range(trajectory.shape[1]):
+            h.update(np.ascontiguousarray(trajectory[:, j], dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
+def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
+    """Times [s] and total mechanical energy [J] where every subsystem has a sample."""
+    subs = record.plan.subsystems
+    period = math.lcm(*(s.ratio for s in subs))
+    ticks = np.arange(0, record.plan.n_ticks + 1, period)
+    energy = sum(record.trajectories[s.index][ticks // s.ratio, s.energy_output] for s in subs)
+    return ticks * record.plan.base_step_ns * 1e-9, energy
+
+
+def energy_growth_rate(t: np.ndarray, energy: np.ndarray) -> float:
+    """Exponential growth rate [1/s] of the energy envelope over the second half of the run."""
+    windows = np.array_split(np.arange(len(t)), ENERGY_WINDOWS)
+    centres = np.array([t[w].mean() for w in windows])
+    peaks = np.array([np.max(np.abs(energy[w])) for w in windows])
+    late = slice(ENERGY_WINDOWS // 2, None)
+    logs = np.log(np.maximum(peaks[late], np.finfo(float).tiny))
+    return float(np.polyfit(centres[late], logs, 1)[0])
+
+
+def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
+              reference_note: str | None = None, recording: dict | None = None) -> dict:
+    plan = record.plan
+    t, energy = total_energy(record)
+    finite = all(np.isfinite(tr).all() for tr in record.trajectories) and (
+        record.implicit is None or record.implicit.diverged_at is None)
+    growth = energy_growth_rate(t, energy) if finite else math.inf
+    signals = {}
+    reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
+    for name in scene.outputs.signals:
+        sub_index, output = plan.signals[name]
+        sub = plan.subsystems[sub_index]
+        x = record.signal(name)
+        entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
+        if reference is not None:
+            ref = reference.signals[name][::sub.ratio]
+            entry["nrms"] = nrms(x, ref) if finite else None
+            if "monolithic" in references:
+                entry["nrms_monolithic"] = nrms(references["monolithic"].signals[name][::sub.ratio], ref)
+        signals[name] = entry
+    e0 = float(energy[0])
+    energy_summary = {
+        "initial": e0, "final": float(energy[-1]), "max": float(np.max(energy)),
+        "max_relative_drift": float(np.max(np.abs(energy - e0)) / e0) if e0 > 0 and finite else None,
+        "growth_rate_per_s": growth,
+    }
+    if reference is not None:
+        energy_summary["reference_final"] = float(reference.energy[-1])
+    timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
+    if record.reported_timing:  # over Zenoh: as the subsystems released the steps
+        timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing)
+    else:
+        timing.update(step_timing(record))
+    summary = {
+        "scene": scene.name,
+        "bus": bus,
+        "macro_step": scene.manager.macro_step,
+        "duration": scene.manager.duration,
+        "steps": plan.n_ticks,
+        "extrapolation": scene.manager.extrapolation,
+        "reference": None if reference is None else reference.kind,
+        "subsystems": {s.name: {"comm_step": s.ratio * scene.manager.macro_step,
+                                "micro_step": scene.subsystems[s.name].settings.micro_step,
+                                "integrator": scene.subsystems[s.name].settings.integrator, "extrapolation": s.order}
+                       for s in plan.subsystems},
+        "effects": [f"{s.name}.{e}" for s in plan.subsystems for e in s.effects],
+        "stable": bool(finite and growth < STABLE_GROWTH_RATE),
+        "signals": signals,
+        "energy": energy_summary,
+        "residual_energy": {bond.name: float(record.residual_energy[np.isfinite(record.residual_energy[:, b]), b][-1])
+                            for b, bond in enumerate(plan.bonds)},
+        "timing": timing,
+        "digest": digest(record),
+        "overrides": list(scene.overrides),
+    }
+    spikes = residual_power_spikes(record, scene.manager.spikes)
+    summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}
+    summary["reliable"] = not any(spikes.values())
+    summary["correction"] = correction_summary(scene, record)
+    if record.implicit is not None:
+        summary["implicit"] = implicit_summary(scene, record)
+    if reference_note:
+        summary["reference_note"] = reference_note
+    if recording is not None:
+        summary["recording"] = recording  # the recorder's end record (recordings.writer)
+    return summary
+
+
+def correction_summary(scene, record: RunRecord) -> dict | None:
+    """The energy correction's settings and, per corrected point, the work it injected (None: no correction)."""
+    if not record.corrections:
+        return None
+    settings = scene.manager.correction
+    groups = {}
+    for log in record.corrections:
+        norms = np.linalg.norm(log.force, axis=1)
+        groups[log.name] = {"subsystem": log.subsystem, "mu": dict(zip(log.bonds, log.mu)),
+                            "work_injected": float(log.work[np.isfinite(log.work)][-1]),
+                            "uncorrected_energy": float(log.uncorrected_energy[np.isfinite(log.uncorrected_energy)][-1]),
+                            "max_force": float(norms.max()), "capped_steps": log.capped_steps, "steps": log.steps}
+    return {"mu": settings.mu, "nu": settings.nu, "cap_fraction": settings.cap_fraction, "cap_force": settings.cap_force,
+            "work_injected": sum(g["work_injected"] for g in groups.values()), "points": groups}
+
+
+def implicit_summary(scene: Scene, record: RunRecord) -> dict:
+    """The ``implicit`` entry of the run summary (docs/summary.md)."""
+    joint = compile_joint(scene, record.plan)
+    runs = record.implicit.corrector_runs
+    diverged = record.implicit.diverged_at
+    done = runs[:diverged] if diverged is not None else runs
+    side_1, side_2 = (record.trajectories[joint.sides[side]][:, joint.outputs[side]] for side in (0, 1))
+    gaps = np.abs(side_2 - side_1)[:, :2]  # (ticks, position/velocity, axes)
+    finite = np.isfinite(gaps).all(axis=(1, 2))
+    return {
+        "method": method_name(joint.method),
+        "parameters": dataclasses.asdict(joint.method),
+        "decomposition": joint.decomposition.name,
+        "k": joint.k,
+        "corrector_runs": {"mean": float(done.mean()) if len(done) else None, "max": int(done.max(initial=0)),
+                           "histogram": {int(n): int(c) for n, c in zip(*np.unique(done, return_counts=True))}},
+        "diverged_at_s": None if diverged is None else (diverged + 1) * record.plan.base_step_ns * 1e-9,
+        "max_gap": {"position": float(gaps[finite, 0].max()), "velocity": float(gaps[finite, 1].max())},
+    }

@@ -1,0 +1,159 @@
+"""Checks of a scene that span its tables: timing, scheme and couplings, compensation.
+
+Each check adds what it finds to ``problems`` (file and dotted key); ``manager.scene.load`` collects
+every problem of a scene before it raises.
+"""
+from __future__ import annotations
+
+import math
+
+from zencosim.compensation.implicit.coupling_laws import check_supported
+from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
+from zencosim.manager.scene.couplings import RigidJoint
+from zencosim.manager.scene.settings import ManagerSettings, OutputSettings, SubsystemScene, extrapolation_order
+from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.params import Problems
+
+
+def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, couplings: dict,
+                  subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """Rigid joints need the implicit scheme, which handles one rigid joint, single-rate, with the scene's
+    extrapolation order as k and no energy correction (paper 003 §2)."""
+    joints = [c for c in couplings.values() if isinstance(c, RigidJoint)]
+    if manager.scheme == "jacobi":
+        for joint in joints:
+            problems.add(f"couplings.{joint.name}.type", "a rigid joint needs manager.scheme = 'implicit': an "
+                         "explicit scheme cannot hold an algebraic constraint")
+    else:
+        for coupling in couplings.values():
+            if not isinstance(coupling, RigidJoint):
+                problems.add(f"couplings.{coupling.name}.type", f"the implicit scheme couples through rigid joints "
+                             f"only, got {coupling.kind!r}")
+        if len(joints) != 1:
+            problems.add("couplings", f"the implicit scheme handles exactly one rigid joint, got {len(joints)}")
+        for sub in subsystems.values():
+            if sub.settings.comm_ratio != 1:
+                problems.add(f"subsystems.{sub.name}.comm_ratio", "expected 1: the implicit scheme is single-rate")
+            if sub.settings.extrapolation is not None:
+                problems.add(f"subsystems.{sub.name}.extrapolation", "the implicit scheme's degree k is "
+                             "manager.extrapolation, for both sides of the joint; remove it")
+        if manager.corrects:
+            problems.add("manager.correction", "energy correction belongs to the explicit scheme; the implicit "
+                         "scheme holds the joint itself")
+        if manager.implicit is not None:
+            for joint in joints:
+                try:
+                    check_supported(manager.implicit.coupling_method(), DECOMPOSITIONS[joint.settings.decomposition])
+                except ValueError as error:
+                    problems.add(f"couplings.{joint.name}.decomposition", str(error))
+    if outputs is not None and joints and outputs.reference == "analytic":
+        problems.add("outputs.reference", "a scene with a rigid joint has no analytic reference here; expected "
+                     "'solve_ivp' (the subsystems integrated together, the joint held exactly) or 'none'")
+
+
+def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
+                  problems: Problems) -> None:
+    _whole_ns(manager.macro_step, "manager.macro_step", problems)
+    _whole_ns(manager.duration, "manager.duration", problems)
+    base = manager.macro_step_ns
+    ratios = [s.settings.comm_ratio for s in subsystems.values()] or [1]
+    period = base * math.lcm(*ratios)
+    if manager.duration_ns % period:
+        problems.add("manager.duration", f"expected a multiple of {period * 1e-9:g} s (the macro step times the "
+                     f"least common multiple of the communication ratios), got {manager.duration!r} s")
+    for sub in subsystems.values():
+        key = f"subsystems.{sub.name}.micro_step"
+        _whole_ns(sub.settings.micro_step, key, problems)
+        comm = base * sub.settings.comm_ratio
+        if comm % sub.settings.micro_step_ns:
+            problems.add(key, f"expected a divisor of the communication step {comm * 1e-9:g} s, "
+                         f"got {sub.settings.micro_step!r} s")
+
+
+def _whole_ns(seconds: float, key: str, problems: Problems) -> None:
+    if abs(seconds * 1e9 - round(seconds * 1e9)) > 1e-3:
+        problems.add(key, f"expected a whole number of nanoseconds, got {seconds!r} s")
+
+
+def check_compensation(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],
+                       problems: Problems) -> None:
+    """What the eigenstructure compensator (manager.compensator) needs of a scene's structure."""
+    if len(couplings) != 1 or next(iter(couplings.values())).kind != "force_displacement":
+        problems.add("manager.compensation", f"expected exactly one force_displacement coupling, got {len(couplings)} "
+                     "coupling(s)")
+    multi_rate = sorted(s.name for s in subsystems.values() if s.settings.comm_ratio != 1)
+    if multi_rate:
+        problems.add("manager.compensation", f"expected a single-rate scene (comm_ratio = 1), got comm_ratio != 1 "
+                     f"in {', '.join(multi_rate)}")
+    orders = sorted({extrapolation_order(manager, s) for s in subsystems.values()})
+    if len(orders) > 1:
+        problems.add("manager.compensation", f"expected one extrapolation order for every subsystem (one D(s)), "
+                     f"got {orders}")
+    if manager.corrects:
+        problems.add("manager.compensation", "expected no energy correction (manager.correction) with the "
+                     "compensator: its discrete correction does not model it")
+
+
+def check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tables: dict,
+                     problems: Problems) -> None:
+    seen: dict[str, str] = {}
+    for coupling in couplings.values():
+        for signal, producer in coupling.producers().items():
+            if seen.setdefault(signal, producer) != producer:
+                problems.add(f"couplings.{coupling.name}", f"signal {signal!r} would be {producer} but is already "
+                             f"{seen[signal]}; name it differently")
+        for key, (sub, point) in coupling.sides().items():
+            full_key = f"couplings.{coupling.name}.{key}"
+            if sub not in tables:
+                problems.add(full_key, f"unknown subsystem {sub!r}; expected one of {', '.join(tables)}")
+            elif sub in subsystems and point not in subsystems[sub].spec.points:
+                problems.add(full_key, f"subsystem {sub!r} has no point {point!r}; expected one of "
+                             f"{', '.join(subsystems[sub].spec.points)}")
+        if not all(sub in subsystems for sub, _ in coupling.sides().values()):
+            continue
+        if isinstance(coupling, RigidJoint):
+            _check_joint_sides(coupling, subsystems, problems)
+        else:
+            _check_coupled_models(coupling, subsystems, problems)
+
+
+def _check_joint_sides(joint: RigidJoint, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """Both points move in as many dimensions as the joint has axes and can be driven as it says."""
+    for index, (sub, point) in enumerate(joint.points):
+        spec, model = subsystems[sub].spec, MODELS[subsystems[sub].settings.model]
+        if point not in spec.points:
+            continue
+        if model.point_dimension != joint.dimension:
+            problems.add(f"couplings.{joint.name}.axes", f"{sub}.{point} moves in {model.point_dimension} "
+                         f"dimension(s), the joint has {joint.dimension} axes")
+        reason = spec.drive_problem(point, joint.side(index).drive, joint.dimension)
+        if reason:
+            problems.add(f"couplings.{joint.name}.decomposition", f"{sub}.{point}: {reason}")
+
+
+def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """The models on both sides can play their role with signals of this many components."""
+    key = f"couplings.{coupling.name}"
+    models = {}
+    for side, (sub, _) in coupling.sides().items():
+        role = side.removesuffix("_side")
+        model = models[role] = MODELS[subsystems[sub].settings.model]
+        if role not in model.coupling_roles:
+            problems.add(f"{key}.{side}", f"model {model.name} cannot be the {role} side of a coupling")
+        if coupling.dimension != model.point_dimension:
+            problems.add(f"{key}.force", f"model {model.name} of {sub} exchanges {model.point_dimension}-component "
+                         f"signals, got {coupling.dimension} (one name, or a list of names per signal)")
+    force_model = models["force"]
+    if not coupling.effects and not force_model.provides_force:
+        problems.add(f"{key}.effects", "expected the coupling element as named effects, e.g. effects.kc = "
+                     f"{{ type = \"spring\", stiffness = 100.0 }} (model {force_model.name} computes no coupling force itself)")
+    if coupling.effects and force_model.provides_force:
+        problems.add(f"{key}.effects", f"model {force_model.name} computes the coupling force itself; remove effects")
+    if force_model.starts_at_rest and not hasattr(models["motion"], "rest_state"):
+        problems.add(f"{key}.motion_side", f"model {force_model.name} starts in equilibrium with its load; model "
+                     f"{models['motion'].name} cannot state the load at rest")
+    if coupling.dimension == 1:
+        for placed in coupling.effects:
+            if placed.effect.free_length != 0.0:
+                problems.add(f"{key}.effects.{placed.name.split('.', 1)[1]}.free_length",
+                             "expected 0 for points on a line (a free length needs points in the plane)")

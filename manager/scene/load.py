@@ -1,0 +1,194 @@
+"""Scenes: load a TOML scene, apply ``--set`` overrides, validate everything, and report every problem.
+
+A scene says what is simulated and nothing more: subsystems (model, integrator, micro-step,
+communication-step ratio, the model's bodies and effects), couplings (which subsystem computes the
+coupling force and which signals cross), the manager (scheme, macro-step, extrapolation, timeout,
+pacing) and outputs (signals to report, the reference to compare with). See docs/scenes.md.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any, Sequence
+
+from zencosim.manager.scene.checks import check_compensation, check_couplings, check_scheme, check_timing
+from zencosim.manager.scene.couplings import COUPLINGS
+from zencosim.manager.scene.overrides import apply_overrides
+from zencosim.manager.scene.settings import (
+    CorrectionSettings,
+    ImplicitSettings,
+    ManagerSettings,
+    OutputSettings,
+    SpikeSettings,
+    SubsystemScene,
+    SubsystemSettings,
+)
+from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.params import Problems, read_table
+
+SECTIONS = ("name", "description", "source", "manager", "outputs", "subsystems", "couplings")
+
+
+class SceneError(ValueError):
+    """A scene that cannot be run: every problem, each with the file and dotted key it concerns."""
+
+    def __init__(self, path: str, problems: Sequence) -> None:
+        self.path = path
+        self.problems = list(problems)
+        lines = [f"{path}: {p.key}: {p.reason}" for p in self.problems]
+        super().__init__(f"scene {path} has {len(lines)} problem(s):\n  " + "\n  ".join(lines))
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated, immutable description of a run."""
+
+    name: str
+    description: str
+    path: str  # where it was loaded from
+    overrides: tuple[str, ...]  # the ``--set`` arguments applied, in order
+    resolved: dict  # the TOML document after overrides (do not mutate)
+    manager: ManagerSettings
+    outputs: OutputSettings
+    subsystems: dict[str, SubsystemScene]
+    couplings: dict[str, Any]
+
+    @property
+    def digest(self) -> str:
+        """sha256 of the resolved scene: two processes that loaded the same run agree on it."""
+        return hashlib.sha256(json.dumps(self.resolved, sort_keys=True).encode()).hexdigest()
+
+    def comm_step_ns(self, subsystem: str) -> int:
+        return self.manager.macro_step_ns * self.subsystems[subsystem].settings.comm_ratio
+
+
+def bundled_scene_names() -> list[str]:
+    """Names of the scenes that ship with zencosim."""
+    return sorted(p.name[:-5] for p in resources.files("zencosim.scenes").iterdir() if p.name.endswith(".toml"))
+
+
+def scene_path(name_or_path: str) -> Path:
+    """A bundled scene name or a path to a TOML file."""
+    candidate = Path(name_or_path)
+    if candidate.suffix == ".toml" or candidate.exists():
+        return candidate
+    bundled = resources.files("zencosim.scenes") / f"{name_or_path}.toml"
+    if bundled.is_file():
+        return Path(str(bundled))
+    raise SceneError(name_or_path, [_problem("scene", "no such file and no bundled scene of that name; "
+                                             f"bundled: {', '.join(bundled_scene_names())}")])
+
+
+def _problem(key: str, reason: str):
+    problems = Problems()
+    problems.add(key, reason)
+    return problems[0]
+
+
+def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
+    """Load, override and validate a scene; raise :class:`SceneError` listing every problem."""
+    path = scene_path(name_or_path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise SceneError(str(path), [_problem("scene", f"cannot read: {error.strerror}")]) from None
+    return scene_from_text(text, str(path), overrides)
+
+
+def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scene:
+    """Parse, override and validate a scene's TOML ``text``; ``path`` names it in errors and in ``Scene.path``."""
+    try:
+        document = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise SceneError(path, [_problem("scene", f"not valid TOML: {error}")]) from None
+    problems = Problems()
+    resolved = apply_overrides(document, overrides, problems)
+    scene = _validate(resolved, path, tuple(overrides), problems)
+    if problems:
+        raise SceneError(path, problems)
+    return scene
+
+
+def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Problems) -> Scene | None:
+    for extra in sorted(set(doc) - set(SECTIONS)):
+        problems.add(extra, f"unknown key; expected one of: {', '.join(SECTIONS)}")
+    name = doc.get("name")
+    if not isinstance(name, str) or not name:
+        problems.add("name", "missing; expected the scene's name as a string")
+    description = doc.get("description", "")
+    manager = _read_manager(doc.get("manager"), problems)
+    outputs = read_table(OutputSettings, doc.get("outputs", {}), "outputs", problems)
+
+    subsystems: dict[str, SubsystemScene] = {}
+    tables = doc.get("subsystems")
+    if not isinstance(tables, dict) or not tables:
+        problems.add("subsystems", "expected at least one [subsystems.<name>] table")
+        tables = {}
+    generic = ("model", "integrator", "micro_step", "comm_ratio", "extrapolation")
+    for sub_name, table in tables.items():
+        key = f"subsystems.{sub_name}"
+        if not isinstance(table, dict):
+            problems.add(key, "expected a table")
+            continue
+        settings = read_table(SubsystemSettings, {k: v for k, v in table.items() if k in generic}, key, problems)
+        if settings is None:
+            continue
+        spec = MODELS[settings.model].read({k: v for k, v in table.items() if k not in generic}, key, problems)
+        if spec is not None:
+            subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
+            if settings.integrator == "exact" and spec.linear_problem():
+                problems.add(f"{key}.integrator", f"'exact' needs a linear, time-invariant model: {spec.linear_problem()}")
+
+    couplings: dict[str, Any] = {}
+    coupling_tables = doc.get("couplings", {})
+    if not isinstance(coupling_tables, dict):
+        problems.add("couplings", "expected [couplings.<name>] tables")
+        coupling_tables = {}
+    for coupling_name, table in coupling_tables.items():
+        key = f"couplings.{coupling_name}"
+        kind = table.get("type") if isinstance(table, dict) else None
+        if kind not in COUPLINGS:
+            problems.add(f"{key}.type", f"expected one of {', '.join(sorted(COUPLINGS))}, got {kind!r}")
+            continue
+        coupling = COUPLINGS[kind].read(coupling_name, table, key, problems)
+        if coupling is not None:
+            couplings[coupling_name] = coupling
+
+    if manager is not None:
+        check_timing(manager, tables, subsystems, problems)
+        if manager.compensation != "none":
+            check_compensation(manager, couplings, subsystems, problems)
+        check_scheme(manager, outputs, couplings, subsystems, problems)
+    check_couplings(couplings, subsystems, tables, problems)
+    if outputs is not None:
+        signals = {s for c in couplings.values() for s in c.signals()}
+        for i, signal in enumerate(outputs.signals):
+            if signal not in signals:
+                problems.add(f"outputs.signals[{i}]", f"unknown signal {signal!r}; expected one of "
+                             f"{', '.join(sorted(signals)) or '(no coupling signals)'}")
+    if problems:
+        return None
+    return Scene(name, description, path, overrides, doc, manager, outputs, subsystems, couplings)
+
+
+def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
+    """``[manager]`` with its ``correction``, ``spikes`` and ``implicit`` sub-tables (``implicit``: with
+    scheme "implicit" only, defaults when absent)."""
+    parts = ("correction", "spikes", "implicit")
+    manager = read_table(ManagerSettings, table, "manager", problems, skip=parts)
+    if manager is None:
+        return None
+    settings = {}
+    for part, cls in zip(parts[:2], (CorrectionSettings, SpikeSettings)):
+        if part in table:
+            settings[part] = read_table(cls, table[part], f"manager.{part}", problems)
+    if manager.scheme == "implicit":
+        settings["implicit"] = read_table(ImplicitSettings, table.get("implicit", {}), "manager.implicit", problems)
+    elif "implicit" in table:
+        problems.add("manager.implicit", f"only with manager.scheme = 'implicit', got {manager.scheme!r}")
+    return dataclasses.replace(manager, **{k: v for k, v in settings.items() if v is not None})

@@ -1,0 +1,44 @@
+"""``--set key=value`` overrides of a scene's TOML document."""
+from __future__ import annotations
+
+import copy
+import tomllib
+from typing import Any, Sequence
+
+from zencosim.subsystems.params import Problems
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Split ``a.b.c=value`` into a key path and a TOML value (a bare word is taken as a string)."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip():
+        raise ValueError(f"--set {text!r}: expected key=value, e.g. manager.macro_step=0.004")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.strip().split("."), value
+
+
+def apply_overrides(document: dict, overrides: Sequence[str], problems: Problems) -> dict:
+    """Return a copy of ``document`` with each ``key=value`` set; tables cannot be overwritten by scalars."""
+    result = copy.deepcopy(document)
+    for text in overrides:
+        try:
+            path, value = parse_override(text)
+        except ValueError as error:
+            problems.add("--set", str(error))
+            continue
+        node = result
+        for depth, part in enumerate(path[:-1]):
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                problems.add(".".join(path[:depth + 1]), f"--set {text}: is a value, not a table")
+                break
+            node = child
+        else:
+            if isinstance(node.get(path[-1]), dict) or isinstance(value, dict):
+                problems.add(".".join(path), f"--set {text}: only scalars can be overridden")
+            else:
+                node[path[-1]] = value
+    return result

@@ -1,0 +1,143 @@
+"""The settings tables of a scene: ``[manager]`` with its sub-tables, ``[outputs]`` and the generic keys of
+``[subsystems.<name>]``. Each field carries its unit and bounds (``subsystems.params.quantity``);
+``subsystems.params.read_table`` reads and checks a table into one of these classes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from zencosim.compensation.implicit.coupling_laws import Baumgarte, CouplingMethod, Projection, WeightedMultiplier
+from zencosim.subsystems.integrators import INTEGRATORS
+from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.params import quantity
+
+
+@dataclass(frozen=True)
+class CorrectionSettings:
+    """The ``[manager.correction]`` table: energy correction (paper 002 Eqs. 13–17, see manager.correction).
+
+    No table, or ``enabled = false``: no corrector is built.
+    """
+
+    enabled: bool = True
+    mu: float | Literal["auto"] = field(default="auto", metadata=quantity("", minimum=0.0, maximum=1.0))  # μ, Eq. 13
+    nu: float = field(default=0.0, metadata=quantity("", minimum=0.0, maximum=1.0))  # ν, weight of 𝒰 in Eq. 17
+    cap_fraction: float | None = field(default=1.0, metadata=quantity("", minimum=0.0))  # |f_corr| <= cap_fraction |f|
+    cap_force: float | None = field(default=None, metadata=quantity("N", minimum=0.0))  # |f_corr| <= cap_force [N]
+
+
+@dataclass(frozen=True)
+class SpikeSettings:
+    """The ``[manager.spikes]`` table: the residual-power spike detector (see manager.monitor)."""
+
+    window: float = field(default=2.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # trailing window [s]
+    threshold: float = field(default=50.0, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # x baseline
+    merge_gap: float = field(default=0.1, metadata=quantity("s", minimum=0.0))  # flagged points closer than this join [s]
+
+
+@dataclass(frozen=True)
+class ImplicitSettings:
+    """The ``[manager.implicit]`` table: the coupling method of paper 003 and its corrector iteration.
+
+    The degree k of the predictor and corrector polynomials is ``manager.extrapolation``. Parameters of
+    the methods not chosen are not used.
+    """
+
+    method: Literal["baumgarte", "weighted-multiplier", "projection"] = "baumgarte"
+    mu: float = field(default=5e-3, metadata=quantity("s", minimum=0.0))  # Baumgarte: beta = 2 mu [s], gamma = mu^2 [s^2] (§3.7.1)
+    index: int = field(default=1, metadata=quantity("", minimum=1, maximum=3))  # Baumgarte: 1, 2 (gamma = 0), 3 (beta = gamma = 0)
+    a: float = field(default=1.0, metadata=quantity("", minimum=0.0))  # weighted multiplier: weight of the velocity level
+    b: float = field(default=1.0, metadata=quantity("", minimum=0.0))  # weighted multiplier: weight of the acceleration level
+    max_iterations: int = field(default=1, metadata=quantity("", minimum=1))  # corrector runs per macro-step
+    tolerance: float = field(default=1e-8, metadata=quantity("", minimum=0.0))  # relative change of e ending the iteration
+    sensitivity_step: float = field(default=1e-4, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # relative perturbation of e
+    divergence_gap: float = field(default=1.0, metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # the run stops when the joint opens wider
+
+    def coupling_method(self) -> CouplingMethod:
+        """The method with its parameters in SI units (Baumgarte's beta [s] and gamma [s^2])."""
+        if self.method == "baumgarte":
+            return Baumgarte.from_mu(self.mu, self.index)
+        if self.method == "weighted-multiplier":
+            return WeightedMultiplier(self.a, self.b)
+        return Projection()
+
+
+@dataclass(frozen=True)
+class ManagerSettings:
+    """The ``[manager]`` table: how the run is orchestrated."""
+
+    duration: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # simulated time [s]
+    macro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # base communication step [s]
+    scheme: Literal["jacobi", "implicit"] = "jacobi"
+    extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order (implicit: k)
+    timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
+    realtime: bool = False
+    record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
+    correction: CorrectionSettings | None = None  # [manager.correction]
+    spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
+    compensation: Literal["none", "eigenstructure"] = "none"  # paper 000 compensator (docs/compensation.md)
+    implicit: ImplicitSettings | None = None  # [manager.implicit], with scheme = "implicit"
+
+    @property
+    def corrects(self) -> bool:
+        """True when the scene asks for energy correction."""
+        return self.correction is not None and self.correction.enabled
+
+    @property
+    def macro_step_ns(self) -> int:
+        return round(self.macro_step * 1e9)
+
+    @property
+    def duration_ns(self) -> int:
+        return round(self.duration * 1e9)
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """The ``[outputs]`` table: which signals the summary reports and against which reference."""
+
+    signals: tuple[str, ...] = ()
+    reference: Literal["analytic", "solve_ivp", "none"] = "analytic"
+
+
+@dataclass(frozen=True)
+class SubsystemSettings:
+    """The generic keys of a ``[subsystems.<name>]`` table; the rest belongs to its model."""
+
+    model: str
+    micro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
+    integrator: str = "symplectic_euler"
+    comm_ratio: int = field(default=1, metadata=quantity("", minimum=1))  # communication step / macro step
+    extrapolation: int | None = field(default=None, metadata=quantity("", minimum=0, maximum=2))  # of its inputs
+
+    def problems(self) -> list[tuple[str, str]]:
+        found = []
+        if self.model not in MODELS:
+            found.append(("model", f"expected one of {', '.join(sorted(MODELS))}, got {self.model!r}"))
+        if self.integrator not in INTEGRATORS:
+            found.append(("integrator", f"expected one of {', '.join(sorted(INTEGRATORS))}, got {self.integrator!r}"))
+        elif self.model in MODELS and INTEGRATORS[self.integrator].second_order_only and not MODELS[self.model].second_order:
+            usable = sorted(n for n, i in INTEGRATORS.items() if not i.second_order_only)
+            found.append(("integrator", f"{self.integrator} needs a state of positions and velocities; model "
+                                        f"{self.model} is first order: expected one of {', '.join(usable)}"))
+        return found
+
+    @property
+    def micro_step_ns(self) -> int:
+        return round(self.micro_step * 1e9)
+
+
+@dataclass(frozen=True)
+class SubsystemScene:
+    """One subsystem of a scene: its generic settings and its model's own description."""
+
+    name: str
+    settings: SubsystemSettings
+    spec: Any  # what the model's ``read`` returned
+
+
+def extrapolation_order(manager: ManagerSettings, subsystem: SubsystemScene) -> int:
+    """The Lagrange order of the inputs ``subsystem`` receives (its own, else the scene's)."""
+    own = subsystem.settings.extrapolation
+    return manager.extrapolation if own is None else own

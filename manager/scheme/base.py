@@ -1,0 +1,106 @@
+"""The contract between a scheme and the buses that drive it (``manager.scheme.replica``).
+
+A scheme (``jacobi``, ``implicit``) is a generator: it yields :class:`Exchange` requests — the
+encoded commands to send and the subsystems whose replies it needs next — is sent the replies, and
+returns a :class:`RunRecord`. Replies are read with :func:`decode_output` / :func:`expect_reply`,
+which name the subsystem in every error.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode
+
+PROGRESS_EVERY = 500  # base steps between two progress callbacks
+
+
+class SubsystemFailure(RuntimeError):
+    """A subsystem answered with an error, died, or did not answer in time."""
+
+    def __init__(self, subsystem: str, reason: str) -> None:
+        self.subsystem = subsystem
+        super().__init__(f"subsystem {subsystem}: {reason}")
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``; ``status``, when
+    the run reports it, is the manager's STATUS message of the macro-step that has just ended."""
+
+    sends: dict[str, bytes]
+    awaits: tuple[str, ...]
+    status: bytes | None = None
+
+
+class Corrector(Protocol):
+    """What the manager adds to inputs each step (DESIGN: energy correction, compensator terms)."""
+
+    targets: frozenset[int]  # subsystems whose input polynomials it adjusts
+
+    def adjust(self, sub: int, tick: int, coefficients: np.ndarray) -> np.ndarray:
+        """The polynomial subsystem ``sub`` receives at base step ``tick`` (a copy; the argument is kept)."""
+
+    def observe(self, tick: int, trajectories: list[np.ndarray], residual_energy: np.ndarray) -> None:
+        """Outputs due at ``tick`` are committed and the residuals of the bonds due there evaluated."""
+
+    def log(self) -> tuple:
+        """What the corrector did, for the run record (one entry per corrected point)."""
+
+
+@dataclass
+class ImplicitRecord:
+    """What the implicit scheme adds to a :class:`RunRecord`."""
+
+    coupling_variables: np.ndarray  # (n_ticks + 1, n_e) e_N, variable-major (RigidJoint.coupling_variables)
+    corrector_runs: np.ndarray  # (n_ticks,) corrector runs in each macro-step (0 after a divergence)
+    diverged_at: int | None  # macro-step at whose end the joint opened wider than divergence_gap (or not finite)
+
+
+@dataclass
+class RunRecord:
+    """What one run produced, on the base macro-step grid."""
+
+    plan: Plan
+    trajectories: list[np.ndarray]  # per subsystem: outputs at its communication points
+    residual_power: np.ndarray  # (n_ticks + 1, n_bonds) [W], NaN where a bond was not evaluated
+    residual_energy: np.ndarray  # (n_ticks + 1, n_bonds) [J], cumulative
+    send_time_ns: np.ndarray  # (macro-steps executed,) wall clock (perf_counter_ns) when step j's inputs went out
+    lateness_ns: np.ndarray | None  # (macro-steps executed,) real-time mode: send time minus deadline
+    missed_deadlines: int
+    corrections: tuple = ()  # the correctors' logs (manager.scheme.correction.CorrectionLog), one per corrected point
+    implicit: ImplicitRecord | None = None  # what the implicit scheme adds (manager.scheme.implicit)
+    reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.bus.timing)
+
+    def signal(self, name: str) -> np.ndarray:
+        """The trajectory of output ``name`` at its subsystem's communication points."""
+        sub_index, output = self.plan.signals[name]
+        return self.trajectories[sub_index][:, output]
+
+
+def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
+    """The outputs a reply of ``sub`` carries for ``step``; anything else is a named error."""
+    n = len(sub.outputs)
+    if len(data) == HEADER.size + 8 * n:  # the expected reply: one header check, a view on the values
+        version, kind, _, count, reply_step, _, _ = HEADER.unpack_from(data)
+        if version == VERSION and kind == Kind.OUTPUT and reply_step == step and count == n:
+            return np.frombuffer(data, dtype="<f8", count=n, offset=HEADER.size)
+    message = expect_reply(data, sub, Kind.OUTPUT, step)
+    raise ProtocolError(f"subsystem {sub.name}: expected {n} outputs, got {message.values.size}")
+
+
+def expect_reply(data: bytes, sub: SubsystemPlan, expected: Kind, step: int, command: Kind | None = None):
+    """The reply of ``sub`` for ``step``, which must be of kind ``expected`` (answering ``command``):
+    an ERROR is the subsystem's failure, anything else a protocol error; both name the subsystem."""
+    message = decode(data, f"subsystem {sub.name}")
+    if message.kind == Kind.ERROR:
+        doing = "failed" if command is None else f"cannot {command.name.lower()}"
+        raise SubsystemFailure(sub.name, f"{doing} at step {step}: {message.text()}")
+    if message.kind != expected or message.step != step:
+        awaited = expected.name if command is None else f"{expected.name} to {command.name}"
+        raise ProtocolError(f"subsystem {sub.name}: expected {awaited} for step {step}, "
+                            f"got {message.kind.name} for step {message.step}")
+    return message

@@ -1,0 +1,134 @@
+"""The energy corrector: paper 002 Eqs. 13–17 applied by the manager to the receiving subsystems.
+
+Bonds whose motion sides are one point of one subsystem (the multiple oscillator's star, paper 002
+Fig. 14) form one *group* with a single correction force, as in the paper: the group's energy error
+is ``ζ = Σ_b μ_b δE_b`` over its last macro-step (each bond's residual is taken first, then weighted),
+its uncorrected coupling force is the sum of the bonds' forces, and its velocity is the point's.
+The macro-step H of a group is the interval between the points where all its sides communicate.
+
+Sign: our force ports carry the force on the force side's point; the motion side applies ``-fc*``.
+The paper's ``f`` (the force on the receiving subsystem) is therefore ``-Σ fc``, and its ``f_corr``
+(``compensation.energy_correction``) is applied by sending ``fc* - f_corr`` on the group's first
+force input: the motion side then applies ``-fc* + f_corr``. Logged forces are the paper's
+``f_corr``: the force the correction exerts on the receiving point.
+
+The correction is added to the constant coefficient of the input polynomial of every step of the
+receiving subsystem that starts in [t_{k+1}, t_{k+2}); the residual power is still evaluated with the
+polynomial the extrapolation produced (see manager.residual).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from zencosim.compensation.energy_correction import EnergyCorrection, correction_coefficient
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.scene.settings import CorrectionSettings
+
+
+@dataclass
+class CorrectionLog:
+    """What the corrector did to one receiving point."""
+
+    name: str  # the group: its bonds joined by '+'
+    subsystem: str  # the receiving (motion-side) subsystem
+    bonds: tuple[str, ...]
+    mu: tuple[float, ...]  # μ of each bond
+    force: np.ndarray  # (n_ticks, dimension) [N] f_corr on the receiving point over [t_j, t_j+1]
+    uncorrected_energy: np.ndarray  # (n_ticks + 1,) [J] 𝒰 at the group's correction points, NaN elsewhere
+    work: np.ndarray  # (n_ticks + 1,) [J] cumulative work of f_corr on the receiving point, NaN between its points
+    capped_steps: int  # corrections a cap limited
+    steps: int  # corrections computed
+
+
+def bond_mu(plan: Plan, bond_index: int, settings: CorrectionSettings) -> float:
+    """μ of a bond: the scene's number, or the rules of paper 002 §3.3 ("auto")."""
+    if settings.mu != "auto":
+        return settings.mu
+    bond = plan.bonds[bond_index]
+    force_side, motion_side = plan.subsystems[bond.force_side], plan.subsystems[bond.motion_side]
+    feedthrough = any(force_side.outputs[i].feedthrough for i in bond.force_output)
+    faster = force_side if force_side.ratio < motion_side.ratio else motion_side
+    return correction_coefficient(feedthrough, Fraction(force_side.ratio), Fraction(motion_side.ratio), faster.order)
+
+
+class _Group:
+    """One receiving point and the bonds that act on it."""
+
+    def __init__(self, plan: Plan, bonds: list[int], settings: CorrectionSettings) -> None:
+        first = plan.bonds[bonds[0]]
+        self.bonds = tuple(bonds)
+        self.name = "+".join(plan.bonds[b].name for b in bonds)
+        self.motion = first.motion_side
+        self.motion_ratio = plan.subsystems[self.motion].ratio
+        self.velocity = list(first.velocity_output)
+        self.force_input = list(first.force_input)
+        self.forces = [(plan.bonds[b].force_side, plan.subsystems[plan.bonds[b].force_side].ratio,
+                        list(plan.bonds[b].force_output)) for b in bonds]
+        self.interval = math.lcm(self.motion_ratio, *(ratio for _, ratio, _ in self.forces))
+        self.macro_step = self.interval * plan.base_step_ns * 1e-9  # H [s]
+        self.motion_step = self.motion_ratio * plan.base_step_ns * 1e-9  # the receiving subsystem's step [s]
+        self.mu = tuple(bond_mu(plan, b, settings) for b in bonds)
+        dimension = len(self.velocity)
+        self.law = EnergyCorrection(settings.nu, settings.cap_fraction, settings.cap_force, dimension)
+        n = plan.n_ticks
+        self.log = CorrectionLog(self.name, plan.subsystems[self.motion].name, tuple(plan.bonds[b].name for b in bonds),
+                                 self.mu, np.zeros((n, dimension)), np.full(n + 1, np.nan), np.full(n + 1, np.nan), 0, 0)
+        self.log.uncorrected_energy[0] = 0.0
+        self.log.work[0] = 0.0
+        self.last_tick = 0
+        self.work = 0.0
+
+
+class EnergyCorrector:
+    """The :class:`manager.jacobi.Corrector` of paper 002 §3.2, for every power bond of a plan."""
+
+    def __init__(self, plan: Plan, settings: CorrectionSettings) -> None:
+        members: dict[tuple, list[int]] = {}
+        for b, bond in enumerate(plan.bonds):
+            members.setdefault((bond.motion_side, bond.velocity_output), []).append(b)
+        self.groups = [_Group(plan, bonds, settings) for bonds in members.values()]
+        self.targets = frozenset(g.motion for g in self.groups)
+        self._by_target = {sub: [g for g in self.groups if g.motion == sub] for sub in self.targets}
+
+    def adjust(self, sub: int, tick: int, coefficients: np.ndarray) -> np.ndarray:
+        corrected = coefficients.copy()
+        for group in self._by_target[sub]:
+            corrected[0, group.force_input] -= group.law.force
+        return corrected
+
+    def observe(self, tick: int, trajectories: list[np.ndarray], residual_energy: np.ndarray) -> None:
+        for group in self.groups:
+            ratio = group.motion_ratio
+            if tick % ratio == 0:  # work of the correction over the receiving subsystem's last step (trapezoid)
+                path = trajectories[group.motion]
+                v0, v1 = path[tick // ratio - 1, group.velocity], path[tick // ratio, group.velocity]
+                group.work += float(group.log.force[tick - ratio].dot(v0 + v1)) * 0.5 * group.motion_step
+                group.log.work[tick] = group.work
+            if tick % group.interval:
+                continue
+            zeta = sum(mu * (residual_energy[tick, b] - residual_energy[group.last_tick, b])
+                       for mu, b in zip(group.mu, group.bonds))
+            velocity = trajectories[group.motion][tick // ratio, group.velocity]
+            coupling_force = -sum(trajectories[side][tick // side_ratio, outputs]
+                                  for side, side_ratio, outputs in group.forces)
+            force = group.law.update(float(zeta), velocity, coupling_force, group.macro_step)
+            group.log.force[tick:tick + group.interval] = force
+            group.log.uncorrected_energy[tick] = group.law.uncorrected
+            group.log.capped_steps += group.law.capped
+            group.log.steps += 1
+            group.last_tick = tick
+
+    def log(self) -> tuple[CorrectionLog, ...]:
+        """One log per receiving point."""
+        return tuple(g.log for g in self.groups)
+
+
+def build_correctors(plan: Plan, settings: CorrectionSettings | None) -> tuple:
+    """The correctors a scene asks for (none when it asks for none)."""
+    if settings is None or not settings.enabled:
+        return ()
+    return (EnergyCorrector(plan, settings),)

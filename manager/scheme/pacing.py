@@ -1,0 +1,46 @@
+"""Real-time pacing: release every macro-step at an absolute wall-clock deadline.
+
+Step j is released at ``t_start + j * macro_step``; every process of a Zenoh run paces its replica of
+the scheme to the same start time, which the manager announces on the wall clock (Unix time, so
+that processes on hosts with synchronised clocks agree on it) and each process converts once to its
+monotonic clock, which then paces (the wall clock may be stepped). The loop sleeps until just before the deadline
+and spins for the last ``spin_ns`` (a sleeping thread wakes late, and Zenoh latency grows when the
+receiving threads have gone idle). A step whose predecessor returned after its release time is a
+missed deadline; lateness is release time minus deadline.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+# how long before a deadline the pacer stops sleeping and spins (measured, docs/realtime.md): a run
+# alone in its process spins longer (wake-ups come late on this machine), subsystem processes that
+# share the cores with each other and with Zenoh's threads spin less (spinning takes those cores)
+SPIN_ALONE_NS = 500_000
+SPIN_SHARED_NS = 200_000
+
+
+class Pacer:
+    def __init__(self, macro_step_ns: int, n_steps: int, start_ns: int | None = None,
+                 spin_ns: int = SPIN_ALONE_NS) -> None:
+        self.macro_step_ns = macro_step_ns
+        self.spin_ns = spin_ns
+        self.start_ns = start_ns  # on time.perf_counter_ns's clock (CLOCK_MONOTONIC)
+        self.lateness_ns = np.zeros(n_steps, dtype=np.int64)
+        self.missed = 0
+
+    def wait(self, step: int) -> None:
+        """Block until step ``step``'s deadline (the first call starts the clock)."""
+        now = time.perf_counter_ns()
+        if self.start_ns is None:
+            self.start_ns = now
+        deadline = self.start_ns + step * self.macro_step_ns
+        if now > deadline:
+            self.missed += 1
+        else:
+            if deadline - now > self.spin_ns:
+                time.sleep((deadline - now - self.spin_ns) * 1e-9)
+            while (now := time.perf_counter_ns()) < deadline:
+                pass
+        self.lateness_ns[step] = now - deadline

@@ -1,0 +1,25 @@
+"""Residual power of a power bond (paper 002 Eqs. 7–9, 12) — the one place it is computed.
+
+With the sign convention of ``subsystems.ports``: the force side's coupling element exerts ``f`` on
+its own point and ``-f`` on the terminal that moves with the received velocity ``v*``, so the power
+leaving the force side through the interface is ``-f v*``; the motion side applies ``-f*`` to a body
+moving with ``v``, receiving ``-f* v``. The interface creates energy at the rate
+
+    δP = (power into the motion side) − (power out of the force side) = f v* − f* v,
+
+which vanishes when nothing is extrapolated (``f* = f``, ``v* = v``). Both inputs are the values the
+subsystems actually used at the communication point ``t_{k+1}``: the input polynomials they received
+evaluated there (``ũ_{k+1}`` of Eq. 9; for ZOH that is ``u_k``, the paper's choice). With energy
+correction, ``f*`` is the force the extrapolation produced, before the correction is added: the
+residual measures the interface's own error, and the correction's work is accounted separately.
+"""
+from __future__ import annotations
+
+
+def residual_power(force: float, velocity_input: float, force_input: float, velocity: float) -> float:
+    """δP [W] of one bond at one communication point; positive when the interface adds energy.
+
+    For a bond in the plane, call it per component and add: the power is a dot product, and the
+    vector bond is one power bond (its components are not bonds to be monitored apart).
+    """
+    return force * velocity_input - force_input * velocity

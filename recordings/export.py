@@ -1,0 +1,41 @@
+"""The signals of a recording, as a run gives them (``manager.results.tables``): ``zencosim export``.
+
+A recording holds every reply of every subsystem and the manager's status after every macro-step.
+The committed output of a subsystem at a communication point is the last OUTPUT it sent for that
+point (the implicit scheme's predictor and derivative runs come before its corrector); rows run up to
+the last macro-step whose status was recorded, which is the last step the run committed. The residual
+power and energy of a bond are the status's ``delta_p.<bond>`` and ``delta_e.<bond>`` (0 at the start,
+as in the run). The grid of each signal comes from the recording's own scene, so the tables equal
+those of the run that was recorded, bit for bit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.results.tables import Signal, run_signals
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.layout import STATUS_TOPIC
+from zencosim.recordings.reader import Recording
+
+
+def recorded_signals(recording: Recording) -> dict[str, Signal]:
+    """Every signal of the recorded run (see the module text); RecordingError when its scene cannot be loaded."""
+    plan, _ = plan_scene(recording.scene())
+    last_step = recording.last_step()
+    trajectories = []
+    for sub in plan.subsystems:
+        outputs = np.full((plan.n_ticks // sub.ratio + 1, len(sub.outputs)), np.nan)
+        for message in recording.channels[f"{sub.name}/y"].messages:
+            if message.kind == Kind.OUTPUT and message.step <= last_step:
+                outputs[message.step // sub.ratio] = message.values
+        trajectories.append(outputs)
+    residual = {prefix: np.full((plan.n_ticks + 1, len(plan.bonds)), np.nan) for prefix in ("delta_p", "delta_e")}
+    for prefix, values in residual.items():
+        values[0] = 0.0
+    status = recording.channels[STATUS_TOPIC]
+    columns = {name: i for i, name in enumerate(status.spec.names)}
+    for message in status.messages:
+        for prefix, values in residual.items():
+            values[message.step] = [message.values[columns[f"{prefix}.{bond.name}"]] for bond in plan.bonds]
+    return run_signals(plan, trajectories, residual["delta_p"], residual["delta_e"], last_step)

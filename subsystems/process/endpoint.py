@@ -1,0 +1,66 @@
+"""The subsystem side of the wire protocol: decode a command, act on the subsystem, encode the reply.
+
+The same endpoint serves the in-process bus (called directly) and a subsystem process (called from
+its Zenoh subscriber), so both buses run identical arithmetic on identical bytes.
+"""
+from __future__ import annotations
+
+from zencosim.manager.wire.protocol import Kind, ProtocolError, command_ref, decode, encode, encode_error
+from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.subsystem import SavedState, Subsystem
+
+
+class SubsystemEndpoint:
+    """Answers manager commands for one subsystem that communicates every ``ratio`` base steps."""
+
+    def __init__(self, subsystem: Subsystem, ratio: int, base_step_ns: int) -> None:
+        self.subsystem = subsystem
+        self.ratio = ratio
+        self.comm_step_ns = ratio * base_step_ns
+        self.n_inputs = len(subsystem.inputs)
+        self.saved: tuple[int, SavedState] | None = None  # (step, state): SAVE replaces the previous one
+
+    def handle(self, data: bytes) -> bytes:
+        """One command in, one reply out (carrying the command's reference); a failing command is
+        answered with an ERROR message."""
+        step, time_ns, ref = -1, -1, command_ref(data)
+        try:
+            message = decode(data, "manager")
+            step, time_ns = message.step, message.time_ns
+            return self._dispatch(message, ref)
+        except Exception as error:  # the manager names the subsystem and stops the run
+            return encode_error(step, time_ns, f"{type(error).__name__}: {error}", ref)
+
+    def _inputs(self, message) -> InputPolynomial:
+        rows = message.rows
+        if rows < 1 or message.values.size != rows * self.n_inputs:
+            raise ProtocolError(f"subsystem {self.subsystem.name}: expected {self.n_inputs} inputs per row, "
+                                f"got {message.values.size} values in {rows} rows")
+        return InputPolynomial(message.values.reshape(rows, self.n_inputs))
+
+    def _dispatch(self, message, ref: int) -> bytes:
+        sub = self.subsystem
+        kind = message.kind
+        if kind == Kind.STEP:
+            t1 = message.time_ns + self.comm_step_ns
+            y = sub.advance(message.time_ns, t1, self._inputs(message))
+            return encode(Kind.OUTPUT, message.step + self.ratio, t1, y, ref=ref)
+        if kind == Kind.INIT:
+            if message.time_ns != sub.t_ns:
+                raise ProtocolError(f"subsystem {sub.name}: INIT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")
+            return encode(Kind.OUTPUT, message.step, message.time_ns, sub.output_values(self._inputs(message).at(0.0)),
+                          ref=ref)
+        if kind == Kind.SAVE:
+            self.saved = (message.step, sub.save())
+            return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
+        if kind == Kind.RESTORE:
+            if self.saved is None or self.saved[0] != message.step:
+                raise ProtocolError(f"subsystem {sub.name}: no state saved at step {message.step}")
+            sub.restore(self.saved[1])
+            return encode(Kind.ACK, message.step, sub.t_ns, ref=ref)
+        if kind == Kind.PROJECT:
+            if message.time_ns != sub.t_ns:
+                raise ProtocolError(f"subsystem {sub.name}: PROJECT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")
+            return encode(Kind.OUTPUT, message.step, message.time_ns, sub.project(message.values), ref=ref)
+        raise ProtocolError(f"subsystem {sub.name}: cannot handle a {kind.name} message")
+

@@ -1,0 +1,249 @@
+"""A subsystem process: one subsystem of a scene, in a run over Zenoh.
+
+Started by ``zencosim run --bus zenoh`` for every subsystem, or by hand on another host with
+``zencosim subsystem SCENE NAME --connect tcp/HOST:PORT``. The process runs its own replica of the
+run's scheme (``manager.replica``): it executes its own commands, publishes its replies and takes the
+other subsystems' replies from the network, in the Zenoh subscriber callback, so no thread hand-off
+sits on the critical path. Every reply goes at once to the other subsystems (``<sub>/y``); the
+manager, which only follows the run, gets them in batches (``<sub>/log``: at most ``LOG_REPLIES``
+replies or ``LOG_INTERVAL_S`` old, at once after an error and at the end), because on a machine with
+fewer cores than processes every message a process handles costs CPU that the critical path needs.
+When its replica has finished, the process reports the timing of the steps as it released them
+(``<sub>/timing``). It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+import signal
+import sys
+import threading
+import time
+
+import zenoh
+
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.bus.signals import SignalNote
+from zencosim.manager.bus.timing import step_timing
+from zencosim.manager.bus.zenoh_session import (
+    ZenohOptions,
+    concrete_endpoint,
+    coupling_publisher,
+    endpoint_host,
+    key,
+    peer_config,
+    reachable,
+    wait_for_listener,
+)
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.pacing import SPIN_SHARED_NS
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.protocol import Kind
+
+
+class HostError(RuntimeError):
+    """The subsystem process could not join a run."""
+
+
+def describe(scene: Scene, name: str, subsystem, listen: str) -> bytes:
+    """What the manager checks before a run (same scene, same ports), and where this process listens."""
+    return json.dumps({
+        "subsystem": name,
+        "listen": listen,
+        "scene_digest": scene.digest,
+        "inputs": [[p.name, p.unit] for p in subsystem.inputs],
+        "outputs": [[p.name, p.unit] for p in subsystem.outputs],
+        "pid": os.getpid(),
+    }).encode()
+
+
+def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> dict:
+    """The description of the one run that waits for subsystem ``name`` of this scene: its id and the
+    endpoints of the processes already in it."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        candidates = []
+        for reply in session.get("zencosim/*/manager/run", timeout=1.0):
+            if reply.ok is None:
+                continue
+            info = json.loads(reply.ok.payload.to_bytes())
+            if info.get("scene_digest") == scene.digest and name in info.get("waiting_for", []):
+                candidates.append(info)
+        if len(candidates) == 1:
+            return candidates[0]
+        if len(candidates) > 1:
+            raise HostError(f"several runs wait for {name} of scene {scene.name}: "
+                            f"{', '.join(c['run_id'] for c in candidates)}; choose one with --run-id")
+        if time.monotonic() > deadline:
+            raise HostError(f"no run of scene {scene.name} (digest {scene.digest[:12]}) waits for subsystem {name}; "
+                            "is the manager started with the same scene and --set options?")
+        time.sleep(0.2)
+
+
+SIGNAL_LOOK_S = 0.1  # the main thread looks this often for a signal (manager.signals)
+EXIT_LIMIT_S = 10.0  # once stopped, the process has this long to leave the run in order
+
+
+def _exit_now(name: str, reason: str) -> None:
+    print(f"subsystem {name}: {reason}; leaving the Zenoh session took over {EXIT_LIMIT_S:g} s, exiting now",
+          file=sys.stderr, flush=True)
+    os._exit(1)
+
+
+LOG_REPLIES = 64  # replies per batch for the manager, at most
+LOG_INTERVAL_S = 0.01  # the oldest reply of a batch waits this long at most
+
+
+class _Host:
+    """The state of one subsystem process during a run (all callbacks take ``lock``)."""
+
+    def __init__(self, scene: Scene, name: str, run_id: str, session: zenoh.Session) -> None:
+        self.scene, self.name, self.run_id, self.session = scene, name, run_id, session
+        self.plan, subsystems = plan_scene(scene)
+        self.subsystem = subsystems[name]
+        self.local = endpoints(self.plan, subsystems, [name])
+        self.names = [s.name for s in self.plan.subsystems]
+        self.lock = threading.Lock()
+        self.finished = threading.Event()
+        self.reasons: list[str] = []
+        self.early: list[tuple[str, bytes]] = []  # replies that arrive before the start signal
+        self.replica: Replica | None = None
+        self.seen: set[str] = set()
+        self.replies = coupling_publisher(session, key(run_id, name, "y"))
+        self.log = coupling_publisher(session, key(run_id, name, "log"))
+        self.unsent: list[bytes] = []  # replies not yet sent to the manager
+        self.last_sent = time.monotonic()
+
+    def stop(self, why: str) -> None:
+        self.reasons.append(why)
+        self.finished.set()
+
+    def ended(self, signals: SignalNote) -> bool:
+        """Whether the run has ended for this process; a signal noted since its last look ends it now."""
+        if signals.received is not None and not self.finished.is_set():
+            self.stop(signals.received)
+        return self.finished.is_set()
+
+    def publish(self, _name: str, reply: bytes) -> None:
+        """A reply of this subsystem: to the other subsystems now, to the manager in the next batch."""
+        self.replies.put(reply)
+        self.unsent.append(reply)
+        if (len(self.unsent) >= LOG_REPLIES or reply[1] == Kind.ERROR
+                or time.monotonic() - self.last_sent >= LOG_INTERVAL_S):
+            self.send_log()
+
+    def send_log(self) -> None:
+        if self.unsent:
+            self.log.put(b"".join(self.unsent))
+            self.unsent.clear()
+        self.last_sent = time.monotonic()
+
+    def on_reply(self, sender: str, sample: zenoh.Sample) -> None:
+        data = sample.payload.to_bytes()
+        with self.lock:
+            if self.finished.is_set():  # stopping: the peers' replies no longer advance the run
+                return
+            if self.replica is None:
+                self.early.append((sender, data))
+            else:
+                self._guarded(self.replica.deliver, sender, data)
+
+    def on_go(self, sample: zenoh.Sample) -> None:
+        go = json.loads(sample.payload.to_bytes())
+        # the start on this process's monotonic clock (which paces; the wall clock may be stepped)
+        start_ns = time.perf_counter_ns() + (go["start_unix_ns"] - time.time_ns())
+        with self.lock:
+            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS)
+            self.replica = Replica(scheme, self.names, self.local, self.publish)
+            self._guarded(self.replica.start)
+            for sender, data in self.early:
+                self._guarded(self.replica.deliver, sender, data)
+            self.early.clear()
+
+    def on_timing(self, query: zenoh.Query) -> None:
+        """The timing of the steps as this process released them, once its replica has finished."""
+        with self.lock:
+            finished = self.replica is not None and self.replica.finished
+            report = step_timing(self.replica.result) if finished else None
+        if report is None:
+            query.reply_err(b"the run has not finished here")
+        else:
+            query.reply(key(self.run_id, self.name, "timing"), json.dumps(report).encode())
+
+    def _guarded(self, action, *args) -> None:
+        """Run a replica action; an error here (a diverged or failed run) ends this process."""
+        try:
+            action(*args)
+        except Exception as error:
+            self.stop(f"{type(error).__name__}: {error}")
+        if self.replica is not None and self.replica.finished:
+            self.send_log()  # the last replies: the manager finishes the run once it has them
+
+    def on_control(self, sample: zenoh.Sample) -> None:
+        self.stop("stopped by the manager")
+
+    def on_liveliness(self, sample: zenoh.Sample) -> None:
+        who = str(sample.key_expr).split("/")[-2]
+        if sample.kind == zenoh.SampleKind.PUT:
+            self.seen.add(who)
+        elif who == "manager":
+            self.stop("the manager is gone")
+
+
+def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, options: ZenohOptions,
+          wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0") -> int:
+    """Serve subsystem ``name`` until the run ends; return the process exit code."""
+    if name not in scene.subsystems:
+        raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
+    listen = concrete_endpoint(listen)
+    if run_id is None:
+        # started by hand: find the run, then connect to every process already in it (gossip would
+        # too, but not reliably in time), so that every pair of processes has a direct link
+        for endpoint in connect:
+            wait_for_listener(endpoint, wait_s)
+        with zenoh.open(peer_config(connect=connect, options=options)) as probe:
+            info = find_run(probe, scene, name, wait_s)
+        run_id = info["run_id"]
+        via_host = endpoint_host(connect[0])  # the manager's host, where its spawned subsystems listen
+        peers = [reachable(ep, via_host) for peer, ep in info.get("endpoints", {}).items() if peer != name]
+        connect = connect + [ep for ep in peers if ep not in connect]
+    for endpoint in connect:
+        wait_for_listener(endpoint, wait_s)
+    with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:
+        host = _Host(scene, name, run_id, session)
+        signals = SignalNote(signal.SIGINT, signal.SIGTERM)
+        entities = [
+            *(session.declare_subscriber(key(run_id, peer, "y"), functools.partial(host.on_reply, peer))
+              for peer in host.names if peer != name),
+            session.declare_queryable(key(run_id, name, "timing"), host.on_timing),
+            session.declare_subscriber(key(run_id, name, "u"), host.on_control),
+            session.declare_subscriber(key(run_id, "manager", "go"), host.on_go),
+            session.declare_queryable(key(run_id, name, "ctl"), lambda query: query.reply(
+                key(run_id, name, "ctl"), describe(scene, name, host.subsystem, listen))),
+            session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
+            session.liveliness().declare_token(key(run_id, name, "alive")),
+        ]
+        others = set(host.names) - {name} | {"manager"}
+        deadline = time.monotonic() + wait_s
+        while not others <= host.seen and not host.ended(signals):
+            if time.monotonic() > deadline:
+                host.stop(f"not connected to {', '.join(sorted(others - host.seen))} within {wait_s:g} s")
+            time.sleep(0.01)
+        entities.append(session.liveliness().declare_token(key(run_id, name, "ready")))
+        while not host.ended(signals):
+            host.finished.wait(SIGNAL_LOOK_S)
+        # leaving must not hang on a peer or a manager that is gone: past this limit the process exits as it is
+        deadline_timer = threading.Timer(EXIT_LIMIT_S, _exit_now, (name, host.reasons[0]))
+        deadline_timer.daemon = True
+        deadline_timer.start()
+        with host.lock:
+            host.send_log()
+        for entity in reversed(entities):
+            entity.undeclare()
+        host.replies.undeclare()
+        host.log.undeclare()
+    deadline_timer.cancel()
+    print(f"subsystem {name}: {host.reasons[0]}", file=sys.stderr)
+    return 0 if host.reasons[0] == "stopped by the manager" else 1

@@ -1,0 +1,1 @@
+"""zencosim: distributed, real-time co-simulation of mechanical and multiphysics systems over Zenoh."""
