@@ -11,7 +11,7 @@ a change of machine load hits both), in process. Two figures per run, both CPU t
 * loop: the stepping loop alone (compensation adds no work per step: its terms are stamped into the
   subsystems' matrices);
 
-and, timed alone, the design with its discrete correction (``manager.build.scene_compensator``):
+and, timed alone, the design with its discrete correction (``manager.analysis.compensator.scene_compensator``):
 its ratio to the uncompensated run is the overhead without the noise of a difference of two runs.
 
 References (analytic solution, monolithic run) are not part of a co-simulation and are not timed.

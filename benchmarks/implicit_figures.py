@@ -161,7 +161,7 @@ def orders() -> None:
 
 
 def global_error_ratio() -> None:
-    """§3.7 model over 1 s: Eq. (72) of the runtime divided by that of compensation.implicit_convergence."""
+    """§3.7 model over 1 s: Eq. (72) of the runtime divided by that of compensation.implicit.convergence."""
     laws = {"baumgarte": Baumgarte.from_mu(5e-3), "weighted-multiplier": WeightedMultiplier(), "projection": Projection()}
     for method, law in laws.items():
         for k in (0, 1, 2):

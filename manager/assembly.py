@@ -47,7 +47,7 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
-    recorded run); ``spin_ns``: see ``manager.pacing``."""
+    recorded run); ``spin_ns``: see ``manager.scheme.pacing``."""
     pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns, spin_ns) if realtime else None
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status)

@@ -34,7 +34,7 @@ class RunRecorder(Protocol):
         """Start recording."""
 
     def tap(self, source: str, channel: str, message: bytes) -> None:
-        """A message of the in-process replica (see ``manager.replica``)."""
+        """A message of the in-process replica (see ``manager.scheme.replica``)."""
 
     def finish(self, outcome: str) -> dict:
         """Close the recording (what the tap handed over is what was published)."""
@@ -105,10 +105,8 @@ def references(scene: Scene) -> tuple[dict, str | None]:
     return {"analytic": analytic_reference(scene), "monolithic": monolithic_reference(scene)}, None
 
 
-def run_scene(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
-              progress: Callable[[int], None] | None = None, recorder: RunRecorder | None = None,
-              **bus_options) -> dict:
-    """Run a scene and return its summary (see manager.summary)."""
-    record, wall_s = execute(scene, bus, realtime, progress, recorder=recorder, **bus_options)
+def summarize_run(scene: Scene, record: RunRecord, bus: str, wall_s: float, recorder: RunRecorder | None = None) -> dict:
+    """The summary of a run that ``execute`` returned (see ``manager.results.summary``), against the
+    references the scene asks for."""
     refs, note = references(scene)
     return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)

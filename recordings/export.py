@@ -15,6 +15,7 @@ import numpy as np
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.tables import Signal, run_signals
 from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings import RecordingError
 from zencosim.recordings.layout import STATUS_TOPIC
 from zencosim.recordings.reader import Recording
 
@@ -22,6 +23,11 @@ from zencosim.recordings.reader import Recording
 def recorded_signals(recording: Recording) -> dict[str, Signal]:
     """Every signal of the recorded run (see the module text); RecordingError when its scene cannot be loaded."""
     plan, _ = plan_scene(recording.scene())
+    needed = [f"{sub.name}/y" for sub in plan.subsystems] + [STATUS_TOPIC]
+    missing = [topic for topic in needed if topic not in recording.channels]
+    if missing:
+        raise RecordingError(f"{recording.path}: channels {', '.join(missing)} are missing; its scene has "
+                             f"{', '.join(needed)}")
     last_step = recording.last_step()
     trajectories = []
     for sub in plan.subsystems:

@@ -4,7 +4,7 @@ One MCAP channel per key of the run (docs/protocol.md), with the key under ``zen
 its topic: ``<sub>/commands`` (the commands the scheme computed for a subsystem: INIT and STEP carry
 its input polynomial, ``rows × inputs``, row ``i`` multiplying ``tau**i``), ``<sub>/y`` (its
 replies: OUTPUT carries its outputs) and ``manager/status`` (the manager's status after every
-macro-step, manager.status). A channel's metadata names its values and their units, so a recording
+macro-step, manager.wire.status). A channel's metadata names its values and their units, so a recording
 is read without the scene.
 
 The ``zencosim`` metadata record describes the run (scene, digest, overrides, software versions,

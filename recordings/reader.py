@@ -16,6 +16,7 @@ from mcap.exceptions import McapError
 from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
+from zencosim.manager.scene.load import Scene, SceneError, scene_from_text
 from zencosim.manager.wire.protocol import Kind
 from zencosim.recordings import RecordingError
 from zencosim.recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, STATUS_TOPIC, ChannelSpec
@@ -51,6 +52,19 @@ class Recording:
     scene_toml: str
     channels: dict[str, ChannelRecord]
     truncated: str | None  # why reading stopped before the end of the file; None for a complete file
+
+    def scene(self) -> Scene:
+        """The recorded scene, loaded in this zencosim; RecordingError when it no longer loads or its digest
+        differs from the recorded one."""
+        try:
+            scene = scene_from_text(self.scene_toml, f"{self.path}:{SCENE_ATTACHMENT}")
+        except SceneError as error:
+            raise RecordingError(f"{self.path}: its scene no longer loads in this zencosim "
+                                 f"({self.info['zencosim']} recorded it): {error}") from None
+        if scene.digest != self.info["scene_digest"]:
+            raise RecordingError(f"{self.path}: the embedded scene's digest {scene.digest[:12]} differs from the "
+                                 f"recorded {self.info['scene_digest'][:12]}")
+        return scene
 
     def last_step(self) -> int:
         """The last step whose status was recorded (0 when none was)."""

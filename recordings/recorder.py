@@ -28,6 +28,7 @@ import tomli_w
 from zencosim.manager.bus.children import start_child
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecordingError
@@ -69,7 +70,7 @@ class Recorder:
     """Records one run to ``path``: create it, pass it to ``manager.run.execute``, read ``result``."""
 
     def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
+        self.path = check_output_file(path, "recording")
         self.result: dict | None = None
         self._process: subprocess.Popen | None = None
         self._log = tempfile.TemporaryFile()
@@ -110,7 +111,7 @@ class Recorder:
         self._status = self._topics.index(STATUS_TOPIC)
 
     def tap(self, source: str, channel: str, data: bytes) -> None:
-        """A message of the in-process replica (``manager.replica``)."""
+        """A message of the in-process replica (``manager.scheme.replica``)."""
         index = self._index[source, channel]
         status = index == self._status
         if status:
@@ -123,7 +124,7 @@ class Recorder:
     def flush(self) -> None:
         """Hand what the tap holds to the recorder process now.
 
-        SIGINT and SIGTERM end a run by an exception wherever it is (``manager.cli``): one that cut a
+        SIGINT and SIGTERM end a run by an exception wherever it is (``cli.main``): one that cut a
         ``tap`` short leaves a channel index (or a stamp) without its message, which is dropped here,
         uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
         is sent whole and counted exactly once."""

@@ -1,13 +1,13 @@
 """The message encoding of a recording: protobuf, one message type for every channel.
 
-Every wire message of a run (``manager.protocol``) is stored as one ``zencosim.Message``::
+Every wire message of a run (``manager.wire.protocol``) is stored as one ``zencosim.Message``::
 
     syntax = "proto3";
     package zencosim;
     message Message {
       sfixed64 step = 1;           // communication point on the base macro-step grid
       sfixed64 time_ns = 2;        // simulated time [ns]
-      fixed32 kind = 3;            // manager.protocol.Kind: INIT 1, STEP 2, ..., OUTPUT 16, ..., STATUS 32
+      fixed32 kind = 3;            // manager.wire.protocol.Kind: INIT 1, STEP 2, ..., OUTPUT 16, ..., STATUS 32
       fixed32 rows = 4;            // rows of a polynomial payload (order + 1), else 0
       repeated double values = 5;  // packed; named by the channel's metadata (recordings.layout)
       string text = 6;             // ERROR: the reason
@@ -79,7 +79,7 @@ FILE_DESCRIPTOR_SET: bytes = _length_delimited(1, (  # FileDescriptorSet.file
 
 def encode_wire(wire: bytes, sender: str) -> tuple[int, bytes]:
     """(simulated time [ns], ``zencosim.Message`` bytes) of one wire message, validated by
-    ``manager.protocol.decode_header`` (its ProtocolError names ``sender``)."""
+    ``manager.wire.protocol.decode_header`` (its ProtocolError names ``sender``)."""
     kind, rows, _count, step, time_ns, ref = decode_header(wire, sender)
     head = _HEAD.pack(0x09, step, 0x11, time_ns, 0x1D, kind, 0x25, rows, 0x3D, ref)
     if len(wire) == HEADER.size:

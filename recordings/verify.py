@@ -14,11 +14,10 @@ import numpy as np
 
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
-from zencosim.manager.scene.load import SceneError, scene_from_text
 from zencosim.manager.wire.protocol import Kind, decode
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecordingError
-from zencosim.recordings.layout import SCENE_ATTACHMENT, STATUS_TOPIC, channel_specs
+from zencosim.recordings.layout import STATUS_TOPIC, channel_specs
 from zencosim.recordings.reader import Recording
 
 
@@ -118,14 +117,7 @@ class _Comparer:
 
 def verify(recording: Recording) -> Verification:
     """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run."""
-    try:
-        scene = scene_from_text(recording.scene_toml, f"{recording.path}:{SCENE_ATTACHMENT}")
-    except SceneError as error:
-        raise RecordingError(f"{recording.path}: its scene no longer loads in this zencosim "
-                             f"({recording.info['zencosim']} recorded it): {error}") from None
-    if scene.digest != recording.info["scene_digest"]:
-        raise RecordingError(f"{recording.path}: the embedded scene's digest {scene.digest[:12]} differs from the "
-                             f"recorded {recording.info['scene_digest'][:12]}")
+    scene = recording.scene()
     plan, subsystems = plan_scene(scene)
     status = StatusReport(plan, realtime=False)
     expected = {spec.topic: spec for spec in channel_specs(plan, status)}

@@ -24,7 +24,7 @@ FLUSH_INTERVAL_S = 0.5  # a chunk older than this is written out at the next mes
 
 
 class RecordingWriter:
-    """An MCAP file being written; ``write`` takes wire messages (manager.protocol) of channel ``index``."""
+    """An MCAP file being written; ``write`` takes wire messages (manager.wire.protocol) of channel ``index``."""
 
     def __init__(self, path: str | Path, metadata: dict[str, str], scene_toml: str,
                  channels: list[ChannelSpec]) -> None:

@@ -4,7 +4,7 @@ Sign convention of power through a port (the one place it is stated): a force po
 that a coupling element exerts on the point it acts on; the power that flows *into* a subsystem
 through a force input is ``force · velocity`` of the point the force is applied to (a dot product
 for a point in the plane, whose signals have one port per component). Residual power is computed
-from these ports by :func:`manager.residual.residual_power` only.
+from these ports by :func:`manager.scheme.residual.residual_power` only.
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ extrapolated input ``ũ_{k+1} = p_k(t_{k+1})`` (paper 002 Eq. 4): for zero-order
 
 A linear, time-invariant model (``linear_dynamics()``: no external forces of time, no nonlinear
 effect) under an integrator that is a linear map per micro-step (``linear_step``) is advanced by the
-composition of its micro-steps over the input polynomial (``subsystems.integrators.composed_linear_step``):
+composition of its micro-steps over the input polynomial (``subsystems.integrators.base.composed_linear_step``):
 the same integrator and micro-step in one matrix product per communication step (it differs from
 stepping only by rounding). This is the one-step map the exact discrete analysis uses.
 """

@@ -11,18 +11,17 @@ from pathlib import Path
 
 import pytest
 
-from zencosim.manager.run import execute, run_scene
-from zencosim.manager.scene.load import load_scene
+import zencosim
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def summary_of(scene_name: str, *overrides: str, bus: str = "inproc", **options) -> dict:
-    return run_scene(load_scene(scene_name, overrides), bus, **options)
+    return zencosim.run(zencosim.load_scene(scene_name, overrides), bus, **options).summary
 
 
 def record_of(scene_name: str, *overrides: str, bus: str = "inproc"):
-    return execute(load_scene(scene_name, overrides), bus)[0]
+    return zencosim.run(zencosim.load_scene(scene_name, overrides), bus).record
 
 
 def children_of(pid: int) -> list[int]:

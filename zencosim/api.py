@@ -19,23 +19,22 @@ from typing import Callable, Mapping, Sequence
 
 import tomli_w
 
-from zencosim.extras import MissingExtra
+from zencosim.extras import MissingExtra as MissingExtra
 from zencosim.manager.bus.zenoh_session import ZenohOptions
-from zencosim.manager.results.output_files import OutputFileError
+from zencosim.manager.results.output_files import OutputFileError as OutputFileError
 from zencosim.manager.results.tables import Signal, Table, record_signals, tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
-from zencosim.manager.scene.load import Scene, SceneError, bundled_scene_names
+from zencosim.manager.scene.load import Scene, bundled_scene_names
+from zencosim.manager.scene.load import SceneError as SceneError
 from zencosim.manager.scene.load import load_scene as _load_scene
-from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
-from zencosim.manager.wire.protocol import ProtocolError
-from zencosim.recordings import RecordingError
+from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.base import SubsystemFailure as SubsystemFailure
+from zencosim.manager.wire.protocol import ProtocolError as ProtocolError
+from zencosim.recordings import RecordingError as RecordingError
 from zencosim.recordings.export import recorded_signals
 from zencosim.recordings.reader import read_recording
 
-__all__ = ["BUSES", "MissingExtra", "OutputFileError", "ProtocolError", "Recording", "RecordingError", "Result",
-           "Scene", "SceneError", "Signal", "SubsystemFailure", "Table", "bundled_scenes", "load_recording",
-           "load_scene", "run"]
-
+# the public names are listed once, in zencosim/__init__.py; the errors are imported here for it
 
 def bundled_scenes() -> list[str]:
     """Names of the scenes that ship with zencosim (the papers' benchmarks)."""

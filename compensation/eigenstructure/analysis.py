@@ -1,6 +1,6 @@
 """One design-time analysis of a linear scene: monolithic, co-simulated and compensated eigenstructure.
 
-``analyze`` strings together ``compensation.eigenstructure`` and ``compensation.assignment`` for
+``analyze`` strings together ``compensation.eigenstructure.modes`` and ``compensation.eigenstructure.assignment`` for
 one ``LinearModel``, one ``InterfaceModel`` and, optionally, one compensator ``Architecture``;
 ``Analysis.to_dict`` gives plain JSON types (complex numbers as ``[re, im]``) under the keys
 ``interface``, ``poles``, ``latent``, ``modal``, ``assignability`` and ``gains``.

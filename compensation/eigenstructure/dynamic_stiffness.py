@@ -9,7 +9,7 @@ times a power of the interface transfer function: a signal crosses the interface
 
 ``exchanged_dofs`` lists the DOFs whose displacement is itself a signal of the interface (the
 motion side of a force–displacement bond); the state-space realization uses it to share one hold
-between every use of that signal (``compensation.realization``).
+between every use of that signal (``compensation.eigenstructure.realization``).
 """
 from __future__ import annotations
 

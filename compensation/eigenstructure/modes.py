@@ -4,7 +4,7 @@ Monolithic: the ``2N`` eigenpairs ``(λ_i, w_i)`` of ``G_t(λ) w = 0``, from the
 
 Co-simulated (or compensated): roots of ``det T(s) = 0`` with ``T = G_t + ΔG_c (+ B ΔG_R)``.
 
-1. ``D(s)`` is replaced by its Padé form and the system linearised (``compensation.realization``);
+1. ``D(s)`` is replaced by its Padé form and the system linearised (``compensation.eigenstructure.realization``);
    the eigenvalues of that state matrix are the roots of the rational model.
 2. Each root is polished on the exact ``D(s)`` by Newton's method on ``det T``:
    ``s ← s - 1 / tr(T(s)^{-1} T'(s))``, deflated by the roots already accepted so that it cannot

@@ -11,7 +11,7 @@ approximant). The error is ``e^{-x} - P/Q = O(x^{2 n_p + 1})``. Only the diagona
 very sensitive to round-off) — a larger order is refused, not clipped.
 
 The coefficients are exact rationals so that callers can do exact polynomial algebra with them
-(``compensation.interface`` cancels a factor ``x^{q+1}`` exactly).
+(``compensation.eigenstructure.interface`` cancels a factor ``x^{q+1}`` exactly).
 """
 from __future__ import annotations
 

@@ -18,10 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import ListedColormap
-from matplotlib.figure import Figure
-from matplotlib.patches import Patch
 
 from zencosim.compensation.implicit.coupling_laws import CouplingMethod, check_supported, method_name, resolve_method
 from zencosim.compensation.implicit.decompositions import Decomposition, resolve_decomposition
@@ -134,6 +130,12 @@ def _as_json(result: StabilityMap) -> dict:
 
 
 def _write_png(result: StabilityMap, png_path: Path) -> None:
+    """The map as a PNG (matplotlib: zencosim[plots], imported here so that the maps compute without it)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
     stable_colour, unstable_colour = "#4caf50", "#e53935"
     figure = Figure(figsize=(6.4, 5.6), layout="constrained")
     FigureCanvasAgg(figure)

@@ -1,7 +1,7 @@
 """Eigenstructure compensation at run time (paper 000 §3, §5.1 Eqs. 36–40, §6.1; docs/compensation.md).
 
 ``manager.compensation = "eigenstructure"`` designs the compensator before the run
-(``compensation.assignment.design_compensator`` on the scene's linear model, the interface of the
+(``compensation.eigenstructure.assignment.design_compensator`` on the scene's linear model, the interface of the
 scene's extrapolation order and macro-step) and realises every feedback term ``r(s) x_m`` of
 every force ``u`` acting on DOF ``p`` (``r = s^2 d + s f + g``) inside the subsystems:
 
@@ -23,7 +23,7 @@ path) and symplectic Euler at ``h = T_s`` adds its own ``O(h)`` shift; a design 
 the runtime's poles ``±0.0049 1/s`` off at 1 ms (``±0.019`` at 4 ms), which makes the undamped
 two-mass system slightly unstable. ``compensate`` therefore closes the loop on the exact discrete
 analysis: it designs for target poles ``λ̃``, realises the gains, computes the primary poles ``ν``
-of the runtime's transition matrix (``manager.discrete``) and solves ``ν(λ̃) = λ`` by Broyden's
+of the runtime's transition matrix (``manager.analysis.discrete``) and solves ``ν(λ̃) = λ`` by Broyden's
 method (Jacobian ``∂ν/∂λ̃`` started at the identity: the ``D(s)`` model is nearly right) until every
 ``|ν_i - λ_i| <= POLE_TOLERANCE`` (at most ``MAX_ITERATIONS`` designs). The assigned poles are then
 those of the run, not of a model of it.

@@ -1,6 +1,6 @@
 """Exact discrete analysis of the explicit Jacobi scheme for a linear scene (issue 5, item 4).
 
-The scheme of ``manager.jacobi`` applied to linear subsystems is a linear map. Over one period of
+The scheme of ``manager.scheme.jacobi`` applied to linear subsystems is a linear map. Over one period of
 its schedule (``lcm`` of the communication ratios base steps; one macro-step when single-rate)
 it advances the discrete state
 
@@ -10,10 +10,10 @@ it advances the discrete state
 committed samples of its linear outputs (``p`` the highest extrapolation order of the receivers)
 — by ``X⁺ = Ψ X``.
 ``Ψ`` is built by running the scheme symbolically: every quantity is a matrix acting on ``X``,
-and each step follows ``manager.jacobi`` exactly:
+and each step follows ``manager.scheme.jacobi`` exactly:
 
 1. the input polynomial of a subsystem starting a step is the Lagrange extrapolation of its own
-   order (``manager.extrapolation.extrapolation_matrix``, the same cached matrices) of the newest
+   order (``manager.scheme.extrapolation.extrapolation_matrix``, the same cached matrices) of the newest
    committed samples of its sources, with the multi-rate offset of a slow source;
 2. over its communication step the subsystem applies its integrator's one-step map
    (``linear_step`` of ``subsystems.integrators``) with its micro-step, the input polynomial
@@ -124,7 +124,7 @@ class DiscreteScheme:
 
 
 def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
-    """``Ψ`` of the explicit Jacobi scheme (``manager.jacobi``) for ``plan`` and its built subsystems."""
+    """``Ψ`` of the explicit Jacobi scheme (``manager.scheme.jacobi``) for ``plan`` and its built subsystems."""
     subs = plan.subsystems
     depth = max(s.order for s in subs)  # history kept: depth + 1 samples of every subsystem
     base = plan.base_step_ns

@@ -1,9 +1,9 @@
 """``zencosim analyze``: the eigenstructure of a linear scene as modelled and as run (issue 5, item 7).
 
 For one scene: the monolithic eigenstructure; the co-simulated one from the ``D(s)`` model (Padé
-roots and roots polished on the exact ``D``, ``compensation.analysis``); the exact discrete one of
-the runtime's own scheme (``manager.discrete``); and, when the scene's structure allows one (one
-force–displacement coupling, single rate), the compensator (``manager.compensator``): its
+roots and roots polished on the exact ``D``, ``compensation.eigenstructure.analysis``); the exact discrete one of
+the runtime's own scheme (``manager.analysis.discrete``); and, when the scene's structure allows one (one
+force–displacement coupling, single rate), the compensator (``manager.analysis.compensator``): its
 assignability, gains, the ``D(s)``-model poles of its last design and the discrete poles of the
 compensated runtime. ``SceneAnalysis.to_dict`` gives the JSON documented in docs/compensation.md;
 ``write_pole_map`` the PNG.

@@ -18,7 +18,7 @@ def _percentiles_us(values_ns: np.ndarray) -> dict[str, float]:
 def step_timing(record: RunRecord) -> dict:
     """Wall-clock statistics of the macro-steps as the process that ran ``record`` released them: time
     between consecutive releases, and in real-time mode lateness (release minus deadline) and missed
-    deadlines. Over Zenoh every subsystem reports these of its own replica (``manager.subsystem_host``)."""
+    deadlines. Over Zenoh every subsystem reports these of its own replica (``subsystems.process.host``)."""
     timing = {}
     steps = np.diff(record.send_time_ns)
     if len(steps):

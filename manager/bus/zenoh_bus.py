@@ -3,10 +3,10 @@
 The manager listens on one TCP endpoint (a free port on 127.0.0.1 unless told otherwise), starts a
 subsystem process per subsystem (or waits for the ones started by hand), checks that each loaded
 the same scene and ports and is connected to every other process, then gives the start signal. Every
-process runs a replica of the scheme (``manager.replica``); the manager's replica holds no subsystem:
+process runs a replica of the scheme (``manager.scheme.replica``); the manager's replica holds no subsystem:
 it follows the replies, checks that every subsystem executed the commands the manager computed, and
 produces the run record; it takes the replies in the batches the subsystems send it (``<sub>/log``,
-see ``manager.subsystem_host``), off the critical path. A recorded run taps the manager's replica,
+see ``subsystems.process.host``), off the critical path. A recorded run taps the manager's replica,
 as in process: it holds every command, reply and status of the run. A watchdog on the main thread
 names any subsystem that dies or stops answering and ends the run within the scene's timeout; no
 child process outlives the bus.

@@ -39,7 +39,7 @@ class SubsystemPlan:
 
 @dataclass(frozen=True)
 class BondPlan:
-    """Indices of the four signals of a power bond (see manager.residual), one per component."""
+    """Indices of the four signals of a power bond (see manager.scheme.residual), one per component."""
 
     name: str
     force_side: int

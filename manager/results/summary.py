@@ -57,11 +57,15 @@ def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
 
 
 def energy_growth_rate(t: np.ndarray, energy: np.ndarray) -> float:
-    """Exponential growth rate [1/s] of the energy envelope over the second half of the run."""
-    windows = np.array_split(np.arange(len(t)), ENERGY_WINDOWS)
+    """Exponential growth rate [1/s] of the energy envelope over the second half of the run (0 for a run of
+    fewer than four energy samples, too short to show growth)."""
+    n_windows = min(ENERGY_WINDOWS, len(t))
+    if n_windows < 4:
+        return 0.0
+    windows = np.array_split(np.arange(len(t)), n_windows)
     centres = np.array([t[w].mean() for w in windows])
     peaks = np.array([np.max(np.abs(energy[w])) for w in windows])
-    late = slice(ENERGY_WINDOWS // 2, None)
+    late = slice(n_windows // 2, None)
     logs = np.log(np.maximum(peaks[late], np.finfo(float).tiny))
     return float(np.polyfit(centres[late], logs, 1)[0])
 

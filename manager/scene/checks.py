@@ -77,7 +77,7 @@ def _whole_ns(seconds: float, key: str, problems: Problems) -> None:
 
 def check_compensation(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],
                        problems: Problems) -> None:
-    """What the eigenstructure compensator (manager.compensator) needs of a scene's structure."""
+    """What the eigenstructure compensator (manager.analysis.compensator) needs of a scene's structure."""
     if len(couplings) != 1 or next(iter(couplings.values())).kind != "force_displacement":
         problems.add("manager.compensation", f"expected exactly one force_displacement coupling, got {len(couplings)} "
                      "coupling(s)")

@@ -228,7 +228,7 @@ class RigidJoint:
     ``decomposition`` splits it as in §2.1–2.3: force/force (both points driven by the joint force
     ``λ_c``), force/displacement (side 1 by ``λ_c``, side 2 follows the acceleration ``a_1`` of side 1)
     or displacement/displacement (both follow the acceleration ``ã``). The coupling variables are the
-    decomposition's (``compensation.coupling_decompositions``), one per axis, computed by the manager
+    decomposition's (``compensation.implicit.decompositions``), one per axis, computed by the manager
     (``computed_inputs``); each side reports position, velocity, acceleration and joint force of its
     point and the point's inverse effective mass (``subsystems.ports.JointSide``). Port names:
     ``<joint>.<x|v|a|f><side>`` and ``<joint>.Minv<side>``, inputs ``<joint>.<variable>*``, with

@@ -29,7 +29,7 @@ class CorrectionSettings:
 
 @dataclass(frozen=True)
 class SpikeSettings:
-    """The ``[manager.spikes]`` table: the residual-power spike detector (see manager.monitor)."""
+    """The ``[manager.spikes]`` table: the residual-power spike detector (see manager.results.monitor)."""
 
     window: float = field(default=2.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # trailing window [s]
     threshold: float = field(default=50.0, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # x baseline

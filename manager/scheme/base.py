@@ -75,6 +75,15 @@ class RunRecord:
     implicit: ImplicitRecord | None = None  # what the implicit scheme adds (manager.scheme.implicit)
     reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.bus.timing)
 
+    @property
+    def last_step(self) -> int:
+        """The last base macro-step whose outputs were committed: ``plan.n_ticks`` unless an implicit run
+        diverged (then its last step only if it got as far as the corrector)."""
+        if self.implicit is None or self.implicit.diverged_at is None:
+            return self.plan.n_ticks
+        diverged = self.implicit.diverged_at
+        return diverged + 1 if self.implicit.corrector_runs[diverged] > 0 else diverged
+
     def signal(self, name: str) -> np.ndarray:
         """The trajectory of output ``name`` at its subsystem's communication points."""
         sub_index, output = self.plan.signals[name]

@@ -14,7 +14,7 @@ force input: the motion side then applies ``-fc* + f_corr``. Logged forces are t
 
 The correction is added to the constant coefficient of the input polynomial of every step of the
 receiving subsystem that starts in [t_{k+1}, t_{k+2}); the residual power is still evaluated with the
-polynomial the extrapolation produced (see manager.residual).
+polynomial the extrapolation produced (see manager.scheme.residual).
 """
 from __future__ import annotations
 
@@ -84,7 +84,7 @@ class _Group:
 
 
 class EnergyCorrector:
-    """The :class:`manager.jacobi.Corrector` of paper 002 §3.2, for every power bond of a plan."""
+    """The :class:`manager.scheme.base.Corrector` of paper 002 §3.2, for every power bond of a plan."""
 
     def __init__(self, plan: Plan, settings: CorrectionSettings) -> None:
         members: dict[tuple, list[int]] = {}

@@ -1,7 +1,7 @@
 """Implicit predictor/corrector co-simulation with rollback over the bus (paper 003 §2).
 
 One rigid joint between two subsystems, coupled by one of the paper's methods (Baumgarte, weighted
-multiplier, projection) on one of its decompositions. Like ``manager.jacobi`` the scheme is a
+multiplier, projection) on one of its decompositions. Like ``manager.scheme.jacobi`` the scheme is a
 generator that yields :class:`Exchange` requests to a bus, so both buses run the same arithmetic.
 
 Initialisation (t_0): the coupling variables ``e_0`` that zero the joint's acceleration-level and force
@@ -16,7 +16,7 @@ One macro-step T_N → T_{N+1} (k = ``manager.extrapolation``):
    ``e^p + δ, e_N, ..., e_{N-k+1}`` (Eq. 11); variables that drive different subsystems are perturbed
    in the same round. No subsystem gives them analytically: the finite difference is exact up to
    rounding for linear subsystems, and the step δ is chosen in ``sensitivity_steps``;
-4. coupling law ``compensation.implicit_coupling_laws.corrected_coupling`` → ``e_{N+1}``;
+4. coupling law ``compensation.implicit.coupling_laws.corrected_coupling`` → ``e_{N+1}``;
 5. corrector: RESTORE + STEP through ``e_{N+1}, e_N, ...``. For linear subsystems one corrector run
    is exact (§2.1.1, end). With ``max_iterations > 1`` (nonlinear subsystems) the method's law is
    applied again at the corrector's outputs with the same derivatives (a chord Newton iteration) and
@@ -76,7 +76,7 @@ class JointPlan:
 
 
 def compile_joint(scene: Scene, plan: Plan) -> JointPlan:
-    """The plan of the scene's one rigid joint (``manager.scene`` checked that there is exactly one)."""
+    """The plan of the scene's one rigid joint (``manager.scene.load`` checked that there is exactly one)."""
     joint = next(c for c in scene.couplings.values() if isinstance(c, RigidJoint))
     variables = joint.coupling_variables()
     sides, outputs, inverse_mass, inputs, received = [], [], [], [], []

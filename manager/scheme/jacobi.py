@@ -13,7 +13,7 @@ One base macro-step [t_j, t_j+1]:
 3. the manager commits the outputs due at t_j+1 and evaluates the residual power of every bond
    whose two sides both communicated at t_j+1 (paper 002 Eqs. 8–9, 13).
 
-Correctors (``manager.correction``) hook into both ends: before a subsystem's input polynomial is
+Correctors (``manager.scheme.correction``) hook into both ends: before a subsystem's input polynomial is
 sent, each corrector that targets it may return an adjusted copy (the residual power is still
 evaluated with the polynomial the extrapolation produced); after step 3, every corrector observes
 the committed outputs and residual energies at t_j+1.

@@ -1,6 +1,6 @@
 """Advance a scheme from the replies of every subsystem: the one driver of every bus.
 
-A scheme (``manager.jacobi``) is deterministic: from the scene and the replies it receives it computes
+A scheme (``manager.scheme.jacobi``) is deterministic: from the scene and the replies it receives it computes
 every command. So every process of a run runs the *same* scheme:
 
 * in-process, one replica holds every subsystem and executes every command itself;

@@ -30,7 +30,7 @@ class Kind(IntEnum):
     OUTPUT = 16  # subsystem → manager: output values at a communication point
     ACK = 17  # subsystem → manager
     ERROR = 18  # subsystem → manager: the command failed; the payload is the reason (UTF-8)
-    STATUS = 32  # manager → observers: the status after a macro-step, fields named by manager.status
+    STATUS = 32  # manager → observers: the status after a macro-step, fields named by manager.wire.status
 
 
 _KINDS = {kind.value: kind for kind in Kind}
@@ -68,7 +68,7 @@ def encode_error(step: int, time_ns: int, reason: str, ref: int = 0) -> bytes:
 
 def split_messages(batch: bytes, sender: str) -> list[bytes]:
     """The messages of a batch: messages one after the other (the length of each from its header), as a
-    subsystem sends its replies to the manager (``manager.subsystem_host``)."""
+    subsystem sends its replies to the manager (``subsystems.process.host``)."""
     messages, at = [], 0
     while at < len(batch):
         if len(batch) - at < HEADER.size:

@@ -14,7 +14,7 @@ class Feedback:
     """``f_target = -(d a_source + f v_source + g x_source)``: one term ``r(s) x`` of paper 000 Eqs. 24, 47.
 
     Not symmetric (no reaction on the source) and not named by scenes: the eigenstructure
-    compensator (``manager.compensator``) attaches it. A model stamps it into point-coordinate
+    compensator (``manager.analysis.compensator``) attaches it. A model stamps it into point-coordinate
     matrices; the acceleration gain ``d`` acts as an added mass (``MassesModel``).
     """
 

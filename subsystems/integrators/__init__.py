@@ -6,7 +6,7 @@ one micro-step ``h`` with the inputs evaluated where the method needs them. Seco
 hydraulic circuit) give ``ż`` itself. Symplectic Euler needs the second-order form.
 
 For a linear second-order model ``a = A_a z + B_a w`` every method is also a linear map (the exact
-discrete analysis, ``manager.discrete``, is built from it):
+discrete analysis, ``manager.analysis.discrete``, is built from it):
 
     z⁺ = Φ z + Σ_i Γ_i w(τ + θ_i h),   θ_i = ``input_nodes[i]``,
 

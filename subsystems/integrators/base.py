@@ -13,7 +13,7 @@ def composed_linear_step(integrator_cls: type, A_a: np.ndarray, B_a: np.ndarray,
         z_m = Φ^m z_0 + Σ_r Ψ_r c_r,   Ψ_r = Σ_j Σ_i Φ^{m-1-j} Γ_i (τ_j + θ_i h)^r,
 
     returned as ``(Φ^m, Ψ)`` with ``Ψ`` of shape ``(2n, rows, n_inputs)``. Both the runtime
-    (``subsystems.subsystem``) and the exact discrete analysis (``manager.discrete``) use it."""
+    (``subsystems.subsystem``) and the exact discrete analysis (``manager.analysis.discrete``) use it."""
     Phi, Gamma = integrator_cls.linear_step(A_a, B_a, h)
     nodes = np.asarray(integrator_cls.input_nodes) * h
     Phi_m = np.eye(Phi.shape[0])

@@ -22,7 +22,7 @@ A body can be one side of a rigid joint (paper 003 §2, ``subsystems.ports.Joint
 the joint force ``λ*`` enters ``f*`` with the side's sign; displacement-driven, the body follows the
 received acceleration ``ã*`` and the model reports the force ``μ`` that this takes (Eqs. 33b, 57).
 
-Public matrices (the exact discrete analysis, ``manager.discrete``, is built from them), with
+Public matrices (the exact discrete analysis, ``manager.analysis.discrete``, is built from them), with
 ``z = [x, v]`` and ``w`` the input values in port order:
 
 * ``A_a`` (n × 2n), ``B_a`` (n × n_inputs): ``a = A_a z + B_a w + (M + D_fb)⁻¹ (E f_e(t) + f_nl)``;
@@ -34,6 +34,7 @@ They are the whole model when ``nonlinear`` is false.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -133,70 +134,28 @@ class MassesModel:
 
     def __init__(self, spec: MassesSpec, attachments: Attachments = Attachments()) -> None:
         self.body_names = tuple(spec.bodies)
-        n = len(self.body_names)
-        self.n_dof = n
-        terminals = attachments.terminals
-        point_index = {name: i for i, name in enumerate(self.body_names)}
-        point_index.update({t.name: n + j for j, t in enumerate(terminals)})
-
-        scalar = [t.position_inputs for t in terminals] + [f.ports for f in attachments.force_inputs]
-        scalar += [m.position_ports for m in attachments.motion_outputs] + [o.ports for o in attachments.force_outputs]
-        if any(len(ports) != 1 for ports in scalar):
-            raise ValueError(f"the {self.name} model moves on a line: coupling signals must be scalars, got {scalar}")
-        if any(not o.effects for o in attachments.force_outputs):
-            raise ValueError(f"the {self.name} model computes a coupling force only from coupling effects")
-        self.inputs: tuple[Port, ...] = tuple(
-            [Port(p[0], q) for t in terminals for p, q in ((t.position_inputs, "position"), (t.velocity_inputs, "velocity"))]
-            + [Port(f.ports[0], "force") for f in attachments.force_inputs]
-            + [Port(p, "force" if j.drive == "force" else "acceleration") for j in attachments.joint_sides for p in j.inputs])
-        input_index = {p.name: j for j, p in enumerate(self.inputs)}
-        n_in = len(self.inputs)
-
+        self.n_dof = len(self.body_names)
+        self.inputs: tuple[Port, ...] = _input_ports(self.name, attachments)
         placed = [e for e in spec.effects + tuple(PlacedEffect(*t) for t in attachments.effects) if e.effect.active()]
         self.effects: tuple[str, ...] = tuple(e.name for e in placed)
-        by_name = {e.name: e for e in placed}
-
-        def coordinates(point: str | None) -> tuple[int, int] | None:
-            """Indices of a point's position and velocity in ``s = [x, v, w]`` (None: the ground)."""
-            if point is None:
-                return None
-            i = point_index[point]
-            if i < n:
-                return i, n + i
-            t = terminals[i - n]
-            return 2 * n + input_index[t.position_inputs[0]], 2 * n + input_index[t.velocity_inputs[0]]
-
+        layout = _Layout(self.body_names, attachments.terminals, self.inputs, {e.name: e for e in placed})
         # nonlinear two-point elements: (effect, coordinates of a, of b, body index of a, of b)
         self._nonlinear = tuple(
-            (e.effect, coordinates(e.endpoints[0]), coordinates(e.endpoints[1]),
-             *(point_index[p] if p is not None and point_index[p] < n else None for p in e.endpoints))
+            (e.effect, layout.coordinates(e.endpoints[0]), layout.coordinates(e.endpoints[1]),
+             *(layout.point_index[p] if p is not None and layout.point_index[p] < layout.n else None for p in e.endpoints))
             for e in placed if e.effect.kind == "nonlinear")
+        forces = self._build_dynamics(spec, attachments, layout, placed)
+        rows = self._build_outputs(attachments, layout, placed, forces)
+        self._build_energy(layout, rows, forces)
+        self._z0 = np.array([spec.bodies[b].x0 for b in self.body_names] + [spec.bodies[b].v0 for b in self.body_names],
+                            dtype=np.float64)
 
-        def indices(e: PlacedEffect) -> list[int | None]:
-            return [None if p is None else point_index[p] for p in e.endpoints]
-
-        def stamped(selection: list[PlacedEffect]) -> tuple[np.ndarray, np.ndarray]:
-            size = n + len(terminals)
-            K, C = np.zeros((size, size)), np.zeros((size, size))
-            for e in selection:
-                if e.effect.kind == "linear":
-                    e.effect.stamp(K, C, *indices(e))
-            return K, C
-
-        def feedback_stamped(selection: list[PlacedEffect]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            size = n + len(terminals)
-            Mf, Kf, Cf = np.zeros((size, size)), np.zeros((size, size)), np.zeros((size, size))
-            for e in selection:
-                if e.effect.kind == "feedback":
-                    target, source = indices(e)
-                    if source >= n and e.effect.acceleration_gain != 0.0:
-                        raise ValueError(f"feedback {e.name}: expected the acceleration of a body of this subsystem, "
-                                         f"got terminal {e.endpoints[1]} (its acceleration is not an input)")
-                    e.effect.stamp(Mf, Kf, Cf, target, source)
-            return Mf, Kf, Cf
-
-        Kq, Cq = stamped(placed)
-        Mf, Kf, Cf = feedback_stamped(placed)
+    def _build_dynamics(self, spec: MassesSpec, attachments: Attachments, layout: "_Layout",
+                        placed: list) -> "_Forces":
+        """``M, K, C`` and ``a = A_a z + B_a w + (M + D_fb)⁻¹ (E f_e(t) + f_nl)``."""
+        n, terminals, point_index, input_index = layout.n, layout.terminals, layout.point_index, layout.input_index
+        Kq, Cq = layout.stamped(placed)
+        Mf, Kf, Cf = layout.feedback_stamped(placed)
         self.M = np.diag([spec.bodies[b].mass for b in self.body_names])
         self.K = Kq[:n, :n].copy()  # stiffness among the bodies [N/m]
         self.C = Cq[:n, :n].copy()  # damping among the bodies [N s/m]
@@ -208,7 +167,7 @@ class MassesModel:
 
         # f = A_f z + B_w w + E f_e(t)  with  z = [x, v],  w = input values
         A_f = np.hstack((-self.K - Kf[:n, :n], -self.C - Cf[:n, :n]))
-        B_w = np.zeros((n, n_in))
+        B_w = np.zeros((n, layout.n_in))
         for j, t in enumerate(terminals):
             B_w[:, input_index[t.position_inputs[0]]] = -Kq[:n, n + j] - Kf[:n, n + j]
             B_w[:, input_index[t.velocity_inputs[0]]] = -Cq[:n, n + j] - Cf[:n, n + j]
@@ -226,104 +185,110 @@ class MassesModel:
         self._inverse_mass = Minv  # of the nonlinear elements' forces (diagonal unless acceleration feedback)
         self.external = tuple((e.effect, point_index[e.endpoints[0]]) for e in placed if e.effect.kind == "external")
         self._E_a = Minv[:, [body for _, body in self.external]]
-        E_f = np.eye(n)[:, [body for _, body in self.external]]  # external forces onto bodies
         self._driven = [i for side, i, _ in joints if side.drive == "displacement"]
         for side, i, column in joints:
             if side.drive == "displacement":  # the body follows the received acceleration
-                self.A_a[i], self.B_a[i], self._E_a[i] = 0.0, np.eye(n_in)[column], 0.0
+                self.A_a[i], self.B_a[i], self._E_a[i] = 0.0, np.eye(layout.n_in)[column], 0.0
+        return _Forces(joints, Kq, A_f, B_w)
 
-        def relayed_force(relay) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            """The force the relayed feedback terms exert on the terminal, on z, w and f_e."""
-            Mr, Kr, Cr = feedback_stamped([by_name[name] for name in relay.effects if name in by_name])
-            i = point_index[relay.terminal]
-            row_z = -np.concatenate((Kr[i, :n], Cr[i, :n])) - Mr[i, :n] @ self.A_a
-            row_w = -Mr[i, :n] @ self.B_a
-            for j, t in enumerate(terminals):
-                row_w[input_index[t.position_inputs[0]]] -= Kr[i, n + j]
-                row_w[input_index[t.velocity_inputs[0]]] -= Cr[i, n + j]
-            return row_z / relay.sign, row_w / relay.sign, -Mr[i, :n] @ self._E_a / relay.sign
+    def _relayed_force(self, relay, layout: "_Layout") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The force the relayed feedback terms exert on the terminal, on z, w and f_e."""
+        n = layout.n
+        Mr, Kr, Cr = layout.feedback_stamped([layout.by_name[name] for name in relay.effects if name in layout.by_name])
+        i = layout.point_index[relay.terminal]
+        row_z = -np.concatenate((Kr[i, :n], Cr[i, :n])) - Mr[i, :n] @ self.A_a
+        row_w = -Mr[i, :n] @ self.B_a
+        for j, t in enumerate(layout.terminals):
+            row_w[layout.input_index[t.position_inputs[0]]] -= Kr[i, n + j]
+            row_w[layout.input_index[t.velocity_inputs[0]]] -= Cr[i, n + j]
+        return row_z / relay.sign, row_w / relay.sign, -Mr[i, :n] @ self._E_a / relay.sign
 
-        # outputs y = C_y z + D_y w (+ F_y f_e(t) for relayed accelerations), then the energy 0.5 s^T Q s
-        # with s = [x, v, w]
-        rows_z, rows_w, ports = [], [], []
-        n_ext = len(self.external)
-        F_y = []
+    def _build_outputs(self, attachments: Attachments, layout: "_Layout", placed: list, forces: "_Forces") -> "_Rows":
+        """Rows of the linear outputs ``y = C_y z + D_y w (+ F_y f_e(t))``: motion outputs, force outputs, then
+        the joint sides' outputs."""
+        rows = _Rows(layout, len(self.external))
         for m in attachments.motion_outputs:
-            i = point_index[m.point]
-            for port, column in ((m.position_ports[0], i), (m.velocity_ports[0], n + i)):
-                rows_z.append(np.eye(2 * n)[column])
-                rows_w.append(np.zeros(n_in))
-                F_y.append(np.zeros(n_ext))
-                ports.append(Port(port, "position" if column < n else "velocity"))
+            i = layout.point_index[m.point]
+            rows.add(Port(m.position_ports[0], "position"), np.eye(2 * layout.n)[i])
+            rows.add(Port(m.velocity_ports[0], "velocity"), np.eye(2 * layout.n)[layout.n + i])
+        self._add_force_outputs(attachments, layout, placed, rows)
+        self._add_joint_outputs(layout, forces, rows)
+        return rows
+
+    def _add_force_outputs(self, attachments: Attachments, layout: "_Layout", placed: list, rows: "_Rows") -> None:
+        """Each coupling force: the force of its coupling effects on its point, plus relayed feedback terms."""
+        n, n_in, point_index, input_index = layout.n, layout.n_in, layout.point_index, layout.input_index
         unknown = {r.port for r in attachments.relayed_forces} - {out.ports[0] for out in attachments.force_outputs}
         if unknown:
             raise ValueError(f"relayed forces name outputs {sorted(unknown)}; expected force outputs of this subsystem")
         nonlinear_index = {e.name: k for k, e in enumerate(e for e in placed if e.effect.kind == "nonlinear")}
         self._nonlinear_outputs = []  # (output row, nonlinear element, sign of its force on the output's point)
         for out in attachments.force_outputs:
-            Ke, Ce = stamped([by_name[name] for name in out.effects if name in by_name])
+            Ke, Ce = layout.stamped([layout.by_name[name] for name in out.effects if name in layout.by_name])
             i = point_index[out.point]
             row_z = np.concatenate((-Ke[i, :n], -Ce[i, :n]))
             row_w = np.zeros(n_in)
-            for j, t in enumerate(terminals):
+            for j, t in enumerate(layout.terminals):
                 row_w[input_index[t.position_inputs[0]]] = -Ke[i, n + j]
                 row_w[input_index[t.velocity_inputs[0]]] = -Ce[i, n + j]
-            row_f = np.zeros(n_ext)
+            row_f = np.zeros(rows.n_external)
             for relay in attachments.relayed_forces:
                 if relay.port == out.ports[0]:
-                    relayed = relayed_force(relay)
+                    relayed = self._relayed_force(relay, layout)
                     row_z, row_w, row_f = row_z + relayed[0], row_w + relayed[1], row_f + relayed[2]
             feedthrough = bool(np.any(row_w != 0.0))
             for name in out.effects:
                 if name in nonlinear_index:
-                    endpoints = by_name[name].endpoints
-                    self._nonlinear_outputs.append((len(ports), nonlinear_index[name], 1.0 if endpoints[0] == out.point else -1.0))
+                    endpoints = layout.by_name[name].endpoints
+                    self._nonlinear_outputs.append((len(rows.ports), nonlinear_index[name],
+                                                    1.0 if endpoints[0] == out.point else -1.0))
                     feedthrough |= any(p is not None and point_index[p] >= n for p in endpoints)
-            rows_z.append(row_z)
-            rows_w.append(row_w)
-            F_y.append(row_f)
-            ports.append(Port(out.ports[0], "force", feedthrough=feedthrough))
-        # joint outputs: position, velocity, acceleration, force f = sign × (joint force on the body), 1/m;
-        # the acceleration and force carry external forces (rows of F_y) and nonlinear element forces
-        # (``_joint_nonlinear``); 1/m is a constant
-        constants, self._joint_nonlinear = [0.0] * len(ports), []
-        no_external = np.zeros(n_ext)
-        for side, i, column in joints:
+            rows.add(Port(out.ports[0], "force", feedthrough=feedthrough), row_z, row_w, row_f)
+
+    def _add_joint_outputs(self, layout: "_Layout", forces: "_Forces", rows: "_Rows") -> None:
+        """Per joint side: position, velocity, acceleration, force ``f = sign × (joint force on the body)``, 1/m.
+        The acceleration and force carry external forces (rows of ``F_y``) and nonlinear element forces
+        (``_joint_nonlinear``); 1/m is a constant."""
+        n, n_in = layout.n, layout.n_in
+        self._joint_nonlinear = []
+        E_f = np.eye(n)[:, [body for _, body in self.external]]  # external forces onto bodies
+        for side, i, column in forces.joints:
             mass = self.M[i, i]
             if side.drive == "force":
-                f_z, f_w, f_e = np.zeros(2 * n), np.eye(n_in)[column], no_external
-                self._joint_nonlinear.append((len(ports) + 2, i, 1.0 / mass))  # a += f_nl / m
+                f_z, f_w, f_e = np.zeros(2 * n), np.eye(n_in)[column], None
+                self._joint_nonlinear.append((len(rows.ports) + 2, i, 1.0 / mass))  # a += f_nl / m
             else:  # μ = sign (m ã* − forces of the subsystem on the body)
-                f_z, f_w, f_e = -side.sign * A_f[i], side.sign * (mass * np.eye(n_in)[column] - B_w[i]), -side.sign * E_f[i]
-                self._joint_nonlinear.append((len(ports) + 3, i, -side.sign))  # μ −= sign f_nl
-            for port, quantity_name, row_z, row_w, row_f, constant in (
-                    (side.positions[0], "position", np.eye(2 * n)[i], np.zeros(n_in), no_external, 0.0),
-                    (side.velocities[0], "velocity", np.eye(2 * n)[n + i], np.zeros(n_in), no_external, 0.0),
-                    (side.accelerations[0], "acceleration", self.A_a[i], self.B_a[i], self._E_a[i], 0.0),
-                    (side.forces[0], "force", f_z, f_w, f_e, 0.0),
-                    (side.inverse_masses[0], "inverse_mass", np.zeros(2 * n), np.zeros(n_in), no_external, 1.0 / mass)):
-                rows_z.append(row_z)
-                rows_w.append(row_w)
-                F_y.append(row_f)
-                constants.append(constant)
-                ports.append(Port(port, quantity_name, feedthrough=bool(np.any(row_w != 0.0))))
-        self._joint_bodies = tuple((i, self.M[i, i]) for _, i, _ in joints)
-        self._y_constant = np.array(constants) if joints else None
+                f_z = -side.sign * forces.A_f[i]
+                f_w = side.sign * (mass * np.eye(n_in)[column] - forces.B_w[i])
+                f_e = -side.sign * E_f[i]
+                self._joint_nonlinear.append((len(rows.ports) + 3, i, -side.sign))  # μ −= sign f_nl
+            rows.add(Port(side.positions[0], "position"), np.eye(2 * n)[i])
+            rows.add(Port(side.velocities[0], "velocity"), np.eye(2 * n)[n + i])
+            accelerating = bool(np.any(self.B_a[i] != 0.0))
+            rows.add(Port(side.accelerations[0], "acceleration", feedthrough=accelerating), self.A_a[i], self.B_a[i],
+                     self._E_a[i])
+            rows.add(Port(side.forces[0], "force", feedthrough=bool(np.any(f_w != 0.0))), f_z, f_w, f_e)
+            rows.add(Port(side.inverse_masses[0], "inverse_mass"), np.zeros(2 * n), constant=1.0 / mass)
+
+    def _build_energy(self, layout: "_Layout", rows: "_Rows", forces: "_Forces") -> None:
+        """The output ports with the energy ``0.5 s^T Q s`` last (``s = [x, v, w]``), and the one matrix ``_G``
+        whose product with ``s`` gives the linear outputs and ``Q s``."""
+        n, n_in, ports = layout.n, layout.n_in, rows.ports
+        self._joint_bodies = tuple((i, self.M[i, i]) for _, i, _ in forces.joints)
+        self._y_constant = np.array(rows.constants) if forces.joints else None
         self.outputs: tuple[Port, ...] = tuple(ports) + (Port("energy", "energy"),)
         Q = np.zeros((2 * n + n_in, 2 * n + n_in))
-        q_index = list(range(n)) + [2 * n + input_index[t.position_inputs[0]] for t in terminals]
-        Q[np.ix_(q_index, q_index)] = Kq
+        q_index = list(range(n)) + [2 * n + layout.input_index[t.position_inputs[0]] for t in layout.terminals]
+        Q[np.ix_(q_index, q_index)] = forces.Kq
         Q[n:2 * n, n:2 * n] = self.M
         # one product gives the linear outputs and Q s:  [C_y D_y; Q/2] s
         self._n_linear = len(ports)
-        self._G = np.vstack((np.hstack((np.array(rows_z).reshape(len(ports), 2 * n),
-                                        np.array(rows_w).reshape(len(ports), n_in))), 0.5 * Q))
+        self._G = np.vstack((np.hstack((np.array(rows.z).reshape(len(ports), 2 * n),
+                                        np.array(rows.w).reshape(len(ports), n_in))), 0.5 * Q))
         self.C_y = self._G[:self._n_linear, :2 * n]
         self.D_y = self._G[:self._n_linear, 2 * n:]
-        F_y = np.array(F_y).reshape(len(ports), n_ext)
+        F_y = np.array(rows.F_y).reshape(len(ports), len(self.external))
         self._F_y = F_y if np.any(F_y) else None
-        self._z0 = np.array([spec.bodies[b].x0 for b in self.body_names] + [spec.bodies[b].v0 for b in self.body_names],
-                            dtype=np.float64)
 
     def initial_state(self) -> np.ndarray:
         """``z0 = [x0, v0]``."""
@@ -401,3 +366,95 @@ class MassesModel:
         for side, (i, mass) in enumerate(self._joint_bodies):
             z[i] += corrections[2 * side] / mass
             z[n + i] += corrections[2 * side + 1] / mass
+
+
+def _input_ports(model: str, attachments: Attachments) -> tuple[Port, ...]:
+    """Terminal positions and velocities, force inputs, then the joint sides' inputs; all scalars on a line."""
+    terminals = attachments.terminals
+    scalar = [t.position_inputs for t in terminals] + [f.ports for f in attachments.force_inputs]
+    scalar += [m.position_ports for m in attachments.motion_outputs] + [o.ports for o in attachments.force_outputs]
+    if any(len(ports) != 1 for ports in scalar):
+        raise ValueError(f"the {model} model moves on a line: coupling signals must be scalars, got {scalar}")
+    if any(not o.effects for o in attachments.force_outputs):
+        raise ValueError(f"the {model} model computes a coupling force only from coupling effects")
+    return tuple(
+        [Port(p[0], q) for t in terminals for p, q in ((t.position_inputs, "position"), (t.velocity_inputs, "velocity"))]
+        + [Port(f.ports[0], "force") for f in attachments.force_inputs]
+        + [Port(p, "force" if j.drive == "force" else "acceleration") for j in attachments.joint_sides for p in j.inputs])
+
+
+class _Forces(NamedTuple):
+    """What the outputs are built from: the joint sides (side, body index, input column), the stiffness over
+    ``q`` of every linear effect, and the body forces ``f = A_f z + B_w w`` (without external forces)."""
+
+    joints: list
+    Kq: np.ndarray
+    A_f: np.ndarray
+    B_w: np.ndarray
+
+
+class _Rows:
+    """The linear outputs, one entry per port: ``y = z-row · z + w-row · w + F_y-row · f_e(t) + constant``."""
+
+    def __init__(self, layout: "_Layout", n_external: int) -> None:
+        self.n_inputs, self.n_external = layout.n_in, n_external
+        self.z, self.w, self.F_y, self.constants, self.ports = [], [], [], [], []
+
+    def add(self, port: Port, row_z: np.ndarray, row_w: np.ndarray | None = None, row_f: np.ndarray | None = None,
+            constant: float = 0.0) -> None:
+        """One output (missing rows: zero)."""
+        self.ports.append(port)
+        self.z.append(row_z)
+        self.w.append(np.zeros(self.n_inputs) if row_w is None else row_w)
+        self.F_y.append(np.zeros(self.n_external) if row_f is None else row_f)
+        self.constants.append(constant)
+
+
+class _Layout:
+    """Where the points and inputs of a masses model sit: bodies ``0..n-1`` then terminals ``n..`` in the
+    point coordinates ``q = [x, x*]``, and the stamping of effects into matrices over ``q``."""
+
+    def __init__(self, body_names: tuple[str, ...], terminals: tuple, inputs: tuple[Port, ...],
+                 by_name: dict[str, PlacedEffect]) -> None:
+        self.n = len(body_names)
+        self.terminals = terminals
+        self.point_index = {name: i for i, name in enumerate(body_names)}
+        self.point_index.update({t.name: self.n + j for j, t in enumerate(terminals)})
+        self.input_index = {p.name: j for j, p in enumerate(inputs)}
+        self.n_in = len(inputs)
+        self.by_name = by_name  # the active effects, in scene order
+
+    def coordinates(self, point: str | None) -> tuple[int, int] | None:
+        """Indices of a point's position and velocity in ``s = [x, v, w]`` (None: the ground)."""
+        if point is None:
+            return None
+        i = self.point_index[point]
+        if i < self.n:
+            return i, self.n + i
+        t = self.terminals[i - self.n]
+        return 2 * self.n + self.input_index[t.position_inputs[0]], 2 * self.n + self.input_index[t.velocity_inputs[0]]
+
+    def indices(self, e: PlacedEffect) -> list[int | None]:
+        return [None if p is None else self.point_index[p] for p in e.endpoints]
+
+    def stamped(self, selection: list[PlacedEffect]) -> tuple[np.ndarray, np.ndarray]:
+        """Stiffness and damping over ``q`` of the linear effects of ``selection``."""
+        size = self.n + len(self.terminals)
+        K, C = np.zeros((size, size)), np.zeros((size, size))
+        for e in selection:
+            if e.effect.kind == "linear":
+                e.effect.stamp(K, C, *self.indices(e))
+        return K, C
+
+    def feedback_stamped(self, selection: list[PlacedEffect]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Acceleration, position and velocity gains over ``q`` of the feedback effects of ``selection``."""
+        size = self.n + len(self.terminals)
+        Mf, Kf, Cf = np.zeros((size, size)), np.zeros((size, size)), np.zeros((size, size))
+        for e in selection:
+            if e.effect.kind == "feedback":
+                target, source = self.indices(e)
+                if source >= self.n and e.effect.acceleration_gain != 0.0:
+                    raise ValueError(f"feedback {e.name}: expected the acceleration of a body of this subsystem, "
+                                     f"got terminal {e.endpoints[1]} (its acceleration is not an input)")
+                e.effect.stamp(Mf, Kf, Cf, target, source)
+        return Mf, Kf, Cf

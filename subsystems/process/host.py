@@ -2,7 +2,7 @@
 
 Started by ``zencosim run --bus zenoh`` for every subsystem, or by hand on another host with
 ``zencosim subsystem SCENE NAME --connect tcp/HOST:PORT``. The process runs its own replica of the
-run's scheme (``manager.replica``): it executes its own commands, publishes its replies and takes the
+run's scheme (``manager.scheme.replica``): it executes its own commands, publishes its replies and takes the
 other subsystems' replies from the network, in the Zenoh subscriber callback, so no thread hand-off
 sits on the critical path. Every reply goes at once to the other subsystems (``<sub>/y``); the
 manager, which only follows the run, gets them in batches (``<sub>/log``: at most ``LOG_REPLIES``
@@ -82,7 +82,7 @@ def find_run(session: zenoh.Session, scene: Scene, name: str, wait_s: float) -> 
         time.sleep(0.2)
 
 
-SIGNAL_LOOK_S = 0.1  # the main thread looks this often for a signal (manager.signals)
+SIGNAL_LOOK_S = 0.1  # the main thread looks this often for a signal (manager.bus.signals)
 EXIT_LIMIT_S = 10.0  # once stopped, the process has this long to leave the run in order
 
 

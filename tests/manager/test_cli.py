@@ -69,3 +69,20 @@ def test_docker_compose_commands_are_valid_zencosim_command_lines():
     for command in commands:
         args = build_parser().parse_args(command)
         load_scene(args.scene, args.overrides)
+
+
+def test_version_names_zencosim_its_protocol_and_what_a_run_depends_on():
+    from importlib.metadata import version
+
+    from zencosim.manager.wire.protocol import VERSION
+    result = zencosim("--version")
+    assert result.returncode == 0
+    assert result.stdout.strip().startswith(f"zencosim {version('zencosim')} (wire protocol {VERSION}; "
+                                            f"zenoh {version('eclipse-zenoh')}, numpy {version('numpy')}, python ")
+
+
+def test_help_shows_examples_for_the_tool_and_each_command():
+    assert "examples:" in zencosim("--help").stdout
+    for command in ("run", "check", "analyze", "stability", "subsystem", "replay", "inspect", "export"):
+        result = zencosim(command, "--help")
+        assert result.returncode == 0 and f"zencosim {command}" in result.stdout.split("examples:")[1], command

@@ -1,4 +1,4 @@
-"""Eigenstructure compensation at run time (paper 000 §5, §6.2; manager.compensator): the realisation,
+"""Eigenstructure compensation at run time (paper 000 §5, §6.2; manager.analysis.compensator): the realisation,
 its sign, the discrete correction, and what it does to the runs of paper 000."""
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ The test makes a second "host" — a network namespace joined to this one by a v
 /30 — and starts the manager as the README says (``--listen tcp/0.0.0.0:PORT --external S2``), so
 that it spawns S1 here, and S2 by hand inside the namespace, connecting to the manager's address on
 the veth link. S2 cannot reach this host's loopback: the run only completes if S2 connects to S1 at
-an address of this host it can reach (``manager.zenoh_session.reachable``). Traffic stays on the
+an address of this host it can reach (``manager.bus.zenoh_session.reachable``). Traffic stays on the
 veth pair and loopback. Needs CAP_NET_ADMIN (root) and ``ip``; skipped otherwise.
 """
 from __future__ import annotations

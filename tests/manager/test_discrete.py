@@ -1,16 +1,16 @@
-"""The exact discrete analysis (manager.discrete) is the runtime's scheme, and its spectrum predicts
+"""The exact discrete analysis (manager.analysis.discrete) is the runtime's scheme, and its spectrum predicts
 the energy growth of long runs."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+import zencosim
 from zencosim.manager.analysis.discrete import ZERO_EIGENVALUE, DiscreteScheme, discrete_scheme
 from zencosim.manager.analysis.monolithic import linear_model, linear_unavailable
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.results.summary import energy_growth_rate, total_energy
-from zencosim.manager.run import execute
 from zencosim.manager.scene.load import bundled_scene_names, load_scene
 from zencosim.manager.scheme.replica import Replica
 
@@ -76,7 +76,7 @@ def test_transition_matrix_advances_the_runtime_state(configuration):
 
 
 def late_growth(name: str, overrides: list[str], scheme: DiscreteScheme) -> float:
-    """Energy growth rate [1/s] of the second half of a run (``manager.summary.energy_growth_rate``).
+    """Energy growth rate [1/s] of the second half of a run (``manager.results.summary.energy_growth_rate``).
 
     A stable scheme runs 10 s. An unstable one runs until its least damped mode dominates from
     mid-run on. The runtime's state after 4 periods is decomposed on the eigenvectors of Ψ: mode
@@ -89,7 +89,7 @@ def late_growth(name: str, overrides: list[str], scheme: DiscreteScheme) -> floa
     base = load_scene(name, overrides).manager.macro_step
     duration = 10.0 if scheme.stable else _takeover_duration(name, overrides, scheme, base)
     duration = base * round(duration / base)
-    record, _ = execute(load_scene(name, [*overrides, f"manager.duration={duration!r}"]))
+    record = zencosim.run(load_scene(name, [*overrides, f"manager.duration={duration!r}"])).record
     return energy_growth_rate(*total_energy(record))
 
 
@@ -140,7 +140,7 @@ def test_spectral_radius_predicts_the_energy_growth_of_a_long_run(name, record_p
 def test_forced_scene_is_predicted_stable_and_runs_bounded():
     # two_mass_chirp: the free response decays (ρ < 1) and the run's energy follows the bounded forcing
     scheme = discrete_scheme(*plan_scene(load_scene("two_mass_chirp")))
-    record, _ = execute(load_scene("two_mass_chirp"))
+    record = zencosim.run(load_scene("two_mass_chirp")).record
     assert scheme.stable and energy_growth_rate(*total_energy(record)) < 0.01
 
 

@@ -1,6 +1,6 @@
 """The double pendulum of paper 003 §4 under every implicit method: stable for k = 0 and 1, the weighted
 multiplier diverging with k = 2 (force/force and force/displacement), the others following the
-reference (manager.reference.solve_ivp_reference: both links integrated together, the joint held
+reference (manager.results.reference.solve_ivp_reference: both links integrated together, the joint held
 exactly, LSODA at rtol = atol = 1e-12: 5.5e-12 m from the closed form of the test model).
 
 0.5 s of the scene (H = 1 ms): the diverging runs open the joint past 1 m after 0.19–0.23 s (observed);
@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import zencosim
 from zencosim.manager.results.reference import solve_ivp_reference
-from zencosim.manager.run import execute, run_scene
 from zencosim.manager.scene.load import SceneError, load_scene
 
 DURATION = ["manager.duration=0.5"]
@@ -33,7 +33,7 @@ def _run(method: str, decomposition: str, k: int):
     scene = load_scene("double_pendulum", DURATION + [f"manager.implicit.method={method}",
                                                        f"couplings.joint.decomposition={decomposition}",
                                                        f"manager.extrapolation={k}"])
-    return execute(scene)[0]
+    return zencosim.run(scene).record
 
 
 def _joint_gap(record) -> np.ndarray:
@@ -79,8 +79,8 @@ def test_displacement_displacement_is_refused_for_the_pivoted_link():
 
 
 def test_summary_reports_corrector_iterations_and_the_reference():
-    summary = run_scene(load_scene("double_pendulum", ["manager.duration=0.1", "manager.implicit.method=weighted-multiplier",
-                                                       "couplings.joint.decomposition=force-displacement"]))
+    summary = zencosim.run(load_scene("double_pendulum", ["manager.duration=0.1", "manager.implicit.method=weighted-multiplier",
+                                                          "couplings.joint.decomposition=force-displacement"])).summary
     implicit = summary["implicit"]
     assert (implicit["method"], implicit["decomposition"], implicit["k"]) == ("weighted-multiplier", "force-displacement", 1)
     runs = implicit["corrector_runs"]

@@ -174,7 +174,7 @@ def _runtime_global_error(method: str, k: int, macro_step: float) -> float:
 @pytest.mark.parametrize("k", [0, 1])
 def test_runtime_global_error_is_the_recurrence_global_error(method, law, k):
     """§3.7 model, force/force, x0 = 0.1 m, 0.5 s, at H = 2 ms and 1 ms: the runtime's Eq. (72) equals
-    that of the recurrence started from the exact solution (compensation.implicit_convergence) within
+    that of the recurrence started from the exact solution (compensation.implicit.convergence) within
     1e-4 relative. Both start from the exact state and the exact, consistent e_0; with k = 1 the runtime's
     first predictor is a constant (only e_0 exists), the study's a line through the exact e_{-1}: observed
     2.1e-6 for the weighted multiplier (sensitive to its start, §3.7.2), <= 6e-8 otherwise. k = 2 is not

@@ -1,5 +1,5 @@
 """A rolled-back run over Zenoh: real subsystem processes on loopback execute every SAVE, RESTORE, STEP
-and PROJECT of the implicit scheme (each process runs a replica of the scheme, manager.replica) and
+and PROJECT of the implicit scheme (each process runs a replica of the scheme, manager.scheme.replica) and
 give the same digest, trajectories, coupling variables and corrector runs as the in-process bus."""
 from __future__ import annotations
 

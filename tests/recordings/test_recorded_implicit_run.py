@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from zencosim.manager.run import execute
+import zencosim
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.wire.protocol import Kind
 from zencosim.recordings.reader import read_recording
-from zencosim.recordings.recorder import Recorder
 from zencosim.recordings.verify import verify
 
 pytestmark = pytest.mark.multiprocess
@@ -20,7 +19,7 @@ def test_a_recorded_implicit_run_verifies_bit_for_bit(tmp_path):
     path = tmp_path / "implicit.mcap"
     scene = load_scene("constrained_two_mass", ["manager.duration=0.05", "manager.implicit.method=projection",
                                                 "couplings.joint.decomposition=force-displacement"])
-    execute(scene, "inproc", recorder=Recorder(path))
+    zencosim.run(scene, record=path)
     recording = read_recording(path)
     kinds = {m.kind for m in recording.channels["S1/commands"].messages}
     assert {Kind.SAVE, Kind.RESTORE, Kind.STEP, Kind.PROJECT} <= kinds

@@ -15,10 +15,10 @@ import time
 import numpy as np
 import pytest
 
+import zencosim
 from tests.conftest import REPO, children_of, cmdline
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import endpoints
-from zencosim.manager.run import execute
 from zencosim.manager.scene.load import load_scene, scene_from_text
 from zencosim.manager.scheme.replica import Replica
 from zencosim.manager.wire.protocol import Kind
@@ -39,9 +39,8 @@ SCENE = ("two_mass_damped", ["manager.duration=2.0"])  # 2000 macro-steps
 def recorded(tmp_path_factory):
     """An in-process run of 2000 steps, recorded: (file, run record, recorder's end record)."""
     path = tmp_path_factory.mktemp("recorded") / "run.mcap"
-    recorder = Recorder(path)
-    record, _ = execute(load_scene(*SCENE), "inproc", recorder=recorder)
-    return path, record, recorder.result
+    result = zencosim.run(zencosim.load_scene(*SCENE), record=path)
+    return path, result.record, result.summary["recording"]
 
 
 def test_the_file_holds_every_message_bit_for_bit(recorded):

@@ -76,7 +76,7 @@ def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_pa
     recorder.tap("manager", "status", b"s")
     sent_before_interrupt = []
 
-    def interrupt(*_) -> None:  # as manager.cli's SIGTERM handler
+    def interrupt(*_) -> None:  # as cli.main's SIGTERM handler
         sent_before_interrupt.append(len(recorder.frames))
         raise KeyboardInterrupt
 

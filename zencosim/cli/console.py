@@ -1,0 +1,37 @@
+"""What every command shares: the consoles, the scene arguments, and messages that name what they concern."""
+from __future__ import annotations
+
+import argparse
+
+from rich.console import Console
+from rich.markup import escape
+
+
+class UsageError(ValueError):
+    """Arguments that do not fit together (exit status 2)."""
+
+
+out = Console()
+err = Console(stderr=True)
+
+
+def say(text: str) -> None:
+    """Print plain text (no markup, no highlighting) on standard output."""
+    out.print(escape(text), highlight=False, soft_wrap=True)
+
+
+def warn(text: str) -> None:
+    """Print plain text on standard error."""
+    err.print(escape(text), highlight=False, soft_wrap=True)
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="a bundled scene name (see 'zencosim scenes') or a path to a TOML scene")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scalar of the scene, e.g. --set manager.macro_step=0.004 (repeatable)")
+
+
+def examples(*lines: str) -> dict:
+    """``add_parser`` options that show ``lines`` as examples at the end of the command's help."""
+    return {"epilog": "examples:\n" + "\n".join(f"  {line}" for line in lines),
+            "formatter_class": argparse.RawDescriptionHelpFormatter}

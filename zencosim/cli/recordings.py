@@ -1,0 +1,98 @@
+"""``zencosim replay``, ``inspect`` and ``export``: what a recording holds, its signals, a Rerun view of it, and
+its verification by re-running its scene."""
+from __future__ import annotations
+
+import argparse
+
+from rich.markup import escape
+from rich.table import Table
+
+from zencosim.cli.console import examples, out, say, warn
+from zencosim.extras import require
+from zencosim.manager.results.output_files import check_output_file
+from zencosim.manager.results.tables import check_table_path, tables, write_tables
+from zencosim.recordings import RecordingError
+from zencosim.recordings.reader import read_recording
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    if not (args.rrd or args.spawn or args.verify):
+        raise RecordingError(f"replay {args.recording}: nothing to do; give --rrd FILE, --spawn or --verify")
+    rrd = check_output_file(args.rrd, "Rerun recording", (".rrd",)) if args.rrd else None
+    if rrd or args.spawn:
+        require("rerun", "replaying in Rerun")
+    recording = read_recording(args.recording)
+    if recording.truncated:
+        warn(f"{recording.path}: {recording.truncated}; replaying what it holds")
+    status = 0
+    if rrd or args.spawn:
+        from zencosim.recordings.rerun_replay import replay_in_rerun
+        replay_in_rerun(recording, rrd, args.spawn)
+        if rrd:
+            say(f"wrote {rrd}")
+    if args.verify:
+        from zencosim.recordings.verify import verify
+        result = verify(recording)
+        compared = sum(result.compared.values())
+        if result.divergence is not None:
+            say(f"verify FAILED: first divergence at {result.divergence}")
+        elif not result.passed:
+            say(f"verify FAILED: {result.note}")
+        else:
+            say(f"verify passed: {compared} messages bit-identical to a re-run, up to step {result.last_step}"
+                + (f" ({result.note})" if result.note else ""))
+        status = 0 if result.passed else 1
+    return status
+
+
+def cmd_inspect(args: argparse.Namespace) -> int:
+    from zencosim.recordings.reader import describe
+    info = describe(read_recording(args.recording))
+    table = Table(title=escape(f"{info['file']}: scene {info['scene']}, run {info['run_id']} ({info['bus']} bus, "
+                               f"host {info['host']}, zencosim {info['zencosim']})"))
+    table.add_column("channel")
+    table.add_column("messages", justify="right")
+    table.add_column("values")
+    for topic, channel in info["channels"].items():
+        table.add_row(escape(topic), str(channel["messages"]), escape(channel["values"]))
+    out.print(table)
+    say(f"started {info['started']}; steps {info['steps']}, {info['duration_s']:g} s simulated; "
+        f"outcome: {info['outcome']}; lost: {'unknown' if info['lost'] is None else info['lost']}")
+    if info["truncated"]:
+        say(f"incomplete: {info['truncated']}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from zencosim.recordings.export import recorded_signals
+    out_path = check_table_path(args.out)
+    recording = read_recording(args.recording)
+    if recording.truncated:
+        warn(f"{recording.path}: {recording.truncated}; exporting what it holds")
+    written = write_tables(tables(recorded_signals(recording)), out_path)
+    say(f"wrote {', '.join(map(str, written))}")
+    return 0
+
+
+def add_parsers(commands) -> None:
+    replay = commands.add_parser(
+        "replay", help="replay a recording in Rerun, or verify it by re-running its scene",
+        **examples("zencosim replay run.mcap --verify", "zencosim replay run.mcap --rrd run.rrd   # zencosim[rerun]"))
+    replay.add_argument("recording", help="an MCAP file written by 'zencosim run --record'")
+    replay.add_argument("--rrd", metavar="FILE", help="write a Rerun recording (.rrd)")
+    replay.add_argument("--spawn", action="store_true", help="open a Rerun viewer with the recording")
+    replay.add_argument("--verify", action="store_true",
+                        help="re-run the embedded scene in process and compare every channel bit for bit")
+    replay.set_defaults(handler=cmd_replay)
+
+    inspect = commands.add_parser("inspect", help="show what a recording holds", **examples("zencosim inspect run.mcap"))
+    inspect.add_argument("recording", help="an MCAP file written by 'zencosim run --record'")
+    inspect.set_defaults(handler=cmd_inspect)
+
+    export = commands.add_parser(
+        "export", help="write a recording's signals as tables (CSV, NPZ, Parquet), as 'run --out' does",
+        **examples("zencosim export run.mcap --out results.csv", "zencosim export run.mcap --out results.npz"))
+    export.add_argument("recording", help="an MCAP file written by 'zencosim run --record'")
+    export.add_argument("--out", required=True, metavar="FILE",
+                        help="where to write (.csv, .npz, .parquet); a multi-rate run gives one file per communication step")
+    export.set_defaults(handler=cmd_export)

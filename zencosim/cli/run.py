@@ -1,0 +1,141 @@
+"""``zencosim run``: run a scene on either bus, print its summary, write its results."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from rich.markup import escape
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, out, say, warn
+from zencosim.manager.bus.zenoh_session import ZenohOptions
+from zencosim.manager.results.output_files import check_output_file
+from zencosim.manager.results.tables import check_table_path, record_signals, tables, write_tables
+from zencosim.manager.run import BUSES, execute, summarize_run
+from zencosim.manager.scene.load import load_scene
+
+
+def _print_summary(summary: dict) -> None:
+    table = Table(title=f"{summary['scene']} on the {summary['bus']} bus: {summary['steps']} macro-steps of "
+                        f"{summary['macro_step']:g} s")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+
+    def row(label: str, value: str) -> None:
+        table.add_row(escape(label), escape(value))
+
+    row("stable", "yes" if summary["stable"] else "NO (energy grows)")
+    for name, entry in summary["signals"].items():
+        if entry.get("nrms") is not None:
+            mono = entry.get("nrms_monolithic")
+            row(f"NRMS {name} [{entry['unit']}]", f"{entry['nrms']:.4g}" + (f"  (monolithic {mono:.4g})" if mono is not None else ""))
+    energy = summary["energy"]
+    row("energy initial / final [J]", f"{energy['initial']:.6g} / {energy['final']:.6g}")
+    if "reference_final" in energy:
+        row("energy final, reference [J]", f"{energy['reference_final']:.6g}")
+    row("energy growth rate [1/s]", f"{energy['growth_rate_per_s']:.3g}")
+    for bond, value in summary["residual_energy"].items():
+        row(f"residual energy δE, bond {bond} [J]", f"{value:.6g}")
+    for bond, intervals in summary["residual_power_spikes"].items():
+        if intervals:
+            row(f"δP spikes, bond {bond} [s]", ", ".join(f"{i['start']:.3f}–{i['end']:.3f}" for i in intervals))
+    row("reliable (no δP spike)", "yes" if summary["reliable"] else "NO")
+    if summary["correction"] is not None:
+        row("work injected by correction [J]", f"{summary['correction']['work_injected']:.6g}")
+    timing = summary["timing"]
+    row("wall time [s]", f"{timing['wall_s']:.3f}")
+    row("macro-steps per second", f"{timing['steps_per_s']:.0f}")
+    if "step_us_median" in timing:
+        row("step median / p99 [µs]", f"{timing['step_us_median']:.1f} / {timing['step_us_p99']:.1f}")
+    if timing.get("realtime"):
+        row("lateness median / p99 / max [µs]", f"{timing['lateness_us_median']:.1f} / "
+                      f"{timing['lateness_us_p99']:.1f} / {timing['lateness_us_max']:.1f}")
+        row("missed deadlines", str(timing["missed_deadlines"]))
+    implicit = summary.get("implicit")
+    if implicit is not None:
+        row("implicit coupling", f"{implicit['method']}, {implicit['decomposition']}, k={implicit['k']}")
+        row("corrector runs mean / max", f"{implicit['corrector_runs']['mean']:.3g} / {implicit['corrector_runs']['max']}")
+        row("largest joint gap [m]", f"{implicit['max_gap']['position']:.3g}")
+        if implicit["diverged_at_s"] is not None:
+            row("DIVERGED at [s]", f"{implicit['diverged_at_s']:g}")
+    row("active effects", ", ".join(summary["effects"]))
+    row("digest", summary["digest"][:16] + "…")
+    if "recording" in summary:
+        recording = summary["recording"]
+        row("recording", f"{recording['path']}: {recording['messages']} messages, {recording['lost']} lost")
+    out.print(table)
+    if "reference_note" in summary:
+        out.print(summary["reference_note"])
+
+
+def _recording_text(result: dict) -> str:
+    lost = "unknown losses" if result["lost"] is None else f"{result['lost']} lost"
+    return f"recording {result['path']}: {result['messages']} messages, {lost} ({result['outcome']})"
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene, args.overrides)
+    unknown = sorted(set(args.external) - set(scene.subsystems))
+    if unknown:
+        raise UsageError(f"--external {', '.join(unknown)}: no such subsystem in scene {scene.name}; expected one of "
+                         f"{', '.join(scene.subsystems)}")
+    # every file the run writes is checked before it starts
+    summary_path = check_output_file(args.summary, "summary") if args.summary else None
+    out_path = check_table_path(args.out) if args.out else None
+    record_path = args.record or scene.manager.record
+    recorder = None
+    if record_path:
+        from zencosim.recordings.recorder import Recorder
+        recorder = Recorder(check_output_file(record_path, "recording"))
+    n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
+    bus_options = {}
+    if args.bus == "zenoh":
+        bus_options = dict(zenoh_options=ZenohOptions(lowlatency=not args.no_lowlatency), listen=args.listen,
+                           external=tuple(args.external), announce=None if args.quiet else warn)
+    show_progress = err.is_terminal and not args.quiet
+    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(), TimeRemainingColumn(),
+                  console=err, disable=not show_progress) as progress:
+        task = progress.add_task(f"{scene.name} ({args.bus})", total=n_steps)
+        try:
+            record, wall_s = execute(scene, args.bus, True if args.realtime else None,
+                                     lambda step: progress.update(task, completed=step), recorder=recorder,
+                                     **bus_options)
+        finally:  # a run that did not complete prints no summary: say what its recording holds
+            if recorder is not None and recorder.result is not None and recorder.result["outcome"] != "completed":
+                warn(_recording_text(recorder.result))
+    summary = summarize_run(scene, record, args.bus, wall_s, recorder)
+    if not args.quiet:
+        _print_summary(summary)
+    if summary_path:
+        summary_path.write_text(json.dumps(summary, indent=2) + "\n")
+    if out_path:
+        written = write_tables(tables(record_signals(record)), out_path)
+        if not args.quiet:
+            say(f"wrote {', '.join(map(str, written))}")
+    return 0
+
+
+def add_parsers(commands) -> None:
+    run = commands.add_parser(
+        "run", help="run a scene",
+        **examples("zencosim run two_mass_damped                      # in process",
+                   "zencosim run two_mass_damped --bus zenoh          # one process per subsystem",
+                   "zencosim run four_mass --set manager.macro_step=0.002 --out results.csv --summary summary.json",
+                   "zencosim run two_mass_damped --bus zenoh --record run.mcap",
+                   "zencosim run two_mass_damped --realtime            # paced to the wall clock"))
+    add_scene_arguments(run)
+    run.add_argument("--bus", choices=BUSES, default="inproc",
+                     help="inproc: all subsystems in this process; zenoh: one process per subsystem over Zenoh")
+    run.add_argument("--summary", metavar="FILE", help="write the run summary as JSON (keys: docs/summary.md)")
+    run.add_argument("--out", metavar="FILE", help="write every signal with its time (.csv, .npz, .parquet); a "
+                                                   "multi-rate run writes one file per communication step")
+    run.add_argument("--realtime", action="store_true", help="pace macro-steps to wall-clock deadlines")
+    run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    run.add_argument("--listen", metavar="ENDPOINT", help="Zenoh endpoint of the manager (default: a free port on 127.0.0.1)")
+    run.add_argument("--external", action="append", default=[], metavar="NAME",
+                     help="do not start subsystem NAME: wait for 'zencosim subsystem' started by hand")
+    run.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
+    run.add_argument("--record", metavar="FILE", help="record every message of the run to an MCAP file "
+                                                      "(default: the scene's manager.record)")
+    run.set_defaults(handler=cmd_run)

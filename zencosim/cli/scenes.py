@@ -1,0 +1,51 @@
+"""``zencosim scenes`` and ``zencosim check``: the bundled scenes, and what a scene builds."""
+from __future__ import annotations
+
+import argparse
+
+from rich.markup import escape
+from rich.table import Table
+
+from zencosim.cli.console import add_scene_arguments, examples, out
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.scene.load import bundled_scene_names, load_scene
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    table = Table(title="bundled scenes")
+    table.add_column("scene")
+    table.add_column("description")
+    for name in bundled_scene_names():
+        table.add_row(name, load_scene(name).description)
+    out.print(table)
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene, args.overrides)
+    plan, _ = plan_scene(scene)
+    out.print(f"[bold]scene {escape(scene.name)}[/]: valid — {escape(scene.description)}")
+    out.print(f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s, scheme {scene.manager.scheme}, "
+              f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(b.name for b in plan.bonds) or 'none'}")
+    if scene.manager.implicit is not None:
+        joints = ", ".join(f"{c.name} ({c.settings.decomposition})" for c in scene.couplings.values())
+        out.print(escape(f"implicit coupling: {scene.manager.implicit.coupling_method()}, k = {scene.manager.extrapolation}, "
+                         f"up to {scene.manager.implicit.max_iterations} corrector run(s); joint {joints}"))
+    for sub in plan.subsystems:
+        settings = scene.subsystems[sub.name].settings
+        out.print(f"[bold]{sub.name}[/]: {settings.model}, {settings.integrator}, micro-step {settings.micro_step:g} s, "
+                  f"communication step {sub.ratio * scene.manager.macro_step:g} s")
+        out.print(escape(f"  inputs:  {', '.join(f'{p.name} [{p.unit}]' for p in sub.inputs) or 'none'}"))
+        out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + (" (feedthrough)" if p.feedthrough else "")
+                                                for p in sub.outputs)))
+        out.print(escape(f"  effects: {', '.join(sub.effects) or 'none'}"))
+    return 0
+
+
+def add_parsers(commands) -> None:
+    commands.add_parser("scenes", help="list the bundled scenes").set_defaults(handler=cmd_scenes)
+    check = commands.add_parser("check", help="validate a scene and show what it builds",
+                                **examples("zencosim check four_mass",
+                                           "zencosim check my_scene.toml --set manager.macro_step=0.002"))
+    add_scene_arguments(check)
+    check.set_defaults(handler=cmd_check)
