@@ -3,7 +3,9 @@ cannot break.
 
 The wheel is built from the repository's files (tracked and new, not ignored) and installed with the
 core dependencies only into a fresh virtual environment; the run starts from a working directory that
-holds a ``manager.py``, a ``subsystems/`` and a ``recordings/`` folder that fail when imported.
+holds a ``manager.py``, a ``subsystems/`` and a ``recordings/`` folder (the generic names the package
+once installed) and a ``zencosim.py`` (which ``python -m`` would import but for ``-P``), all failing
+when imported.
 """
 from __future__ import annotations
 
@@ -92,7 +94,8 @@ def test_the_installed_wheel_runs_over_zenoh_from_a_working_directory_that_shado
     for folder in ("subsystems", "recordings"):
         (work / folder).mkdir(parents=True)
         (work / folder / "__init__.py").write_text(SHADOW.format(name=f"{folder}/"))
-    (work / "manager.py").write_text(SHADOW.format(name="manager.py"))
+    for module in ("manager.py", "zencosim.py"):
+        (work / module).write_text(SHADOW.format(name=module))
     zencosim_cli = str(venv / "bin" / "zencosim")
 
     result = _run([zencosim_cli, "run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--summary", "summary.json",
