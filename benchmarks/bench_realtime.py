@@ -13,26 +13,22 @@ import argparse
 import json
 import os
 import statistics
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from rich.console import Console
+from rich.table import Table
 
-from rich.console import Console  # noqa: E402
-from rich.table import Table  # noqa: E402
-
-from zencosim.manager.run import run_scene  # noqa: E402
-from zencosim.manager.scene.load import load_scene  # noqa: E402
+import zencosim
 
 SCENE = "two_mass_damped"  # macro-step 1 ms: 1 kHz
 
 
 def paced_runs(bus: str, repeats: int, duration_s: float) -> dict:
     """The timing of ``repeats`` real-time runs on ``bus``: medians, and every run's figures."""
-    scene = load_scene(SCENE, [f"manager.duration={duration_s}"])
+    scene = zencosim.load_scene(SCENE, {"manager.duration": duration_s})
     runs = []
     for _ in range(repeats):
-        timing = run_scene(scene, bus, realtime=True)["timing"]
+        timing = zencosim.run(scene, bus, realtime=True).summary["timing"]
         steps = round(duration_s / scene.manager.macro_step)
         runs.append({"missed_share": timing["missed_deadlines"] / steps,
                      "lateness_us_median": timing["lateness_us_median"],

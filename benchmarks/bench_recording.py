@@ -22,30 +22,27 @@ import json
 import math
 import os
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import numpy as np
+from mcap.writer import CompressionType, Writer
+from rich.console import Console
+from rich.table import Table
 
-import numpy as np  # noqa: E402
-from mcap.writer import CompressionType, Writer  # noqa: E402
-from rich.console import Console  # noqa: E402
-from rich.table import Table  # noqa: E402
-
-from zencosim.manager.assembly import make_scheme, plan_scene  # noqa: E402
-from zencosim.manager.bus.inproc import endpoints  # noqa: E402
-from zencosim.manager.run import execute  # noqa: E402
-from zencosim.manager.scene.load import load_scene  # noqa: E402
-from zencosim.manager.scheme.replica import Replica  # noqa: E402
-from zencosim.manager.wire.protocol import HEADER, encode  # noqa: E402
-from zencosim.manager.wire.status import StatusReport  # noqa: E402
-from zencosim.recordings.layout import channel_specs  # noqa: E402
-from zencosim.recordings.reader import read_recording  # noqa: E402
-from zencosim.recordings.recorder import Recorder  # noqa: E402
-from zencosim.recordings.schema import decode_stored, encode_wire  # noqa: E402
-from zencosim.recordings.writer import CHUNK_BYTES, RecordingWriter  # noqa: E402
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.protocol import HEADER, encode
+from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings.layout import channel_specs
+from zencosim.recordings.reader import read_recording
+from zencosim.recordings.recorder import Recorder
+from zencosim.recordings.schema import decode_stored, encode_wire
+from zencosim.recordings.writer import CHUNK_BYTES, RecordingWriter
 
 SCENE = "two_mass_damped"
 

@@ -18,13 +18,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import pingpong  # noqa: E402
-from rich.console import Console  # noqa: E402
-from rich.table import Table  # noqa: E402
+import pingpong
+from rich.console import Console
+from rich.table import Table
 
-from zencosim.manager.bus.zenoh_session import ZenohOptions  # noqa: E402
-from zencosim.manager.run import execute  # noqa: E402
-from zencosim.manager.scene.load import load_scene  # noqa: E402
+from zencosim.manager.bus.zenoh_session import ZenohOptions
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import load_scene
 
 SCENE = "two_mass_damped"
 

@@ -10,16 +10,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from zencosim.manager.results.summary import summarize, total_energy  # noqa: E402
-from zencosim.manager.run import execute, references  # noqa: E402
-from zencosim.manager.scene.load import load_scene  # noqa: E402
+from zencosim.manager.results.summary import summarize, total_energy
+from zencosim.manager.run import execute, references
+from zencosim.manager.scene.load import load_scene
 
 ON = "manager.correction.enabled=true"
 MULTI_RATE = ("manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001")

@@ -117,6 +117,121 @@ def sensitivity_steps(coupling: np.ndarray, relative_step: float) -> np.ndarray:
     return relative_step * np.maximum(np.abs(coupling), 1.0)
 
 
+class _JointExchanges:
+    """The exchanges of one implicit run, around its history ``e_N`` of coupling variables: each is a
+    generator that yields :class:`Exchange` requests and returns what the replies say."""
+
+    def __init__(self, plan: Plan, joint: JointPlan, settings: ImplicitSettings) -> None:
+        self.subs, self.base, self.joint, self.settings = plan.subsystems, plan.base_step_ns, joint, settings
+        self.history = np.full((plan.n_ticks + 1, joint.n_e), np.nan)  # e_N; row N + 1 holds the corrector's candidate
+        self.side_of = {joint.sides[side]: side for side in (0, 1)}
+
+    def input_rows(self, s: SubsystemPlan, newest: int, offset_ns: int) -> np.ndarray:
+        """Input polynomial of ``s``: its coupling variables through history rows ``... newest``."""
+        joint = self.joint
+        coefficients = np.zeros((joint.k + 1, len(s.inputs)))
+        side = self.side_of.get(s.index)
+        if side is not None:
+            c = lagrange_coefficients(self.history, joint.variables[side], newest, joint.k, self.base, offset_ns)
+            coefficients[:len(c), joint.inputs[side]] = c
+        return coefficients
+
+    def side_outputs(self, outputs: dict[int, np.ndarray]) -> np.ndarray:
+        """(2, 4, axes): x, v, a, f of each side (``corrected_coupling``'s layout)."""
+        return np.array([outputs[self.joint.sides[side]][self.joint.outputs[side]] for side in (0, 1)])
+
+    def control(self, kind: Kind, tick: int, targets: tuple[SubsystemPlan, ...], step_status: bytes | None = None):
+        sends = {s.name: encode(kind, tick, tick * self.base) for s in targets}
+        replies = yield Exchange(sends, tuple(sends), step_status)
+        for s in targets:
+            expect_reply(replies[s.name], s, Kind.ACK, tick, kind)
+
+    def run(self, tick: int, targets: tuple[SubsystemPlan, ...], newest: int, offset_ns: int):
+        """STEP ``targets`` from ``tick`` with their coupling variables through history row ``newest``."""
+        rows = self.joint.k + 1
+        sends = {s.name: encode(Kind.STEP, tick, tick * self.base, self.input_rows(s, newest, offset_ns), rows)
+                 for s in targets}
+        replies = yield Exchange(sends, tuple(sends))
+        return {s.index: decode_output(replies[s.name], s, tick + 1) for s in targets}
+
+    def at_start(self, e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
+        """Outputs of ``targets`` at t_0 with coupling variables ``e`` (INIT leaves the state alone)."""
+        self.history[0] = e
+        sends = {s.name: encode(Kind.INIT, 0, 0, self.input_rows(s, 0, 0)[:1], rows=1) for s in targets}
+        replies = yield Exchange(sends, tuple(sends))
+        return {s.index: decode_output(replies[s.name], s, 0) for s in targets}
+
+    def corrector(self, tick: int, e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
+        """Outputs of ``targets`` at T_{N+1} from the state saved at T_N, corrector value ``e`` (Eq. 11)."""
+        self.history[tick + 1] = e
+        yield from self.control(Kind.RESTORE, tick, targets)
+        return (yield from self.run(tick, targets, tick + 1, -self.base))
+
+    def derivatives(self, outputs: dict[int, np.ndarray], e: np.ndarray, outputs_with):
+        """Forward differences (2, 4, axes, n_e) of the side outputs w.r.t. the coupling variables at
+        ``e``, where ``outputs`` were computed; ``outputs_with(e, targets)`` computes them again."""
+        joint = self.joint
+        sensitivity = np.zeros((2, 4, joint.axes, joint.n_e))
+        y, delta = self.side_outputs(outputs), sensitivity_steps(e, self.settings.sensitivity_step)
+        for group in joint.rounds:
+            perturbed = {side: j for side in (0, 1) for j in group if j in joint.variables[side]}
+            e_perturbed = e.copy()
+            e_perturbed[list(group)] += delta[list(group)]
+            again = yield from outputs_with(e_perturbed, tuple(self.subs[joint.sides[side]] for side in perturbed))
+            y_perturbed = self.side_outputs({**outputs, **again})
+            for side, j in perturbed.items():
+                sensitivity[side, :, :, j] = (y_perturbed[side] - y[side]) / delta[j]
+        return sensitivity
+
+    def consistent_start(self):
+        """The outputs at t_0 with ``e_0`` that zeros the acceleration-level and force conditions (outputs are
+        affine in the inputs at t_0)."""
+        decomposition, subs = self.joint.decomposition, self.subs
+        acceleration_level = (0.0, 0.0, 1.0)
+        zero = np.zeros(self.joint.n_e)
+        outputs = yield from self.at_start(zero, subs)
+        sensitivity = yield from self.derivatives(outputs, zero, self.at_start)
+        e0 = decomposition.linearised_conditions(self.side_outputs(outputs), sensitivity).root(zero, acceleration_level)
+        # one Newton correction with the residual at e0: the derivatives' rounding error (the steps are set
+        # by |e| = 0 here) then only multiplies a residual that is already at rounding level
+        y0 = self.side_outputs((yield from self.at_start(e0, subs)))
+        e0 = decomposition.linearised_conditions(y0, sensitivity).root(e0, acceleration_level)
+        return (yield from self.at_start(e0, subs))
+
+    def corrected(self, tick: int, e_new: np.ndarray, sensitivity: np.ndarray):
+        """The corrector runs of macro-step ``tick`` from ``e_new``: once for linear subsystems, else the chord
+        Newton iteration up to ``max_iterations`` runs; returns (outputs, last e, runs)."""
+        method, decomposition, settings = self.joint.method, self.joint.decomposition, self.settings
+        for iteration in range(1, settings.max_iterations + 1):
+            corrected = yield from self.corrector(tick, e_new, self.subs)
+            if iteration == settings.max_iterations:
+                break
+            e_next = method.correct(e_new, decomposition.linearised_conditions(self.side_outputs(corrected), sensitivity))
+            if np.all(np.abs(e_next - e_new) <= settings.tolerance * np.maximum(np.abs(e_new), 1.0)):
+                break
+            e_new = e_next
+        return corrected, e_new, iteration
+
+    def project(self, y: np.ndarray, outputs: dict[int, np.ndarray], tick: int):
+        """Projection step (Eqs. 30, 55, 68): move both points onto each other, in position and velocity.
+
+        With the points' inverse effective masses ``W_i = G_i M_i⁻¹ G_iᵀ``, the correction ``ν`` (an
+        impulse-like force at the point) that minimises the mass-weighted change of both states subject to
+        ``x_1 + W_1 ν = x_2 − W_2 ν`` is ``ν = (W_1 + W_2)⁻¹ (x_2 − x_1)``; side 1 moves by ``W_1 ν``, side 2
+        by ``−W_2 ν``. For two point masses that is Eq. (30): both move to ``(m_1 x_1 + m_2 x_2) / (m_1 + m_2)``.
+        """
+        joint, subs = self.joint, self.subs
+        d = joint.axes
+        W = sum(outputs[joint.sides[side]][joint.inverse_mass[side]].reshape(d, d) for side in (0, 1))
+        gaps = np.stack([y[1, 0] - y[0, 0], y[1, 1] - y[0, 1]])  # (position, velocity) × axes
+        nu = np.linalg.solve(W, gaps.T).T
+        sends = {subs[joint.sides[side]].name: encode(Kind.PROJECT, tick, tick * self.base, sign * nu.ravel())
+                 for side, sign in ((0, 1.0), (1, -1.0))}
+        replies = yield Exchange(sends, tuple(sends))
+        return {joint.sides[side]: decode_output(replies[subs[joint.sides[side]].name], subs[joint.sides[side]], tick)
+                for side in (0, 1)}
+
+
 def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=None,
              progress: Callable[[int], None] | None = None, status: StatusReport | None = None
              ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
@@ -124,115 +239,38 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
 
     With ``status``, the SAVE that opens every macro-step after the first carries the status of the
     step before it, and a last exchange without commands the status of the last step (as in jacobi)."""
-    subs = plan.subsystems
-    base = plan.base_step_ns
-    n_ticks = plan.n_ticks
-    k = joint.k
-    rows = k + 1
+    subs, base, n_ticks, k = plan.subsystems, plan.base_step_ns, plan.n_ticks, joint.k
+    exchanges = _JointExchanges(plan, joint, settings)
+    history, side_outputs = exchanges.history, exchanges.side_outputs
     traj = [np.full((n_ticks + 1, len(s.outputs)), np.nan) for s in subs]
-    history = np.full((n_ticks + 1, joint.n_e), np.nan)  # e_N; row N + 1 holds the corrector's candidate
     corrector_runs = np.zeros(n_ticks, dtype=np.int64)
     send_time = np.zeros(n_ticks, dtype=np.int64)
-    side_of = {joint.sides[side]: side for side in (0, 1)}
-    method, decomposition = joint.method, joint.decomposition
-
-    def input_rows(s: SubsystemPlan, newest: int, offset_ns: int) -> np.ndarray:
-        """Input polynomial of ``s``: its coupling variables through history rows ``... newest``."""
-        coefficients = np.zeros((rows, len(s.inputs)))
-        side = side_of.get(s.index)
-        if side is not None:
-            c = lagrange_coefficients(history, joint.variables[side], newest, k, base, offset_ns)
-            coefficients[:len(c), joint.inputs[side]] = c
-        return coefficients
-
-    def side_outputs(outputs: dict[int, np.ndarray]) -> np.ndarray:
-        """(2, 4, axes): x, v, a, f of each side (``corrected_coupling``'s layout)."""
-        return np.array([outputs[joint.sides[side]][joint.outputs[side]] for side in (0, 1)])
-
-    def control(kind: Kind, tick: int, targets: tuple[SubsystemPlan, ...], step_status: bytes | None = None):
-        sends = {s.name: encode(kind, tick, tick * base) for s in targets}
-        replies = yield Exchange(sends, tuple(sends), step_status)
-        for s in targets:
-            expect_reply(replies[s.name], s, Kind.ACK, tick, kind)
-
-    def run(tick: int, targets: tuple[SubsystemPlan, ...], newest: int, offset_ns: int):
-        """STEP ``targets`` from ``tick`` with their coupling variables through history row ``newest``."""
-        sends = {s.name: encode(Kind.STEP, tick, tick * base, input_rows(s, newest, offset_ns), rows) for s in targets}
-        replies = yield Exchange(sends, tuple(sends))
-        return {s.index: decode_output(replies[s.name], s, tick + 1) for s in targets}
-
-    def at_start(e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
-        """Outputs of ``targets`` at t_0 with coupling variables ``e`` (INIT leaves the state alone)."""
-        history[0] = e
-        sends = {s.name: encode(Kind.INIT, 0, 0, input_rows(s, 0, 0)[:1], rows=1) for s in targets}
-        replies = yield Exchange(sends, tuple(sends))
-        return {s.index: decode_output(replies[s.name], s, 0) for s in targets}
-
-    def corrector(tick: int, e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
-        """Outputs of ``targets`` at T_{N+1} from the state saved at T_N, corrector value ``e`` (Eq. 11)."""
-        history[tick + 1] = e
-        yield from control(Kind.RESTORE, tick, targets)
-        return (yield from run(tick, targets, tick + 1, -base))
-
-    def derivatives(outputs: dict[int, np.ndarray], e: np.ndarray, outputs_with):
-        """Forward differences (2, 4, axes, n_e) of the side outputs w.r.t. the coupling variables at
-        ``e``, where ``outputs`` were computed; ``outputs_with(e, targets)`` computes them again."""
-        sensitivity = np.zeros((2, 4, joint.axes, joint.n_e))
-        y, delta = side_outputs(outputs), sensitivity_steps(e, settings.sensitivity_step)
-        for group in joint.rounds:
-            perturbed = {side: j for side in (0, 1) for j in group if j in joint.variables[side]}
-            e_perturbed = e.copy()
-            e_perturbed[list(group)] += delta[list(group)]
-            again = yield from outputs_with(e_perturbed, tuple(subs[joint.sides[side]] for side in perturbed))
-            y_perturbed = side_outputs({**outputs, **again})
-            for side, j in perturbed.items():
-                sensitivity[side, :, :, j] = (y_perturbed[side] - y[side]) / delta[j]
-        return sensitivity
-
-    # t_0: e_0 zeros the acceleration-level and force conditions; outputs are affine in the inputs at t_0
-    acceleration_level = (0.0, 0.0, 1.0)
-    zero = np.zeros(joint.n_e)
-    outputs = yield from at_start(zero, subs)
-    sensitivity = yield from derivatives(outputs, zero, at_start)
-    e0 = decomposition.linearised_conditions(side_outputs(outputs), sensitivity).root(zero, acceleration_level)
-    # one Newton correction with the residual at e0: the derivatives' rounding error (the steps are set
-    # by |e| = 0 here) then only multiplies a residual that is already at rounding level
-    y0 = side_outputs((yield from at_start(e0, subs)))
-    e0 = decomposition.linearised_conditions(y0, sensitivity).root(e0, acceleration_level)
-    for s, y in (yield from at_start(e0, subs)).items():
+    for s, y in (yield from exchanges.consistent_start()).items():
         traj[s][0] = y
 
     diverged_at = None
     step_status = None
     no_bonds = np.zeros(0)  # a rigid joint is no power bond: the status has timing only
     for tick in range(n_ticks):
-        yield from control(Kind.SAVE, tick, subs, step_status)
+        yield from exchanges.control(Kind.SAVE, tick, subs, step_status)
         step_status = None  # reported
         if pacer is not None:
             pacer.wait(tick)
         send_time[tick] = time.perf_counter_ns()
-        predicted = yield from run(tick, subs, tick, 0)
+        predicted = yield from exchanges.run(tick, subs, tick, 0)
         newest_first = history[max(0, tick - k):tick + 1][::-1]  # e_N, ..., e_{N-k}
         e_predicted = extrapolation_weights(len(newest_first) - 1) @ newest_first
-        sensitivity = yield from derivatives(predicted, e_predicted, lambda e, targets: corrector(tick, e, targets))
+        sensitivity = yield from exchanges.derivatives(predicted, e_predicted,
+                                                       lambda e, targets: exchanges.corrector(tick, e, targets))
         y_predicted = side_outputs(predicted)
         if not (np.isfinite(y_predicted).all() and np.isfinite(sensitivity).all()):
             diverged_at = tick
             break
 
-        e_new = corrected_coupling(method, decomposition, newest_first, y_predicted, sensitivity)
-        for iteration in range(1, settings.max_iterations + 1):
-            corrected = yield from corrector(tick, e_new, subs)
-            corrector_runs[tick] = iteration
-            if iteration == settings.max_iterations:
-                break
-            e_next = method.correct(e_new, decomposition.linearised_conditions(side_outputs(corrected), sensitivity))
-            if np.all(np.abs(e_next - e_new) <= settings.tolerance * np.maximum(np.abs(e_new), 1.0)):
-                break
-            e_new = e_next
-
-        if method.projects_states:
-            corrected.update((yield from _project(side_outputs(corrected), corrected, joint, subs, tick + 1, base)))
+        e_new = corrected_coupling(joint.method, joint.decomposition, newest_first, y_predicted, sensitivity)
+        corrected, e_new, corrector_runs[tick] = yield from exchanges.corrected(tick, e_new, sensitivity)
+        if joint.method.projects_states:
+            corrected.update((yield from exchanges.project(side_outputs(corrected), corrected, tick + 1)))
         for s, y in corrected.items():
             traj[s][tick + 1] = y
         if status is not None:
@@ -255,22 +293,3 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     return RunRecord(plan, traj, residual, residual.copy(), send_time[:done],
                      None if pacer is None else pacer.lateness_ns[:done], 0 if pacer is None else pacer.missed,
                      implicit=ImplicitRecord(history, corrector_runs, diverged_at))
-
-
-def _project(y: np.ndarray, outputs: dict[int, np.ndarray], joint: JointPlan, subs, tick: int, base: int):
-    """Projection step (Eqs. 30, 55, 68): move both points onto each other, in position and velocity.
-
-    With the points' inverse effective masses ``W_i = G_i M_i⁻¹ G_iᵀ``, the correction ``ν`` (an
-    impulse-like force at the point) that minimises the mass-weighted change of both states subject to
-    ``x_1 + W_1 ν = x_2 − W_2 ν`` is ``ν = (W_1 + W_2)⁻¹ (x_2 − x_1)``; side 1 moves by ``W_1 ν``, side 2
-    by ``−W_2 ν``. For two point masses that is Eq. (30): both move to ``(m_1 x_1 + m_2 x_2) / (m_1 + m_2)``.
-    """
-    d = joint.axes
-    W = sum(outputs[joint.sides[side]][joint.inverse_mass[side]].reshape(d, d) for side in (0, 1))
-    gaps = np.stack([y[1, 0] - y[0, 0], y[1, 1] - y[0, 1]])  # (position, velocity) × axes
-    nu = np.linalg.solve(W, gaps.T).T
-    sends = {subs[joint.sides[side]].name: encode(Kind.PROJECT, tick, tick * base, sign * nu.ravel())
-             for side, sign in ((0, 1.0), (1, -1.0))}
-    replies = yield Exchange(sends, tuple(sends))
-    return {joint.sides[side]: decode_output(replies[subs[joint.sides[side]].name], subs[joint.sides[side]], tick)
-            for side in (0, 1)}

@@ -72,29 +72,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    # initial outputs, sources before the subsystems whose feedthrough outputs need them; a subsystem
-    # without feedthrough reports before its sources, with zero inputs that its outputs do not depend on
-    initialised: set[int] = set()
-    for round_ in plan.init_rounds:
-        sends = {}
-        for i in round_:
-            s = subs[i]
-            ready = all(f.source in initialised for f in s.feeds)
-            w0 = input_polynomial(s, 0)[:1] if ready else np.zeros((1, len(s.inputs)))
-            sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
-        replies = yield Exchange(sends, tuple(sends))
-        for i in round_:
-            traj[i][0] = decode_output(replies[subs[i].name], subs[i], 0)
-        initialised.update(round_)
-
-    # what happens at each phase of the schedule, which repeats every lcm of the ratios
-    period = math.lcm(*(s.ratio for s in subs))
-    starting = [tuple(s for s in subs if phase % s.ratio == 0) for phase in range(period)]
-    due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0) for phase in range(period)]
-    due_names = [tuple(s.name for s in d) for d in due]
-    bonds_due = [tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
-                       if (phase + 1) % subs[bond.force_side].ratio == 0
-                       and (phase + 1) % subs[bond.motion_side].ratio == 0) for phase in range(period)]
+    yield from _initial_outputs(plan, traj, input_polynomial)
+    period, starting, due, due_names, bonds_due = _schedule(plan)
     step_s = base * 1e-9
     step_status = None
 
@@ -115,15 +94,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for s in due[phase]:
             traj[s.index][next_tick // s.ratio] = decode_output(replies[s.name], s, next_tick)
         for b, bond, components in bonds_due[phase]:
-            f_start, f_coefficients = sent[bond.force_side]
-            m_start, m_coefficients = sent[bond.motion_side]
-            f_row = traj[bond.force_side][next_tick // subs[bond.force_side].ratio]
-            m_row = traj[bond.motion_side][next_tick // subs[bond.motion_side].ratio]
-            f_tau, m_tau = (next_tick - f_start) * step_s, (next_tick - m_start) * step_s
-            delta_p = 0.0  # a vector bond's residual power is the dot product: the sum over its components
-            for force, velocity_input, force_input, velocity in components:
-                delta_p += residual_power(f_row[force], evaluate(f_coefficients, velocity_input, f_tau),
-                                          evaluate(m_coefficients, force_input, m_tau), m_row[velocity])
+            delta_p = _bond_residual_power(subs, traj, sent, bond, components, next_tick, step_s)
             p_res[next_tick, b] = delta_p
             e_res[next_tick, b] = e_res[last_bond_tick[b], b] + delta_p * (next_tick - last_bond_tick[b]) * step_s
             last_bond_tick[b] = next_tick
@@ -141,3 +112,50 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     return RunRecord(plan, traj, p_res, e_res, send_time,
                      None if pacer is None else pacer.lateness_ns,
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
+
+
+def _initial_outputs(plan: Plan, traj: list[np.ndarray], input_polynomial) -> Generator[Exchange, dict[str, bytes], None]:
+    """The outputs at t_0, sources before the subsystems whose feedthrough outputs need them; a subsystem
+    without feedthrough reports before its sources, with zero inputs that its outputs do not depend on."""
+    subs = plan.subsystems
+    initialised: set[int] = set()
+    for round_ in plan.init_rounds:
+        sends = {}
+        for i in round_:
+            s = subs[i]
+            ready = all(f.source in initialised for f in s.feeds)
+            w0 = input_polynomial(s, 0)[:1] if ready else np.zeros((1, len(s.inputs)))
+            sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
+        replies = yield Exchange(sends, tuple(sends))
+        for i in round_:
+            traj[i][0] = decode_output(replies[subs[i].name], subs[i], 0)
+        initialised.update(round_)
+
+
+def _schedule(plan: Plan) -> tuple:
+    """What happens at each phase of the schedule, which repeats every lcm of the ratios: (period, the
+    subsystems starting a step, those due at its end and their names, the bonds evaluated at its end)."""
+    subs = plan.subsystems
+    period = math.lcm(*(s.ratio for s in subs))
+    starting = [tuple(s for s in subs if phase % s.ratio == 0) for phase in range(period)]
+    due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0) for phase in range(period)]
+    due_names = [tuple(s.name for s in d) for d in due]
+    bonds_due = [tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
+                       if (phase + 1) % subs[bond.force_side].ratio == 0
+                       and (phase + 1) % subs[bond.motion_side].ratio == 0) for phase in range(period)]
+    return period, starting, due, due_names, bonds_due
+
+
+def _bond_residual_power(subs, traj: list[np.ndarray], sent: list, bond, components, tick: int, step_s: float) -> float:
+    """δP of ``bond`` at ``tick`` (paper 002 Eqs. 8–9) from both sides' committed outputs and the input
+    polynomials they received; a vector bond's residual power is the dot product: the sum over its components."""
+    f_start, f_coefficients = sent[bond.force_side]
+    m_start, m_coefficients = sent[bond.motion_side]
+    f_row = traj[bond.force_side][tick // subs[bond.force_side].ratio]
+    m_row = traj[bond.motion_side][tick // subs[bond.motion_side].ratio]
+    f_tau, m_tau = (tick - f_start) * step_s, (tick - m_start) * step_s
+    delta_p = 0.0
+    for force, velocity_input, force_input, velocity in components:
+        delta_p += residual_power(f_row[force], evaluate(f_coefficients, velocity_input, f_tau),
+                                  evaluate(m_coefficients, force_input, m_tau), m_row[velocity])
+    return delta_p
