@@ -70,26 +70,33 @@ def energy_growth_rate(t: np.ndarray, energy: np.ndarray) -> float:
     return float(np.polyfit(centres[late], logs, 1)[0])
 
 
-def summarize(scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
+def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Reference], reference: Reference | None,
+                    finite: bool) -> dict:
+    """Per signal of ``outputs.signals``: its subsystem and unit, and its NRMS against ``reference`` (and the
+    monolithic run's, when there is one)."""
+    signals = {}
+    for name in scene.outputs.signals:
+        sub_index, output = record.plan.signals[name]
+        sub = record.plan.subsystems[sub_index]
+        entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
+        if reference is not None:
+            ref = reference.signals[name][::sub.ratio]
+            entry["nrms"] = nrms(record.signal(name), ref) if finite else None
+            if "monolithic" in references:
+                entry["nrms_monolithic"] = nrms(references["monolithic"].signals[name][::sub.ratio], ref)
+        signals[name] = entry
+    return signals
+
+
+def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
               reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
     t, energy = total_energy(record)
     finite = all(np.isfinite(tr).all() for tr in record.trajectories) and (
         record.implicit is None or record.implicit.diverged_at is None)
     growth = energy_growth_rate(t, energy) if finite else math.inf
-    signals = {}
     reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
-    for name in scene.outputs.signals:
-        sub_index, output = plan.signals[name]
-        sub = plan.subsystems[sub_index]
-        x = record.signal(name)
-        entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
-        if reference is not None:
-            ref = reference.signals[name][::sub.ratio]
-            entry["nrms"] = nrms(x, ref) if finite else None
-            if "monolithic" in references:
-                entry["nrms_monolithic"] = nrms(references["monolithic"].signals[name][::sub.ratio], ref)
-        signals[name] = entry
+    signals = signal_accuracy(scene, record, references, reference, finite)
     e0 = float(energy[0])
     energy_summary = {
         "initial": e0, "final": float(energy[-1]), "max": float(np.max(energy)),

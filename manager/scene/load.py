@@ -123,41 +123,12 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     description = doc.get("description", "")
     manager = _read_manager(doc.get("manager"), problems)
     outputs = read_table(OutputSettings, doc.get("outputs", {}), "outputs", problems)
-
-    subsystems: dict[str, SubsystemScene] = {}
     tables = doc.get("subsystems")
     if not isinstance(tables, dict) or not tables:
         problems.add("subsystems", "expected at least one [subsystems.<name>] table")
         tables = {}
-    generic = ("model", "integrator", "micro_step", "comm_ratio", "extrapolation")
-    for sub_name, table in tables.items():
-        key = f"subsystems.{sub_name}"
-        if not isinstance(table, dict):
-            problems.add(key, "expected a table")
-            continue
-        settings = read_table(SubsystemSettings, {k: v for k, v in table.items() if k in generic}, key, problems)
-        if settings is None:
-            continue
-        spec = MODELS[settings.model].read({k: v for k, v in table.items() if k not in generic}, key, problems)
-        if spec is not None:
-            subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
-            if settings.integrator == "exact" and spec.linear_problem():
-                problems.add(f"{key}.integrator", f"'exact' needs a linear, time-invariant model: {spec.linear_problem()}")
-
-    couplings: dict[str, Any] = {}
-    coupling_tables = doc.get("couplings", {})
-    if not isinstance(coupling_tables, dict):
-        problems.add("couplings", "expected [couplings.<name>] tables")
-        coupling_tables = {}
-    for coupling_name, table in coupling_tables.items():
-        key = f"couplings.{coupling_name}"
-        kind = table.get("type") if isinstance(table, dict) else None
-        if kind not in COUPLINGS:
-            problems.add(f"{key}.type", f"expected one of {', '.join(sorted(COUPLINGS))}, got {kind!r}")
-            continue
-        coupling = COUPLINGS[kind].read(coupling_name, table, key, problems)
-        if coupling is not None:
-            couplings[coupling_name] = coupling
+    subsystems = _read_subsystems(tables, problems)
+    couplings = _read_couplings(doc.get("couplings", {}), problems)
 
     if manager is not None:
         check_timing(manager, tables, subsystems, problems)
@@ -174,6 +145,48 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     if problems:
         return None
     return Scene(name, description, path, overrides, doc, manager, outputs, subsystems, couplings)
+
+
+GENERIC_SUBSYSTEM_KEYS = tuple(f.name for f in dataclasses.fields(SubsystemSettings))  # the rest is the model's
+
+
+def _read_subsystems(tables: dict, problems: Problems) -> dict[str, SubsystemScene]:
+    """Each ``[subsystems.<name>]`` table: its generic settings, and the rest as its model reads it."""
+    subsystems = {}
+    for sub_name, table in tables.items():
+        key = f"subsystems.{sub_name}"
+        if not isinstance(table, dict):
+            problems.add(key, "expected a table")
+            continue
+        generic = {k: v for k, v in table.items() if k in GENERIC_SUBSYSTEM_KEYS}
+        settings = read_table(SubsystemSettings, generic, key, problems)
+        if settings is None:
+            continue
+        spec = MODELS[settings.model].read({k: v for k, v in table.items() if k not in GENERIC_SUBSYSTEM_KEYS},
+                                           key, problems)
+        if spec is not None:
+            subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
+            if settings.integrator == "exact" and spec.linear_problem():
+                problems.add(f"{key}.integrator", f"'exact' needs a linear, time-invariant model: {spec.linear_problem()}")
+    return subsystems
+
+
+def _read_couplings(tables: Any, problems: Problems) -> dict[str, Any]:
+    """Each ``[couplings.<name>]`` table, read by the coupling class its ``type`` names."""
+    if not isinstance(tables, dict):
+        problems.add("couplings", "expected [couplings.<name>] tables")
+        return {}
+    couplings = {}
+    for coupling_name, table in tables.items():
+        key = f"couplings.{coupling_name}"
+        kind = table.get("type") if isinstance(table, dict) else None
+        if kind not in COUPLINGS:
+            problems.add(f"{key}.type", f"expected one of {', '.join(sorted(COUPLINGS))}, got {kind!r}")
+            continue
+        coupling = COUPLINGS[kind].read(coupling_name, table, key, problems)
+        if coupling is not None:
+            couplings[coupling_name] = coupling
+    return couplings
 
 
 def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
