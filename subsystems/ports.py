@@ -42,6 +42,7 @@ class Terminal:
     name: str
     position_inputs: tuple[str, ...]
     velocity_inputs: tuple[str, ...]
+    at: str | None = None  # the local point whose coupling receives this motion (an external model maps it there)
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ class SavedState:
 
     t_ns: int
     z: bytes  # float64 little-endian state vector, exact to the bit
+    model: object = None  # the state a model keeps itself (a co-simulation FMU's), when it has one
 
 
 class Subsystem:
@@ -102,11 +103,14 @@ class Subsystem:
         return self.model.outputs_at(self.t_ns * 1e-9, self.z, self.w)
 
     def save(self) -> SavedState:
-        return SavedState(self.t_ns, self.z.astype("<f8").tobytes())
+        own = self.model.save_state() if hasattr(self.model, "save_state") else None
+        return SavedState(self.t_ns, self.z.astype("<f8").tobytes(), own)
 
     def restore(self, saved: SavedState) -> None:
         self.z[:] = np.frombuffer(saved.z, dtype="<f8")
         self.t_ns = saved.t_ns
+        if hasattr(self.model, "restore_state"):
+            self.model.restore_state(saved.model)
 
 
 def _linear_dynamics(model, integrator_cls: type) -> tuple[np.ndarray, np.ndarray] | None:

@@ -1,8 +1,8 @@
 """Optional parts of zencosim and what installs them.
 
 The core install runs co-simulations, records and verifies them, and writes CSV and NPZ results. The
-Rerun viewer, plots and Parquet files need extras: ``pip install 'zencosim[rerun]'``, ``[plots]``,
-``[parquet]``, or ``[all]``. A command that needs a missing extra says which before it starts work.
+Rerun viewer, plots, Parquet files and FMUs need extras: ``pip install 'zencosim[rerun]'``, ``[plots]``,
+``[parquet]``, ``[fmu]``, or ``[all]``. A command that needs a missing extra says which before it starts work.
 
 A leaf module: any layer may import it.
 """
@@ -14,6 +14,7 @@ EXTRAS = {  # extra -> the modules it provides
     "rerun": ("rerun",),
     "plots": ("matplotlib",),
     "parquet": ("pyarrow",),
+    "fmu": ("fmpy",),
 }
 
 

@@ -5,7 +5,7 @@ import dataclasses
 
 from zencosim.manager.scene.load import Scene
 from zencosim.subsystems.integrators import INTEGRATORS
-from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.models import model_class
 from zencosim.subsystems.ports import Attachments
 from zencosim.subsystems.subsystem import Subsystem
 
@@ -23,7 +23,7 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
     for coupling in scene.couplings.values():
         if coupling.kind == "rigid_joint":  # no force side: both sides are driven by the joint's variables
             continue
-        if MODELS[scene.subsystems[coupling.force_sub].settings.model].starts_at_rest:
+        if scene.subsystems[coupling.force_sub].traits.starts_at_rest:
             motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])
             rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
             result[coupling.force_sub] = result[coupling.force_sub] + Attachments(rest_states=(rest,))
@@ -32,7 +32,7 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
 
 def _model(scene: Scene, name: str, attached: Attachments):
     sub = scene.subsystems[name]
-    return MODELS[sub.settings.model](sub.spec, attached)
+    return model_class(sub.settings.model)(sub.spec, attached)
 
 
 def build_subsystem(scene: Scene, name: str, attached: Attachments) -> Subsystem:

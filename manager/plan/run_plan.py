@@ -33,8 +33,9 @@ class SubsystemPlan:
     order: int  # Lagrange order of the input polynomials this subsystem receives (0 ZOH, 1 FOH, 2 SOH)
 
     @property
-    def energy_output(self) -> int:
-        return len(self.outputs) - 1
+    def energy_output(self) -> int | None:
+        """Index of the energy output, the last one (None: the model reports no energy, e.g. an FMU without)."""
+        return len(self.outputs) - 1 if self.outputs and self.outputs[-1].quantity == "energy" else None
 
 
 @dataclass(frozen=True)

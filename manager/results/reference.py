@@ -176,5 +176,6 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
         raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
     samples = [system.outputs(tk, Z) for tk, Z in zip(t, solution.y.T)]
     signals = {name: np.array([y[sub][j] for y in samples]) for name, (sub, j) in system.plan.signals.items()}
-    energy = np.array([sum(y_i[-1] for y_i in y) for y in samples])
+    reporting = [s for s in system.plan.subsystems if s.energy_output is not None]
+    energy = np.array([sum(y[s.index][s.energy_output] for s in reporting) for y in samples])
     return Reference("solve_ivp", signals, energy)

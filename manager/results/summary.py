@@ -47,12 +47,14 @@ def digest(record: RunRecord) -> str:
     return h.hexdigest()
 
 
-def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
-    """Times [s] and total mechanical energy [J] where every subsystem has a sample."""
+def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray | None]:
+    """Times [s] and total mechanical energy [J] where every subsystem has a sample: the sum over the
+    subsystems that report their energy (None when none does)."""
     subs = record.plan.subsystems
     period = math.lcm(*(s.ratio for s in subs))
     ticks = np.arange(0, record.plan.n_ticks + 1, period)
-    energy = sum(record.trajectories[s.index][ticks // s.ratio, s.energy_output] for s in subs)
+    reporting = [s for s in subs if s.energy_output is not None]
+    energy = sum(record.trajectories[s.index][ticks // s.ratio, s.energy_output] for s in reporting) if reporting else None
     return ticks * record.plan.base_step_ns * 1e-9, energy
 
 
@@ -88,23 +90,35 @@ def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Refer
     return signals
 
 
+def energy_balance(record: RunRecord, reference: Reference | None, finite: bool) -> dict | None:
+    """The ``energy`` entry of the summary; None when no subsystem reports its energy. ``subsystems`` names
+    the ones that do, when some do not (an FMU without an energy variable)."""
+    t, energy = total_energy(record)
+    if energy is None:
+        return None
+    e0 = float(energy[0])
+    balance = {
+        "initial": e0, "final": float(energy[-1]), "max": float(np.max(energy)),
+        "max_relative_drift": float(np.max(np.abs(energy - e0)) / e0) if e0 > 0 and finite else None,
+        "growth_rate_per_s": energy_growth_rate(t, energy) if finite else math.inf,
+    }
+    if reference is not None:
+        balance["reference_final"] = float(reference.energy[-1])
+    reporting = [s.name for s in record.plan.subsystems if s.energy_output is not None]
+    if len(reporting) < len(record.plan.subsystems):
+        balance["subsystems"] = reporting
+    return balance
+
+
 def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
               reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
-    t, energy = total_energy(record)
     finite = all(np.isfinite(tr).all() for tr in record.trajectories) and (
         record.implicit is None or record.implicit.diverged_at is None)
-    growth = energy_growth_rate(t, energy) if finite else math.inf
     reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
     signals = signal_accuracy(scene, record, references, reference, finite)
-    e0 = float(energy[0])
-    energy_summary = {
-        "initial": e0, "final": float(energy[-1]), "max": float(np.max(energy)),
-        "max_relative_drift": float(np.max(np.abs(energy - e0)) / e0) if e0 > 0 and finite else None,
-        "growth_rate_per_s": growth,
-    }
-    if reference is not None:
-        energy_summary["reference_final"] = float(reference.energy[-1])
+    energy_summary = energy_balance(record, reference, finite)
+    growth = energy_summary["growth_rate_per_s"] if energy_summary is not None else (0.0 if finite else math.inf)
     timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
     if record.reported_timing:  # over Zenoh: as the subsystems released the steps
         timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing)

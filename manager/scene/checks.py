@@ -6,12 +6,12 @@ every problem of a scene before it raises.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from zencosim.compensation.implicit.coupling_laws import check_supported
 from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
 from zencosim.manager.scene.couplings import RigidJoint
 from zencosim.manager.scene.settings import ManagerSettings, OutputSettings, SubsystemScene, extrapolation_order
-from zencosim.subsystems.models import MODELS
 from zencosim.subsystems.params import Problems
 
 
@@ -37,6 +37,13 @@ def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, coupl
             if sub.settings.extrapolation is not None:
                 problems.add(f"subsystems.{sub.name}.extrapolation", "the implicit scheme's degree k is "
                              "manager.extrapolation, for both sides of the joint; remove it")
+            if not sub.traits.can_save_state:
+                problems.add(f"subsystems.{sub.name}.model", f"the implicit scheme repeats every macro-step from a saved "
+                             f"state; {_component(sub)} cannot save and restore its state (FMI canGetAndSetFMUstate)")
+            projects = manager.implicit is not None and manager.implicit.coupling_method().projects_states
+            if projects and not sub.traits.can_project:
+                problems.add(f"subsystems.{sub.name}.model", f"the projection method moves the joint's points; "
+                             f"{_component(sub)} cannot be moved by zencosim: expected another manager.implicit.method")
         if manager.corrects:
             problems.add("manager.correction", "energy correction belongs to the explicit scheme; the implicit "
                          "scheme holds the joint itself")
@@ -46,6 +53,11 @@ def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, coupl
                     check_supported(manager.implicit.coupling_method(), DECOMPOSITIONS[joint.settings.decomposition])
                 except ValueError as error:
                     problems.add(f"couplings.{joint.name}.decomposition", str(error))
+    if outputs is not None and outputs.reference == "solve_ivp":
+        for sub in subsystems.values():
+            if sub.traits.advances_itself:
+                problems.add("outputs.reference", f"'solve_ivp' integrates the subsystems' equations together; "
+                             f"{_component(sub)} of {sub.name} advances itself and gives none: expected 'none'")
     if outputs is not None and joints and outputs.reference == "analytic":
         problems.add("outputs.reference", "a scene with a rigid joint has no analytic reference here; expected "
                      "'solve_ivp' (the subsystems integrated together, the joint held exactly) or 'none'")
@@ -120,11 +132,11 @@ def check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tabl
 def _check_joint_sides(joint: RigidJoint, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
     """Both points move in as many dimensions as the joint has axes and can be driven as it says."""
     for index, (sub, point) in enumerate(joint.points):
-        spec, model = subsystems[sub].spec, MODELS[subsystems[sub].settings.model]
+        spec, traits = subsystems[sub].spec, subsystems[sub].traits
         if point not in spec.points:
             continue
-        if model.point_dimension != joint.dimension:
-            problems.add(f"couplings.{joint.name}.axes", f"{sub}.{point} moves in {model.point_dimension} "
+        if traits.point_dimension != joint.dimension:
+            problems.add(f"couplings.{joint.name}.axes", f"{sub}.{point} moves in {traits.point_dimension} "
                          f"dimension(s), the joint has {joint.dimension} axes")
         reason = spec.drive_problem(point, joint.side(index).drive, joint.dimension)
         if reason:
@@ -134,26 +146,36 @@ def _check_joint_sides(joint: RigidJoint, subsystems: dict[str, SubsystemScene],
 def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
     """The models on both sides can play their role with signals of this many components."""
     key = f"couplings.{coupling.name}"
-    models = {}
-    for side, (sub, _) in coupling.sides().items():
+    traits, names = {}, {}
+    for side, (sub, point) in coupling.sides().items():
         role = side.removesuffix("_side")
-        model = models[role] = MODELS[subsystems[sub].settings.model]
-        if role not in model.coupling_roles:
-            problems.add(f"{key}.{side}", f"model {model.name} cannot be the {role} side of a coupling")
-        if coupling.dimension != model.point_dimension:
-            problems.add(f"{key}.force", f"model {model.name} of {sub} exchanges {model.point_dimension}-component "
+        model = names[role] = subsystems[sub].settings.model
+        found = traits[role] = subsystems[sub].traits
+        spec = subsystems[sub].spec
+        if role not in found.coupling_roles:
+            problems.add(f"{key}.{side}", f"model {model} cannot be the {role} side of a coupling")
+        elif hasattr(spec, "role_problem") and point in spec.points and spec.role_problem(point, role):
+            problems.add(f"{key}.{side}", f"{sub}: {spec.role_problem(point, role)}")
+        if coupling.dimension != found.point_dimension:
+            problems.add(f"{key}.force", f"model {model} of {sub} exchanges {found.point_dimension}-component "
                          f"signals, got {coupling.dimension} (one name, or a list of names per signal)")
-    force_model = models["force"]
+    force_model = traits["force"]
     if not coupling.effects and not force_model.provides_force:
         problems.add(f"{key}.effects", "expected the coupling element as named effects, e.g. effects.kc = "
-                     f"{{ type = \"spring\", stiffness = 100.0 }} (model {force_model.name} computes no coupling force itself)")
+                     f"{{ type = \"spring\", stiffness = 100.0 }} (model {names['force']} computes no coupling force itself)")
     if coupling.effects and force_model.provides_force:
-        problems.add(f"{key}.effects", f"model {force_model.name} computes the coupling force itself; remove effects")
-    if force_model.starts_at_rest and not hasattr(models["motion"], "rest_state"):
-        problems.add(f"{key}.motion_side", f"model {force_model.name} starts in equilibrium with its load; model "
-                     f"{models['motion'].name} cannot state the load at rest")
+        problems.add(f"{key}.effects", f"model {names['force']} computes the coupling force itself; remove effects")
+    if force_model.starts_at_rest and not traits["motion"].has_rest_state:
+        problems.add(f"{key}.motion_side", f"model {names['force']} starts in equilibrium with its load; model "
+                     f"{names['motion']} cannot state the load at rest")
     if coupling.dimension == 1:
         for placed in coupling.effects:
             if placed.effect.free_length != 0.0:
                 problems.add(f"{key}.effects.{placed.name.split('.', 1)[1]}.free_length",
                              "expected 0 for points on a line (a free length needs points in the plane)")
+
+
+def _component(sub: SubsystemScene) -> str:
+    """How a message names a subsystem's model: an FMU by its file."""
+    fmu = getattr(sub.spec, "source", None)
+    return f"FMU {fmu.name}" if isinstance(fmu, Path) else f"model {sub.settings.model}"

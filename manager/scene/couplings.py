@@ -171,7 +171,8 @@ class ForceDisplacement:
                 | {n: f"the velocity of {s.motion_side}" for n in self.velocity})
 
     def _terminal(self) -> Terminal:
-        return Terminal(f"{self.name}:{self.settings.motion_side}", starred(self.displacement), starred(self.velocity))
+        return Terminal(f"{self.name}:{self.settings.motion_side}", starred(self.displacement), starred(self.velocity),
+                        self.force_point)
 
     def attachments(self) -> dict[str, Attachments]:
         terminal = self._terminal()

@@ -28,7 +28,8 @@ from zencosim.manager.scene.settings import (
     SubsystemScene,
     SubsystemSettings,
 )
-from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.models import MODELS, model_class, model_traits
+from zencosim.subsystems.models.external.python_model import ModelClassError
 from zencosim.subsystems.params import Problems, read_table
 
 SECTIONS = ("name", "description", "source", "manager", "outputs", "subsystems", "couplings")
@@ -127,7 +128,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     if not isinstance(tables, dict) or not tables:
         problems.add("subsystems", "expected at least one [subsystems.<name>] table")
         tables = {}
-    subsystems = _read_subsystems(tables, problems)
+    subsystems = _read_subsystems(tables, Path(path).parent, problems)
     couplings = _read_couplings(doc.get("couplings", {}), problems)
 
     if manager is not None:
@@ -150,8 +151,9 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
 GENERIC_SUBSYSTEM_KEYS = tuple(f.name for f in dataclasses.fields(SubsystemSettings))  # the rest is the model's
 
 
-def _read_subsystems(tables: dict, problems: Problems) -> dict[str, SubsystemScene]:
-    """Each ``[subsystems.<name>]`` table: its generic settings, and the rest as its model reads it."""
+def _read_subsystems(tables: dict, directory: Path, problems: Problems) -> dict[str, SubsystemScene]:
+    """Each ``[subsystems.<name>]`` table: its generic settings, and the rest as its model reads it (paths
+    relative to ``directory``); the integrator, when the table names none, is the model's default."""
     subsystems = {}
     for sub_name, table in tables.items():
         key = f"subsystems.{sub_name}"
@@ -162,12 +164,24 @@ def _read_subsystems(tables: dict, problems: Problems) -> dict[str, SubsystemSce
         settings = read_table(SubsystemSettings, generic, key, problems)
         if settings is None:
             continue
-        spec = MODELS[settings.model].read({k: v for k, v in table.items() if k not in GENERIC_SUBSYSTEM_KEYS},
-                                           key, problems)
-        if spec is not None:
-            subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
-            if settings.integrator == "exact" and spec.linear_problem():
-                problems.add(f"{key}.integrator", f"'exact' needs a linear, time-invariant model: {spec.linear_problem()}")
+        try:
+            model = model_class(settings.model)
+        except ModelClassError as error:
+            problems.add(f"{key}.model", f"{error}; built-in models: {', '.join(sorted(MODELS))}, or \"fmu\"")
+            continue
+        spec = model.read({k: v for k, v in table.items() if k not in GENERIC_SUBSYSTEM_KEYS}, key, problems, directory)
+        if spec is None:
+            continue
+        traits = model_traits(model, spec)
+        if settings.integrator is None:
+            settings = dataclasses.replace(settings, integrator=traits.default_integrator)
+        reason = settings.integrator_problem(traits)
+        if reason is None and settings.integrator == "exact" and spec.linear_problem():
+            reason = f"'exact' needs a linear, time-invariant model: {spec.linear_problem()}"
+        if reason is not None:
+            problems.add(f"{key}.integrator", reason)
+            continue
+        subsystems[sub_name] = SubsystemScene(sub_name, settings, spec)
     return subsystems
 
 

@@ -9,7 +9,8 @@ from typing import Any, Literal
 
 from zencosim.compensation.implicit.coupling_laws import Baumgarte, CouplingMethod, Projection, WeightedMultiplier
 from zencosim.subsystems.integrators import INTEGRATORS
-from zencosim.subsystems.models import MODELS
+from zencosim.subsystems.integrators.own_solver import OwnSolver
+from zencosim.subsystems.models import ModelTraits, model_class, model_traits
 from zencosim.subsystems.params import quantity
 
 
@@ -105,23 +106,29 @@ class OutputSettings:
 class SubsystemSettings:
     """The generic keys of a ``[subsystems.<name>]`` table; the rest belongs to its model."""
 
-    model: str
+    model: str  # a built-in model, "fmu", "package.module:Class" or a registered name (subsystems.models)
     micro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
-    integrator: str = "symplectic_euler"
+    integrator: str | None = None  # None: the model's default (symplectic_euler; a co-simulation FMU: own)
     comm_ratio: int = field(default=1, metadata=quantity("", minimum=1))  # communication step / macro step
     extrapolation: int | None = field(default=None, metadata=quantity("", minimum=0, maximum=2))  # of its inputs
 
     def problems(self) -> list[tuple[str, str]]:
         found = []
-        if self.model not in MODELS:
-            found.append(("model", f"expected one of {', '.join(sorted(MODELS))}, got {self.model!r}"))
-        if self.integrator not in INTEGRATORS:
+        if self.integrator is not None and self.integrator not in INTEGRATORS:
             found.append(("integrator", f"expected one of {', '.join(sorted(INTEGRATORS))}, got {self.integrator!r}"))
-        elif self.model in MODELS and INTEGRATORS[self.integrator].second_order_only and not MODELS[self.model].second_order:
-            usable = sorted(n for n, i in INTEGRATORS.items() if not i.second_order_only)
-            found.append(("integrator", f"{self.integrator} needs a state of positions and velocities; model "
-                                        f"{self.model} is first order: expected one of {', '.join(usable)}"))
         return found
+
+    def integrator_problem(self, traits: ModelTraits) -> str | None:
+        """Why this subsystem's integrator cannot advance its model (None: it can)."""
+        integrator = INTEGRATORS[self.integrator]
+        if traits.advances_itself != (integrator is OwnSolver):
+            return (f"model {self.model} advances itself: expected integrator '{OwnSolver.name}' or none" if traits.advances_itself
+                    else f"'{OwnSolver.name}' is for a model that advances itself (a co-simulation FMU)")
+        if integrator.second_order_only and not traits.second_order:
+            usable = sorted(n for n, i in INTEGRATORS.items() if not i.second_order_only and i is not OwnSolver)
+            return (f"{self.integrator} needs a state of positions and velocities; model {self.model} is first order: "
+                    f"expected one of {', '.join(usable)}")
+        return None
 
     @property
     def micro_step_ns(self) -> int:
@@ -135,6 +142,11 @@ class SubsystemScene:
     name: str
     settings: SubsystemSettings
     spec: Any  # what the model's ``read`` returned
+
+    @property
+    def traits(self) -> ModelTraits:
+        """What its model can do (``subsystems.models.model_traits``)."""
+        return model_traits(model_class(self.settings.model), self.spec)
 
 
 def extrapolation_order(manager: ManagerSettings, subsystem: SubsystemScene) -> int:

@@ -12,10 +12,12 @@ discrete analysis, ``manager.analysis.discrete``, is built from it):
 
 given by the class method ``linear_step(A_a, B_a, h) -> (Φ, Γ)`` with ``Γ`` of shape
 ``(len(input_nodes), 2n, n_inputs)``. External forces of time are not part of it.
-``composed_linear_step`` composes it over the micro-steps of a communication step.
+``composed_linear_step`` composes it over the micro-steps of a communication step. ``own`` is not an
+integrator of zencosim's: a co-simulation FMU advances itself.
 """
 from zencosim.subsystems.integrators.exact import ExactLinear
+from zencosim.subsystems.integrators.own_solver import OwnSolver
 from zencosim.subsystems.integrators.runge_kutta import RungeKutta4
 from zencosim.subsystems.integrators.symplectic_euler import SymplecticEuler
 
-INTEGRATORS: dict[str, type] = {cls.name: cls for cls in (SymplecticEuler, RungeKutta4, ExactLinear)}
+INTEGRATORS: dict[str, type] = {cls.name: cls for cls in (SymplecticEuler, RungeKutta4, ExactLinear, OwnSolver)}

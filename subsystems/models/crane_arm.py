@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -67,7 +68,7 @@ class CraneArmModel:
     starts_at_rest = False
 
     @classmethod
-    def read(cls, table: dict, key: str, problems: Problems) -> CraneArmSpec | None:
+    def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> CraneArmSpec | None:
         return read_table(CraneArmSpec, table, key, problems)
 
     def __init__(self, spec: CraneArmSpec, attachments: Attachments = Attachments()) -> None:

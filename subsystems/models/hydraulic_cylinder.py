@@ -32,6 +32,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -100,7 +101,7 @@ class HydraulicCylinderModel:
     starts_at_rest = True
 
     @classmethod
-    def read(cls, table: dict, key: str, problems: Problems) -> HydraulicCylinderSpec | None:
+    def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> HydraulicCylinderSpec | None:
         spec = read_table(HydraulicCylinderSpec, table, key, problems, skip=("spool",))
         spool = read_table(SpoolLaw, table.get("spool", {}), f"{key}.spool", problems)
         if spec is None or spool is None:

@@ -34,6 +34,7 @@ They are the whole model when ``nonlinear`` is false.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -86,7 +87,7 @@ class MassesModel:
     starts_at_rest = False
 
     @classmethod
-    def read(cls, table: dict, key: str, problems: Problems) -> MassesSpec | None:
+    def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> MassesSpec | None:
         """Read ``bodies.<name>`` and ``effects.<name>`` of a subsystem table."""
         before = len(problems)
         bodies_table = table.get("bodies")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -53,7 +54,7 @@ class PendulumModel:
     starts_at_rest = False
 
     @classmethod
-    def read(cls, table: dict, key: str, problems: Problems) -> PendulumSpec | None:
+    def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> PendulumSpec | None:
         return read_table(PendulumSpec, table, key, problems)
 
     def __init__(self, spec: PendulumSpec, attachments: Attachments = Attachments()) -> None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -87,7 +88,7 @@ class PlanarLinkModel:
     starts_at_rest = False
 
     @classmethod
-    def read(cls, table: dict, key: str, problems: Problems) -> LinkSpec | None:
+    def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> LinkSpec | None:
         return read_table(LinkSpec, table, key, problems)
 
     def __init__(self, spec: LinkSpec, attachments: Attachments = Attachments()) -> None:

@@ -19,6 +19,7 @@ LAYERS = (
     ("optional parts", ("zencosim.extras",)),
     ("design-time maths", ("zencosim.compensation",)),
     ("models", ("zencosim.subsystems.params", "zencosim.subsystems.ports", "zencosim.subsystems.inputs",
+                "zencosim.subsystems.units",
                 "zencosim.subsystems.effects", "zencosim.subsystems.integrators", "zencosim.subsystems.models",
                 "zencosim.subsystems.subsystem")),
     ("scene", ("zencosim.manager.scene",)),
@@ -31,7 +32,7 @@ LAYERS = (
     ("results", ("zencosim.manager.results",)),
     ("record", ("zencosim.recordings",)),
     ("run", ("zencosim.manager.run",)),
-    ("entry points", ("zencosim.api", "zencosim.cli", "zencosim.__main__")),
+    ("entry points", ("zencosim.api", "zencosim.cli", "zencosim.__main__", "zencosim.examples")),
 )
 PACKAGE_ROOTS = tuple(folder for folder in layer_folders() if folder != "scenes")  # the folders with modules
 NO_TRANSPORT = ("design-time maths", "models")  # layers that must not import these

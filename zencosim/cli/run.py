@@ -31,10 +31,14 @@ def _print_summary(summary: dict) -> None:
             mono = entry.get("nrms_monolithic")
             row(f"NRMS {name} [{entry['unit']}]", f"{entry['nrms']:.4g}" + (f"  (monolithic {mono:.4g})" if mono is not None else ""))
     energy = summary["energy"]
-    row("energy initial / final [J]", f"{energy['initial']:.6g} / {energy['final']:.6g}")
-    if "reference_final" in energy:
-        row("energy final, reference [J]", f"{energy['reference_final']:.6g}")
-    row("energy growth rate [1/s]", f"{energy['growth_rate_per_s']:.3g}")
+    if energy is None:
+        row("energy", "not reported by any subsystem")
+    else:
+        of = f" ({', '.join(energy['subsystems'])} only)" if "subsystems" in energy else ""
+        row(f"energy initial / final [J]{of}", f"{energy['initial']:.6g} / {energy['final']:.6g}")
+        if "reference_final" in energy:
+            row("energy final, reference [J]", f"{energy['reference_final']:.6g}")
+        row("energy growth rate [1/s]", f"{energy['growth_rate_per_s']:.3g}")
     for bond, value in summary["residual_energy"].items():
         row(f"residual energy δE, bond {bond} [J]", f"{value:.6g}")
     for bond, intervals in summary["residual_power_spikes"].items():

@@ -1,0 +1,318 @@
+"""FMUs as components, through fmpy: FMI 2.0 and 3.0 Co-Simulation, FMI 2.0 Model Exchange.
+
+:func:`describe_fmu` reads an FMU's modelDescription at scene time: its real variables with causality,
+unit (resolved through the unit definitions' base-unit exponents, or read as an SI unit string) and
+the outputs' direct dependence on inputs (ModelStructure); its interfaces and whether it can save and
+restore its state; its GUID (FMI 3.0: instantiation token) and the sha256 of the file, which identify
+it to the other processes of a run. :func:`open_fmu` instantiates it for one subsystem.
+
+Inputs over a communication step: zencosim sets the inputs at every micro-step (the extrapolation
+polynomial evaluated at the micro-step's start) and calls ``doStep`` once per micro-step, rather than
+handing the polynomial's derivatives to an FMU that can interpolate inputs: every FMU supports it, the
+inputs are evaluated where zencosim's own integrators evaluate them (a CS FMU with symplectic Euler
+inside reproduces the built-in model), and the micro-step is the scene's to choose.
+
+Values are exchanged through ctypes arrays allocated once per instance; FMI calls go through fmpy's
+low-level functions, which raise on an error status; that error is re-raised as :class:`FmuError`
+naming the FMU, the call, the status and the simulated time.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import shutil
+import tempfile
+import weakref
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from zencosim.subsystems.models.external.component import ComponentDescription, Variable
+from zencosim.subsystems.units import BASE, UnitError, exponents
+
+INTERFACES = {"co-simulation": "coSimulation", "model-exchange": "modelExchange"}
+REAL_TYPES = ("Real", "Float64")
+
+
+class FmuError(RuntimeError):
+    """An FMU that cannot be used, or an FMI call that failed; the message names the FMU."""
+
+
+def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
+    """The FMU at ``path`` with the interface asked for (``"co-simulation"``, ``"model-exchange"``; None:
+    co-simulation when it offers it); :class:`FmuError` saying why it cannot be used."""
+    model = _model_description(path)
+    version = model.fmiVersion.split(".")[0]
+    offered = [name for name, attribute in INTERFACES.items() if getattr(model, attribute) is not None]
+    chosen = interface or (offered[0] if offered else None)
+    if chosen not in offered:
+        raise FmuError(f"FMU {path}: offers {' and '.join(offered) or 'no interface'}, not {chosen}")
+    if chosen == "model-exchange" and version != "2":
+        raise FmuError(f"FMU {path}: Model Exchange is supported for FMI 2.0; this FMU is FMI {model.fmiVersion}")
+    if chosen == "model-exchange" and model.numberOfEventIndicators:
+        raise FmuError(f"FMU {path}: declares {model.numberOfEventIndicators} event indicator(s); zencosim's "
+                       "integrators do not locate events: use its Co-Simulation interface")
+    capability = getattr(model, INTERFACES[chosen])
+    identifier = capability.modelIdentifier
+    binary = _binary_name(version, identifier)
+    with zipfile.ZipFile(path) as archive:
+        if binary not in archive.namelist():
+            raise FmuError(f"FMU {path}: has no binary for this platform ({binary})")
+    units = {unit.name: unit for unit in model.unitDefinitions}
+    dependencies = {unknown.variable.name: unknown.dependencies for unknown in model.outputs}
+    variables = {}
+    for v in model.modelVariables:
+        if v.type not in REAL_TYPES:
+            continue
+        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+        found, problem = _si_exponents(unit, units)
+        depends = dependencies.get(v.name)
+        variables[v.name] = Variable(v.name, v.causality, unit, found, problem,
+                                     None if depends is None else tuple(d.name for d in depends))
+    kind = f"FMI {model.fmiVersion} {'Co-Simulation' if chosen == 'co-simulation' else 'Model Exchange'}"
+    can_save = chosen == "model-exchange" or bool(capability.canGetAndSetFMUstate)
+    return ComponentDescription(kind, "ode" if chosen == "model-exchange" else "co-simulation", variables, can_save,
+                                identity=(("guid", model.guid), ("sha256", _sha256(path))))
+
+
+def _model_description(path: Path):
+    from fmpy import read_model_description
+    if not path.is_file():
+        raise FmuError(f"FMU {path}: no such file")
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"FMU {path}: not an FMU (not a zip archive)")
+    try:
+        model = read_model_description(str(path), validate=False)
+    except Exception as error:  # fmpy raises plain exceptions for any malformed part
+        raise FmuError(f"FMU {path}: its modelDescription.xml cannot be read: {error}") from None
+    if model.fmiVersion not in ("2.0", "3.0"):
+        raise FmuError(f"FMU {path}: FMI version {model.fmiVersion}; expected 2.0 or 3.0")
+    return model
+
+
+def _binary_name(version: str, identifier: str) -> str:
+    platform = "linux64" if version == "2" else "x86_64-linux"
+    return f"binaries/{platform}/{identifier}.so"
+
+
+def _si_exponents(unit: str | None, definitions: dict) -> tuple[tuple[int, ...] | None, str | None]:
+    """The SI exponents of a variable's unit, from its unit definition (base-unit exponents, factor 1,
+    offset 0) or, without a definition, from the unit's name; else (None, why)."""
+    if not unit:
+        return None, "declares no unit"
+    definition = definitions.get(unit)
+    base = definition.baseUnit if definition is not None else None
+    if base is not None:
+        if base.factor != 1.0 or base.offset != 0.0:
+            return None, f"unit {unit!r} is not SI (factor {base.factor:g}, offset {base.offset:g})"
+        return tuple(int(getattr(base, name)) for name in BASE), None
+    try:
+        return exponents(unit), None
+    except UnitError as error:
+        return None, f"unit {error}"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+class _FmuInstance:
+    """One instance of an FMU, exchanging the given inputs and outputs as float64 arrays."""
+
+    def __init__(self, path: Path, description: ComponentDescription, start: dict[str, float],
+                 inputs: tuple[str, ...], outputs: tuple[str, ...], instance_name: str) -> None:
+        from fmpy import read_model_description
+        self.path = path
+        model = read_model_description(str(path), validate=False)
+        self.version = model.fmiVersion.split(".")[0]
+        self.references = {v.name: v.valueReference for v in model.modelVariables}
+        self.directory = tempfile.mkdtemp(prefix="zencosim-fmu-")
+        weakref.finalize(self, shutil.rmtree, self.directory, True)
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(self.directory)
+        self.fmu = self._instantiate(model, description, instance_name)
+        self._inputs = (ctypes.c_uint * len(inputs))(*(self.references[n] for n in inputs))
+        self._outputs = (ctypes.c_uint * len(outputs))(*(self.references[n] for n in outputs))
+        self._u = (ctypes.c_double * len(inputs))()
+        self._y = (ctypes.c_double * len(outputs))()
+        self._u_view = np.ctypeslib.as_array(self._u) if inputs else np.zeros(0)
+        self._y_view = np.ctypeslib.as_array(self._y) if outputs else np.zeros(0)
+        self.time = 0.0
+        with self.calling("initialisation"):
+            self._initialise(start)
+
+    def calling(self, what: str):
+        """A context in which a failed FMI call becomes an :class:`FmuError` naming the FMU and time."""
+        return _Calling(self, what)
+
+    def set_inputs(self, u: np.ndarray) -> None:
+        if len(self._u_view):
+            self._u_view[:] = u
+            self._set(self._inputs, len(self._u_view), self._u)
+
+    def get_outputs(self) -> np.ndarray:
+        if len(self._y_view):
+            self._get(self._outputs, len(self._y_view), self._y)
+        return self._y_view.copy()
+
+    def save_state(self) -> bytes | object:
+        """The FMU state: serialised bytes where the FMU can serialise it, else the FMU's own handle."""
+        with self.calling("saving its state"):
+            state = self.fmu.getFMUState()
+            if not self._serialise:
+                return _Handle(self.fmu, state)
+            data = self._serialize(state)
+            self.fmu.freeFMUState(state)
+            return data
+
+    def restore_state(self, state) -> None:
+        with self.calling("restoring its state"):
+            if isinstance(state, _Handle):
+                self.fmu.setFMUState(state.state)
+            else:
+                handle = self._deserialize(state)
+                self.fmu.setFMUState(handle)
+                self.fmu.freeFMUState(handle)
+
+
+class FmuCoSimulation(_FmuInstance):
+    """An FMU advancing itself with ``doStep``."""
+
+    def _instantiate(self, model, description: ComponentDescription, instance_name: str):
+        if self.version == "2":
+            from fmpy.fmi2 import FMU2Slave as Slave
+        else:
+            from fmpy.fmi3 import FMU3Slave as Slave
+        fmu = Slave(guid=model.guid, unzipDirectory=self.directory,
+                    modelIdentifier=model.coSimulation.modelIdentifier, instanceName=instance_name)
+        weakref.finalize(self, fmu.freeInstance)
+        fmu.instantiate()
+        self._serialise = bool(model.coSimulation.canSerializeFMUstate)
+        return fmu
+
+    def _initialise(self, start: dict[str, float]) -> None:
+        fmu = self.fmu
+        if self.version == "2":
+            self._set, self._get = (lambda vr, n, v: fmu.fmi2SetReal(fmu.component, vr, n, v),
+                                    lambda vr, n, v: fmu.fmi2GetReal(fmu.component, vr, n, v))
+            self._serialize, self._deserialize = fmu.serializeFMUstate, fmu.deSerializeFMUstate
+            fmu.setupExperiment(startTime=0.0)
+            _set_start(fmu.setReal, self.references, start)
+        else:
+            self._set, self._get = (lambda vr, n, v: fmu.fmi3SetFloat64(fmu.component, vr, n, v, n),
+                                    lambda vr, n, v: fmu.fmi3GetFloat64(fmu.component, vr, n, v, n))
+            self._serialize, self._deserialize = fmu.serializeFMUState, fmu.deserializeFMUState
+            _set_start(fmu.setFloat64, self.references, start)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        self._step = fmu.doStep
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(0)
+
+    def do_step(self, t: float, h: float, u: np.ndarray) -> None:
+        self.time = t
+        with self.calling("doStep"):
+            self.set_inputs(u)
+            result = self._step(t, h, False)  # False: zencosim may set an earlier state (rollback)
+        if self.version == "3" and result[1]:  # terminateSimulation
+            raise FmuError(f"FMU {self.path.name}: asked to terminate the simulation at t = {t:.9g} s")
+
+    def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        self.time = t
+        with self.calling("reading its outputs"):
+            self.set_inputs(u)
+            return self.get_outputs()
+
+
+class FmuModelExchange(_FmuInstance):
+    """An FMI 2.0 FMU for Model Exchange: zencosim's integrator advances its continuous states."""
+
+    def _instantiate(self, model, description: ComponentDescription, instance_name: str):
+        from fmpy.fmi2 import FMU2Model
+        fmu = FMU2Model(guid=model.guid, unzipDirectory=self.directory,
+                        modelIdentifier=model.modelExchange.modelIdentifier, instanceName=instance_name)
+        weakref.finalize(self, fmu.freeInstance)
+        fmu.instantiate()
+        self._serialise = True
+        self.n_states = len(model.derivatives)
+        return fmu
+
+    def _initialise(self, start: dict[str, float]) -> None:
+        fmu = self.fmu
+        self._set = lambda vr, n, v: fmu.fmi2SetReal(fmu.component, vr, n, v)
+        self._get = lambda vr, n, v: fmu.fmi2GetReal(fmu.component, vr, n, v)
+        fmu.setupExperiment(startTime=0.0)
+        _set_start(fmu.setReal, self.references, start)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        while fmu.newDiscreteStates()[0]:  # newDiscreteStatesNeeded
+            pass
+        fmu.enterContinuousTimeMode()
+        self._x = (ctypes.c_double * self.n_states)()
+        self._dx = (ctypes.c_double * self.n_states)()
+        self._x_view, self._dx_view = np.ctypeslib.as_array(self._x), np.ctypeslib.as_array(self._dx)
+        fmu.getContinuousStates(self._x, self.n_states)
+        self._z0 = self._x_view.copy()
+
+    def initial_state(self) -> np.ndarray:
+        return self._z0.copy()
+
+    def _at(self, t: float, z: np.ndarray, u: np.ndarray) -> None:
+        self.time = t
+        fmu = self.fmu
+        fmu.fmi2SetTime(fmu.component, t)
+        self._x_view[:] = z
+        fmu.fmi2SetContinuousStates(fmu.component, self._x, self.n_states)
+        self.set_inputs(u)
+
+    def derivative(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        with self.calling("its derivatives"):
+            self._at(t, z, u)
+            self.fmu.fmi2GetDerivatives(self.fmu.component, self._dx, self.n_states)
+            return self._dx_view.copy()
+
+    def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        with self.calling("reading its outputs"):
+            self._at(t, z, u)
+            return self.get_outputs()
+
+
+def _set_start(setter, references: dict[str, int], start: dict[str, float]) -> None:
+    if start:
+        setter([references[name] for name in start], [float(value) for value in start.values()])
+
+
+class _Handle:
+    """An FMU state that cannot be serialised: the FMU's handle, freed when no saved state holds it."""
+
+    def __init__(self, fmu, state) -> None:
+        self.state = state
+        weakref.finalize(self, fmu.freeFMUState, state)
+
+
+class _Calling:
+    def __init__(self, instance: _FmuInstance, what: str) -> None:
+        self.instance, self.what = instance, what
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, kind, error, _traceback) -> bool:
+        from fmpy.fmi1 import FMICallException
+        if isinstance(error, FMICallException):
+            raise FmuError(f"FMU {self.instance.path.name}: {error.function} failed with status {error.status} "
+                           f"({_STATUS.get(error.status, 'unknown')}) while {self.what} at t = "
+                           f"{self.instance.time:.9g} s") from None
+        return False
+
+
+_STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
+
+
+def open_fmu(path: Path, description: ComponentDescription, start: dict[str, float], inputs: tuple[str, ...],
+             outputs: tuple[str, ...], instance_name: str):
+    """An instance of the FMU for one subsystem (see :class:`~.component.Instance`)."""
+    cls = FmuCoSimulation if description.interface == "co-simulation" else FmuModelExchange
+    return cls(path, description, start, inputs, outputs, instance_name)

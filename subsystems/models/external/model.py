@@ -1,0 +1,369 @@
+"""External models: an FMU or a user's Python model as a zencosim subsystem model (docs/models.md).
+
+A scene names the component (``model = "fmu"`` with ``fmu = "path.fmu"``, or ``model =
+"package.module:Class"``), its start values and parameters (``start.<variable> = value``), an optional
+energy output (``energy = "<variable>"``, [J]) and, per point, the variables that play each coupling
+role (``points.<point> = { role = "<variable>", … }``, ``subsystems.models.external.points``). The
+model's ports are then made from what the couplings attach to each point, exactly as for a built-in
+model; their names are the couplings' signals, their units the roles' SI quantities, and the
+component's declared units must be those (a mismatch is a scene error naming the variable).
+
+The component computes a coupling force itself (``provides_force``): a force–displacement coupling on
+an external force side has no coupling element of zencosim's.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from zencosim.subsystems.models.external.component import ComponentDescription
+from zencosim.subsystems.models.external.fmu import FmuError, describe_fmu, open_fmu
+from zencosim.subsystems.models.external.points import ROLES, PointMap
+from zencosim.subsystems.models.external.python_model import (
+    ModelClassError,
+    PythonInstance,
+    describe_python,
+    find_class,
+)
+from zencosim.subsystems.params import Problems, check_value, read_table
+from zencosim.subsystems.ports import UNITS, Attachments, Port
+from zencosim.subsystems.units import describe, exponents
+
+
+@dataclass(frozen=True)
+class ExternalSettings:
+    """The model's own keys of a ``[subsystems.<name>]`` table (``start`` and ``points`` are tables)."""
+
+    fmu: str | None = None  # FMU models: its path, relative to the scene file
+    interface: Literal["co-simulation", "model-exchange"] | None = None  # FMU models (default: co-simulation)
+    energy: str | None = None  # an output variable with the component's energy [J]
+
+
+@dataclass(frozen=True)
+class ExternalSpec:
+    """An external model as a scene describes it, with its component's description (its traits included)."""
+
+    reference: str  # "fmu" or "package.module:Class"
+    description: ComponentDescription
+    source: Any  # the FMU's Path, or the model class
+    start: dict[str, float]
+    energy: str | None
+    point_maps: dict[str, PointMap]
+    provides_force = True  # the component computes its coupling forces
+    starts_at_rest = False
+    can_project = False  # no projection step (paper 003 Eq. 30): the state is the component's
+    coupling_roles = frozenset({"force", "motion"})
+
+    @property
+    def points(self) -> tuple[str, ...]:
+        return tuple(self.point_maps)
+
+    @property
+    def second_order(self) -> bool:
+        return self.description.second_order
+
+    @property
+    def can_save_state(self) -> bool:
+        return self.description.can_save_state
+
+    @property
+    def point_dimension(self) -> int:
+        dimensions = {m.dimension for m in self.point_maps.values()}
+        return dimensions.pop() if len(dimensions) == 1 else 1
+
+    @property
+    def advances_itself(self) -> bool:
+        return self.description.interface == "co-simulation"
+
+    def role_problem(self, point: str, role: str) -> str | None:
+        """Why ``point`` cannot be the ``role`` ("force" or "motion") side of a force–displacement coupling."""
+        needed = ("force", "position_input", "velocity_input") if role == "force" else ("force_input", "position",
+                                                                                          "velocity")
+        missing = [r for r in needed if getattr(self.point_maps[point], r) is None]
+        return f"points.{point} needs the roles {', '.join(missing)} for the {role} side" if missing else None
+
+    def drive_problem(self, point: str, drive: str, axes: int) -> str | None:
+        return self.point_maps[point].can_drive(drive)
+
+    def linear_problem(self) -> str | None:
+        return f"a {self.description.kind} is not known to be linear"
+
+
+class ExternalModel:
+    """The zencosim model interface over a component instance (see the module text)."""
+
+    name = "external"
+
+    @classmethod
+    def traits(cls, spec: ExternalSpec) -> ExternalSpec:
+        """What this model can do depends on its component: the spec says it."""
+        return spec
+
+    @classmethod
+    def describe(cls, settings: ExternalSettings, key: str, directory: Path) -> tuple[ComponentDescription, Any]:
+        raise NotImplementedError
+
+    @classmethod
+    def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> ExternalSpec | None:
+        """The component, its start values, energy variable and points; every problem recorded under ``key``."""
+        before = len(problems)
+        settings = read_table(ExternalSettings, table, key, problems, skip=("start", "points"))
+        if settings is None:
+            return None
+        try:
+            description, source = cls.describe(settings, key, directory)
+        except (FmuError, ModelClassError) as error:
+            problems.add(f"{key}.{'fmu' if settings.fmu else 'model'}", str(error))
+            return None
+        start = _read_start(table.get("start", {}), description, f"{key}.start", problems)
+        point_maps = {}
+        points = table.get("points")
+        if not isinstance(points, dict) or not points:
+            problems.add(f"{key}.points", "expected points.<name> = { role = \"variable\", … } for every point a "
+                         f"coupling attaches to; roles: {', '.join(ROLES)}")
+            points = {}
+        for point, point_table in points.items():
+            point_map = read_table(PointMap, point_table, f"{key}.points.{point}", problems)
+            if point_map is not None:
+                _check_point(point_map, description, f"{key}.points.{point}", problems)
+                point_maps[point] = point_map
+        if settings.energy is not None:
+            _check_variable(settings.energy, "output", "energy", description, f"{key}.energy", problems)
+        if len(problems) != before:
+            return None
+        return ExternalSpec(cls.name, description, source, start, settings.energy, point_maps)
+
+    def __init__(self, spec: ExternalSpec, attachments: Attachments = Attachments()) -> None:
+        self.spec = spec
+        ports = _Ports(spec, attachments)
+        self.inputs: tuple[Port, ...] = tuple(ports.inputs)
+        self.outputs: tuple[Port, ...] = tuple(ports.outputs)
+        self.effects: tuple[str, ...] = ()
+        self.second_order = spec.second_order
+        self._u_columns, self._u_scale = np.array(ports.u_columns, dtype=np.intp), np.array(ports.u_scale)
+        self._y = ports.assembly()
+        self.instance = self._open(ports.component_inputs, ports.component_outputs)
+        if self.second_order:
+            self.n_dof = len(self.instance.initial_state()) // 2
+
+    def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
+        raise NotImplementedError
+
+    def _u(self, w: np.ndarray) -> np.ndarray:
+        return w[self._u_columns] * self._u_scale
+
+    def initial_state(self) -> np.ndarray:
+        return self.instance.initial_state()
+
+    def derivative(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return self.instance.derivative(t, z, self._u(w))
+
+    def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return self.instance.derivative(t, z, self._u(w))
+
+    def do_step(self, t: float, h: float, w: np.ndarray) -> None:
+        self.instance.do_step(t, h, self._u(w))
+
+    def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        component = self.instance.outputs(t, z, self._u(w))
+        rows, indices, scales, input_rows, input_columns, constant_rows, constants = self._y
+        y = np.empty(len(self.outputs))
+        y[rows] = component[indices] * scales
+        y[input_rows] = w[input_columns]
+        y[constant_rows] = constants
+        return y
+
+    def save_state(self) -> object | None:
+        """The component's own state (co-simulation), or None when zencosim's ``z`` is the whole state."""
+        return self.instance.save_state() if self.spec.description.interface == "co-simulation" else None
+
+    def restore_state(self, state: object | None) -> None:
+        if state is not None:
+            self.instance.restore_state(state)
+
+
+class FmuModel(ExternalModel):
+    """An FMU (through fmpy): ``model = "fmu"``, ``fmu = "path.fmu"``."""
+
+    name = "fmu"
+
+    @classmethod
+    def describe(cls, settings: ExternalSettings, key: str, directory: Path) -> tuple[ComponentDescription, Path]:
+        if settings.fmu is None:
+            raise FmuError("missing; expected the FMU's path, relative to the scene file: fmu = \"model.fmu\"")
+        path = (directory / settings.fmu).resolve()
+        return describe_fmu(path, settings.interface), path
+
+    def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
+        return open_fmu(self.spec.source, self.spec.description, self.spec.start, inputs, outputs,
+                        f"zencosim:{self.spec.source.name}")
+
+
+class PythonModel(ExternalModel):
+    """A user's model class (``model = "package.module:Class"``); subclassed per class by :func:`python_model`."""
+
+    model_class: type
+
+    @classmethod
+    def describe(cls, settings: ExternalSettings, key: str, directory: Path) -> tuple[ComponentDescription, type]:
+        if settings.fmu is not None or settings.interface is not None:
+            raise ModelClassError("fmu and interface belong to model = \"fmu\"")
+        return describe_python(cls.name, cls.model_class), cls.model_class
+
+    def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
+        return PythonInstance(self.spec.source, self.spec.description, self.spec.start, inputs, outputs)
+
+
+_PYTHON_MODELS: dict[str, type] = {}
+
+
+def python_model(reference: str) -> type:
+    """The model class for the user's class ``reference`` (``module:Class`` or an entry-point name), cached;
+    :class:`ModelClassError` when it cannot be found."""
+    if reference not in _PYTHON_MODELS:
+        user_class = find_class(reference)
+        _PYTHON_MODELS[reference] = type(f"PythonModel[{reference}]", (PythonModel,),
+                                         {"name": reference, "model_class": user_class})
+    return _PYTHON_MODELS[reference]
+
+
+def _read_start(table: Any, description: ComponentDescription, key: str, problems: Problems) -> dict[str, float]:
+    if not isinstance(table, dict):
+        problems.add(key, "expected a table of variable = value")
+        return {}
+    start = {}
+    for name, value in table.items():
+        variable = description.variables.get(name)
+        if variable is None:
+            problems.add(f"{key}.{name}", f"the {description.kind} has no real variable {name!r}")
+        elif variable.causality == "output":
+            problems.add(f"{key}.{name}", f"{name} is an output of the {description.kind}; it cannot be set")
+        else:
+            number = check_value(float, value, f"{key}.{name}", problems)
+            if number is not None:
+                start[name] = number
+    return start
+
+
+def _check_variable(name: str, causality: str, quantity: str, description: ComponentDescription, key: str,
+                    problems: Problems) -> None:
+    """``name`` is a variable of ``causality`` in the unit of ``quantity`` (SI)."""
+    variable = description.variables.get(name)
+    if variable is None:
+        candidates = [v for v, d in description.variables.items() if d.causality == causality]
+        problems.add(key, f"the {description.kind} has no real variable {name!r}; its {causality}s: "
+                     f"{', '.join(candidates) or 'none'}")
+        return
+    if variable.causality != causality:
+        problems.add(key, f"{name} is {'an' if variable.causality[0] in 'aeiou' else 'a'} {variable.causality} of the "
+                     f"{description.kind}; expected an {causality}")
+    expected = UNITS[quantity]
+    if variable.exponents is None:
+        problems.add(key, f"{name}: {variable.unit_problem}; expected [{expected}] ({quantity})")
+    elif variable.exponents != exponents(expected):
+        problems.add(key, f"{name} is in [{variable.unit}] ({describe(variable.exponents)}); expected [{expected}] "
+                     f"({quantity})")
+
+
+def _check_point(point_map: PointMap, description: ComponentDescription, key: str, problems: Problems) -> None:
+    for role in point_map.roles():
+        causality, quantity = ROLES[role]
+        for name in point_map.variables(role):
+            _check_variable(name, causality, quantity, description, f"{key}.{role}", problems)
+
+
+@dataclass
+class _Ports:
+    """The ports an external model gets from its attachments, and how they map onto the component's variables."""
+
+    spec: ExternalSpec
+    attachments: Attachments
+    inputs: list[Port] = field(default_factory=list)
+    outputs: list[Port] = field(default_factory=list)
+    u_columns: list[int] = field(default_factory=list)  # per component input: the zencosim input column
+    u_scale: list[float] = field(default_factory=list)  # and the sign it is applied with
+    component_inputs: list[str] = field(default_factory=list)
+    component_outputs: list[str] = field(default_factory=list)
+    output_sources: list[tuple] = field(default_factory=list)  # per output: ("variable", index, scale),
+    # ("input", column) or ("constant", value)
+
+    def __post_init__(self) -> None:
+        a, maps = self.attachments, self.spec.point_maps
+        unsupported = [kind for kind, items in (("coupling effects", a.effects), ("rest states", a.rest_states),
+                                                ("relayed forces", a.relayed_forces)) if items]
+        if unsupported:
+            raise ValueError(f"an external model cannot take {', '.join(unsupported)}")
+        for terminal in a.terminals:
+            self._input(terminal.position_inputs, maps[terminal.at], "position_input", "position", 1.0)
+            self._input(terminal.velocity_inputs, maps[terminal.at], "velocity_input", "velocity", 1.0)
+        for received in a.force_inputs:
+            self._input(received.ports, maps[received.point], "force_input", "force", received.sign)
+        for side in a.joint_sides:
+            point_map = maps[side.point]
+            if side.drive == "force":
+                self._input(side.inputs, point_map, "force_input", "force", side.sign)
+            else:
+                self._input(side.inputs, point_map, "acceleration_input", "acceleration", 1.0)
+        for motion in a.motion_outputs:
+            self._output(motion.position_ports, maps[motion.point], "position", "position")
+            self._output(motion.velocity_ports, maps[motion.point], "velocity", "velocity")
+        for force in a.force_outputs:
+            self._output(force.ports, maps[force.point], "force", "force")
+        for side in a.joint_sides:
+            self._joint_outputs(side, maps[side.point])
+        if self.spec.energy is not None:
+            self._variable_output(Port("energy", "energy"), self.spec.energy, 1.0)
+
+    def _input(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, sign: float) -> None:
+        for port, variable in zip(ports, point_map.variables(role)):
+            if variable in self.component_inputs:
+                raise ValueError(f"input {variable} of the component is fed twice (ports {port} and another)")
+            self.inputs.append(Port(port, quantity))
+            self.component_inputs.append(variable)
+            self.u_columns.append(len(self.inputs) - 1)
+            self.u_scale.append(sign)
+
+    def _feeds_through(self, variable: str) -> bool:
+        depends = self.spec.description.variables[variable].depends_on
+        return bool(self.component_inputs) if depends is None else bool(set(depends) & set(self.component_inputs))
+
+    def _variable_output(self, port: Port, variable: str, scale: float) -> None:
+        if variable not in self.component_outputs:
+            self.component_outputs.append(variable)
+        self.outputs.append(Port(port.name, port.quantity, feedthrough=self._feeds_through(variable)))
+        self.output_sources.append(("variable", self.component_outputs.index(variable), scale))
+
+    def _output(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, scale: float = 1.0) -> None:
+        for port, variable in zip(ports, point_map.variables(role)):
+            self._variable_output(Port(port, quantity), variable, scale)
+
+    def _joint_outputs(self, side, point_map: PointMap) -> None:
+        self._output(side.positions, point_map, "position", "position")
+        self._output(side.velocities, point_map, "velocity", "velocity")
+        self._output(side.accelerations, point_map, "acceleration", "acceleration")
+        if point_map.joint_force is not None:  # the joint's force on the point, in the sign of side 1
+            self._output(side.forces, point_map, "joint_force", "force", side.sign)
+        else:  # force drive: the applied force sign × λ*, so f = λ*, the input itself
+            for port, received in zip(side.forces, side.inputs):
+                self.outputs.append(Port(port, "force", feedthrough=True))
+                self.output_sources.append(("input", [p.name for p in self.inputs].index(received)))
+        if isinstance(point_map.inverse_mass, float):
+            for port in side.inverse_masses:
+                self.outputs.append(Port(port, "inverse_mass"))
+                self.output_sources.append(("constant", point_map.inverse_mass))
+        else:
+            self._output(side.inverse_masses, point_map, "inverse_mass", "inverse_mass")
+
+    def assembly(self) -> tuple:
+        """Index arrays that assemble the outputs from the component's outputs and the inputs."""
+        def select(kind: str, position: int):
+            return [s[position] for s in self.output_sources if s[0] == kind]
+
+        rows = {kind: np.array([i for i, s in enumerate(self.output_sources) if s[0] == kind], dtype=np.intp)
+                for kind in ("variable", "input", "constant")}
+        return (rows["variable"], np.array(select("variable", 1), dtype=np.intp), np.array(select("variable", 2)),
+                rows["input"], np.array(select("input", 1), dtype=np.intp), rows["constant"],
+                np.array(select("constant", 1)))

@@ -1,0 +1,91 @@
+"""The points of an external model: which of its variables play which coupling role at each point.
+
+A scene names, per point, the component's variables (``points.<point> = { role = "variable", … }``,
+a list of names for a vector signal, one per component). A coupling attached to the point uses the
+roles its side needs:
+
+============================  ============================================================  =========  ========
+role                          meaning                                                       causality  quantity
+============================  ============================================================  =========  ========
+``force``                     force of the coupling element on the point (force side)        output     force
+``position_input``            position of the other side, received (force side)              input      position
+``velocity_input``            velocity of the other side, received (force side)              input      velocity
+``force_input``               force applied to the point (motion side; joint, force drive)  input      force
+``acceleration_input``        acceleration the point follows (joint, displacement drive)    input      accel.
+``position``, ``velocity``    motion of the point (motion side; joint side)                 output     …
+``acceleration``              acceleration of the point (joint side)                        output     accel.
+``joint_force``               force the joint exerts on the point (displacement drive;      output     force
+                              with force drive it is the applied force and may be left out)
+``inverse_mass``              the point's inverse effective mass (joint side; a variable    output     1/kg
+                              or a number)
+============================  ============================================================  =========  ========
+
+A received force is applied with the sign its coupling gives (the reaction of a coupling force: −1),
+so the component sees the force that acts on its point.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+ROLES: dict[str, tuple[str, str]] = {  # role -> (causality, quantity)
+    "force": ("output", "force"),
+    "position_input": ("input", "position"),
+    "velocity_input": ("input", "velocity"),
+    "force_input": ("input", "force"),
+    "acceleration_input": ("input", "acceleration"),
+    "position": ("output", "position"),
+    "velocity": ("output", "velocity"),
+    "acceleration": ("output", "acceleration"),
+    "joint_force": ("output", "force"),
+    "inverse_mass": ("output", "inverse_mass"),
+}
+
+
+@dataclass(frozen=True)
+class PointMap:
+    """The component variables of one point, by role (see the module text)."""
+
+    force: str | tuple[str, ...] | None = None
+    position_input: str | tuple[str, ...] | None = None
+    velocity_input: str | tuple[str, ...] | None = None
+    force_input: str | tuple[str, ...] | None = None
+    acceleration_input: str | tuple[str, ...] | None = None
+    position: str | tuple[str, ...] | None = None
+    velocity: str | tuple[str, ...] | None = None
+    acceleration: str | tuple[str, ...] | None = None
+    joint_force: str | tuple[str, ...] | None = None
+    inverse_mass: str | float | tuple[str, ...] | None = None  # a variable, or a constant [1/kg] on a line
+
+    def variables(self, role: str) -> tuple[str, ...]:
+        """The variable names of ``role`` (one per component; empty when the role is not mapped)."""
+        value = getattr(self, role)
+        if value is None or isinstance(value, float):
+            return ()
+        return (value,) if isinstance(value, str) else value
+
+    def roles(self) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(self) if getattr(self, f.name) is not None)
+
+    @property
+    def dimension(self) -> int:
+        """Components of the point's signals: 1 on a line, 2 in the plane."""
+        sizes = {len(self.variables(role)) for role in self.roles()} - {0}
+        return sizes.pop() if len(sizes) == 1 else 1
+
+    def problems(self) -> list[tuple[str, str]]:
+        found = []
+        if not self.roles():
+            found.append(("force", f"expected at least one role: {', '.join(ROLES)}"))
+        sizes = {role: len(self.variables(role)) for role in self.roles() if self.variables(role)}
+        if len(set(sizes.values())) > 1:
+            found.append(("force", f"every role of a point needs as many variables (one per component), got {sizes}"))
+        if isinstance(self.inverse_mass, float) and self.inverse_mass <= 0.0:
+            found.append(("inverse_mass", f"expected a positive number [1/kg], got {self.inverse_mass!r}"))
+        return found
+
+    def can_drive(self, drive: str) -> str | None:
+        """Why the point cannot be a joint side driven by ``drive`` (None: it can)."""
+        needed = ["position", "velocity", "acceleration", "inverse_mass"]
+        needed += ["force_input"] if drive == "force" else ["acceleration_input", "joint_force"]
+        missing = [role for role in needed if getattr(self, role) is None]
+        return f"a joint side with {drive} drive needs the roles {', '.join(missing)}" if missing else None
