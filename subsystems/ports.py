@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-Quantity = Literal["position", "velocity", "acceleration", "force", "inverse_mass", "energy"]
+Quantity = Literal["position", "velocity", "acceleration", "force", "inverse_mass", "energy", "signal"]
 
 UNITS: dict[str, str] = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2", "force": "N",
                          "inverse_mass": "1/kg", "energy": "J"}
@@ -24,10 +24,11 @@ class Port:
     name: str
     quantity: Quantity
     feedthrough: bool = False  # an output that depends on the inputs at the same instant
+    signal_unit: str | None = None  # the SI unit of a "signal": any other quantity (a component's variable)
 
     @property
     def unit(self) -> str:
-        return UNITS[self.quantity]
+        return self.signal_unit if self.quantity == "signal" else UNITS[self.quantity]
 
 
 @dataclass(frozen=True)

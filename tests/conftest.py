@@ -16,6 +16,20 @@ import zencosim
 REPO = Path(__file__).resolve().parents[1]
 
 
+EXAMPLE_MODEL = "zencosim.examples.oscillator:Oscillator"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--model", action="append", default=[], metavar="REF",
+                     help="also run the conformance test over this model: package.module:Class or a path to an FMU")
+
+
+def pytest_generate_tests(metafunc):
+    if "user_model" in metafunc.fixturenames:
+        # without --model: the example user model that ships with zencosim
+        metafunc.parametrize("user_model", metafunc.config.getoption("model") or [EXAMPLE_MODEL])
+
+
 def summary_of(scene_name: str, *overrides: str, bus: str = "inproc", **options) -> dict:
     return zencosim.run(zencosim.load_scene(scene_name, overrides), bus, **options).summary
 

@@ -103,7 +103,7 @@ class ExternalModel:
         return spec
 
     @classmethod
-    def describe(cls, settings: ExternalSettings, key: str, directory: Path) -> tuple[ComponentDescription, Any]:
+    def describe(cls, settings: ExternalSettings, directory: Path) -> tuple[ComponentDescription, Any]:
         raise NotImplementedError
 
     @classmethod
@@ -114,11 +114,11 @@ class ExternalModel:
         if settings is None:
             return None
         try:
-            description, source = cls.describe(settings, key, directory)
+            description, source = cls.describe(settings, directory)
         except (FmuError, ModelClassError) as error:
             problems.add(f"{key}.{'fmu' if settings.fmu else 'model'}", str(error))
             return None
-        start = _read_start(table.get("start", {}), description, f"{key}.start", problems)
+        start = read_start(table.get("start", {}), description, f"{key}.start", problems)
         point_maps = {}
         points = table.get("points")
         if not isinstance(points, dict) or not points:
@@ -136,9 +136,11 @@ class ExternalModel:
             return None
         return ExternalSpec(cls.name, description, source, start, settings.energy, point_maps)
 
-    def __init__(self, spec: ExternalSpec, attachments: Attachments = Attachments()) -> None:
+    def __init__(self, spec: ExternalSpec, attachments: Attachments = Attachments(), expose_all: bool = False) -> None:
+        """``expose_all``: a port for every input and output of the component, named after it, whatever the
+        points say (``zencosim check-model``)."""
         self.spec = spec
-        ports = _Ports(spec, attachments)
+        ports = _Ports(spec, attachments, expose_all)
         self.inputs: tuple[Port, ...] = tuple(ports.inputs)
         self.outputs: tuple[Port, ...] = tuple(ports.outputs)
         self.effects: tuple[str, ...] = ()
@@ -191,7 +193,7 @@ class FmuModel(ExternalModel):
     name = "fmu"
 
     @classmethod
-    def describe(cls, settings: ExternalSettings, key: str, directory: Path) -> tuple[ComponentDescription, Path]:
+    def describe(cls, settings: ExternalSettings, directory: Path) -> tuple[ComponentDescription, Path]:
         if settings.fmu is None:
             raise FmuError("missing; expected the FMU's path, relative to the scene file: fmu = \"model.fmu\"")
         path = (directory / settings.fmu).resolve()
@@ -208,7 +210,7 @@ class PythonModel(ExternalModel):
     model_class: type
 
     @classmethod
-    def describe(cls, settings: ExternalSettings, key: str, directory: Path) -> tuple[ComponentDescription, type]:
+    def describe(cls, settings: ExternalSettings, directory: Path) -> tuple[ComponentDescription, type]:
         if settings.fmu is not None or settings.interface is not None:
             raise ModelClassError("fmu and interface belong to model = \"fmu\"")
         return describe_python(cls.name, cls.model_class), cls.model_class
@@ -230,7 +232,8 @@ def python_model(reference: str) -> type:
     return _PYTHON_MODELS[reference]
 
 
-def _read_start(table: Any, description: ComponentDescription, key: str, problems: Problems) -> dict[str, float]:
+def read_start(table: Any, description: ComponentDescription, key: str, problems: Problems) -> dict[str, float]:
+    """The ``start`` table: values of the component's parameters, inputs and states by name, before it starts."""
     if not isinstance(table, dict):
         problems.add(key, "expected a table of variable = value")
         return {}
@@ -281,6 +284,7 @@ class _Ports:
 
     spec: ExternalSpec
     attachments: Attachments
+    expose_all: bool = False
     inputs: list[Port] = field(default_factory=list)
     outputs: list[Port] = field(default_factory=list)
     u_columns: list[int] = field(default_factory=list)  # per component input: the zencosim input column
@@ -291,6 +295,9 @@ class _Ports:
     # ("input", column) or ("constant", value)
 
     def __post_init__(self) -> None:
+        if self.expose_all:
+            self._every_variable()
+            return
         a, maps = self.attachments, self.spec.point_maps
         unsupported = [kind for kind, items in (("coupling effects", a.effects), ("rest states", a.rest_states),
                                                 ("relayed forces", a.relayed_forces)) if items]
@@ -316,6 +323,16 @@ class _Ports:
             self._joint_outputs(side, maps[side.point])
         if self.spec.energy is not None:
             self._variable_output(Port("energy", "energy"), self.spec.energy, 1.0)
+
+    def _every_variable(self) -> None:
+        description = self.spec.description
+        for name in description.inputs:
+            self.inputs.append(_port_of(name, description))
+            self.component_inputs.append(name)
+            self.u_columns.append(len(self.inputs) - 1)
+            self.u_scale.append(1.0)
+        for name in description.outputs:
+            self._variable_output(_port_of(name, description), name, 1.0)
 
     def _input(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, sign: float) -> None:
         for port, variable in zip(ports, point_map.variables(role)):
@@ -367,3 +384,12 @@ class _Ports:
         return (rows["variable"], np.array(select("variable", 1), dtype=np.intp), np.array(select("variable", 2)),
                 rows["input"], np.array(select("input", 1), dtype=np.intp), rows["constant"],
                 np.array(select("constant", 1)))
+
+
+def _port_of(name: str, description: ComponentDescription) -> Port:
+    """A port for a component variable: a coupling quantity when its unit is one, else a signal in its unit."""
+    variable = description.variables[name]
+    for quantity, unit in UNITS.items():
+        if variable.exponents == exponents(unit):
+            return Port(name, quantity)
+    return Port(name, "signal", signal_unit=variable.unit)
