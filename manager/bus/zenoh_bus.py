@@ -210,6 +210,13 @@ class ZenohBus:
         if (info["inputs"], info["outputs"]) != expected:
             raise SubsystemFailure(name, f"declares ports {info['inputs']} -> {info['outputs']}, expected "
                                          f"{expected[0]} -> {expected[1]}")
+        identity = getattr(self.scene.subsystems[name].spec, "identity", {})
+        differ = [k for k in identity if info.get("identity", {}).get(k) != identity[k]]
+        if differ:
+            theirs = info.get("identity", {})
+            raise SubsystemFailure(name, f"its component is not the manager's: {', '.join(differ)} "
+                                         + ", ".join(f"{str(theirs.get(k))[:16]} instead of {identity[k][:16]}" for k in differ)
+                                         + f" ({self.scene.subsystems[name].spec.source}): give both hosts the same file")
 
     # -- running ---------------------------------------------------------------------------------
     def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None,

@@ -55,6 +55,7 @@ def describe(scene: Scene, name: str, subsystem, listen: str) -> bytes:
         "scene_digest": scene.digest,
         "inputs": [[p.name, p.unit] for p in subsystem.inputs],
         "outputs": [[p.name, p.unit] for p in subsystem.outputs],
+        "identity": getattr(scene.subsystems[name].spec, "identity", {}),  # an FMU: its GUID and sha256
         "pid": os.getpid(),
     }).encode()
 

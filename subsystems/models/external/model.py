@@ -62,6 +62,11 @@ class ExternalSpec:
         return tuple(self.point_maps)
 
     @property
+    def identity(self) -> dict[str, str]:
+        """What identifies the component's file to the other processes of a run (an FMU's GUID and sha256)."""
+        return dict(self.description.identity)
+
+    @property
     def second_order(self) -> bool:
         return self.description.second_order
 
