@@ -1,0 +1,613 @@
+"""Import the system descriptions co-simulation users already have, as zencosim scene documents.
+
+:func:`import_system` reads an OSP system structure (libcosim's ``OspSystemStructure.xml`` with the OSP
+Interface Specification's variable groups: :mod:`.osp`) or an SSP system (a ``.ssp`` archive or a
+``.ssd`` file: :mod:`.ssp`) and returns a scene document, a dict that ``tomli_w`` writes and
+``manager.scene.load.scene_from_text`` reads, together with notes: every assumption the mapping made.
+Each FMU becomes a ``model = "fmu"`` subsystem; each power bond (a force one way, the velocity and the
+displacement of the point it acts on the other way) becomes a ``force_displacement`` coupling whose
+force side is the FMU that outputs the force. Whatever cannot be mapped (an algorithm other than fixed
+step, a connection outside a power bond, a variable group type zencosim does not know, a step size that
+is not a whole number of base steps, a missing FMU, a unit that is not SI) raises
+:class:`~zencosim.manager.scene.load.SceneError` naming the file, the element and what is wrong; nothing
+is dropped silently. FMU paths in the document are relative to the imported file's directory, where the
+scene is meant to be written. The mapping, and the bond rules of each format: docs/system-imports.md.
+
+What both formats share is here: the FMUs and the quantities of their variables (from the units of their
+modelDescription), start values, the timing (base step, communication ratios, duration), bonds and the
+document built from them.
+"""
+from __future__ import annotations
+
+import io
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from zencosim.manager.scene.load import SceneError
+from zencosim.subsystems.params import Problems
+
+BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+Exponents = tuple[int, ...]
+
+
+def _dims(**powers: int) -> Exponents:
+    return tuple(powers.get(name, 0) for name in BASE)
+
+
+QUANTITIES: dict[str, tuple[str, Exponents]] = {  # quantity -> (SI unit, base-unit exponents)
+    "force": ("N", _dims(kg=1, m=1, s=-2)),
+    "velocity": ("m/s", _dims(m=1, s=-1)),
+    "displacement": ("m", _dims(m=1)),
+    "energy": ("J", _dims(kg=1, m=2, s=-2)),
+}
+_DERIVED = {"N": QUANTITIES["force"][1], "J": QUANTITIES["energy"][1], "W": _dims(kg=1, m=2, s=-3),
+            "Pa": _dims(kg=1, m=-1, s=-2), "Hz": _dims(s=-1)}
+_TORQUE_NAMES = {"N.m", "N*m", "N m", "Nm", "m.N"}
+REAL_TYPES = ("Real", "Float64")
+MIXED = "mixed quantities"  # a link whose variables disagree (reported where found)
+DEFAULT_DURATION = 10.0  # [s] when neither the file nor the caller gives one
+
+
+def import_system(path: Path, duration: float | None = None) -> tuple[dict, list[str]]:
+    """The scene document of the system described at ``path`` and the notes on its mapping.
+
+    ``.xml``: an OSP system structure; ``.ssp`` or ``.ssd``: an SSP system. ``duration`` [s] is the
+    simulated time (default: the file's end time, else 10 s; rounded up to a whole number of
+    communication periods). Raises :class:`SceneError` listing everything that cannot be mapped.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".xml":
+        from zencosim.manager.scene.imports.osp import import_osp
+        return import_osp(path, duration)
+    if suffix in (".ssp", ".ssd"):
+        from zencosim.manager.scene.imports.ssp import import_ssp
+        return import_ssp(path, duration)
+    raise refusal(path, "file", f"expected an OSP system structure (.xml) or an SSP system (.ssp, .ssd), "
+                                f"got {path.name!r}")
+
+
+def refusal(path: Path, key: str, reason: str) -> SceneError:
+    """A :class:`SceneError` with one problem."""
+    problems = Problems()
+    problems.add(key, reason)
+    return SceneError(str(path), problems)
+
+
+# XML ------------------------------------------------------------------------------------------------
+
+def parse_xml(data: bytes, label: str, problems: Problems) -> Any:
+    """The root element of an XML document (lxml, no entities, no network), or None with a problem."""
+    try:
+        from lxml import etree
+    except ImportError:  # lxml comes with fmpy
+        problems.add(label, "reading system descriptions needs fmpy (pip install fmpy), which brings lxml")
+        return None
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, remove_comments=True, remove_pis=True,
+                             huge_tree=False)
+    try:
+        return etree.fromstring(data, parser)
+    except etree.XMLSyntaxError as error:
+        problems.add(label, f"not well-formed XML: {error}")
+    except ValueError as error:  # e.g. an encoding declaration lxml refuses
+        problems.add(label, f"cannot be read as XML: {error}")
+    return None
+
+
+def local(element: Any) -> str:
+    """An element's tag without its namespace."""
+    tag = element.tag
+    return tag.rsplit("}", 1)[-1] if isinstance(tag, str) else ""
+
+
+def children(element: Any, name: str | None = None) -> list:
+    """The child elements (no comments), those with local name ``name`` if given."""
+    return [c for c in element if isinstance(c.tag, str) and (name is None or local(c) == name)]
+
+
+def where(element: Any, prefix: str = "") -> str:
+    """The key naming an element in problems: its tag, its name and its line."""
+    name = element.get("name")
+    named = f" {name!r}" if name is not None else ""
+    line = f" (line {element.sourceline})" if element.sourceline else ""
+    return f"{prefix}{local(element)}{named}{line}"
+
+
+def number(text: str | None, key: str, what: str, problems: Problems, positive: bool = False) -> float | None:
+    """A finite float from XML text, or None with a problem."""
+    try:
+        value = float((text or "").strip())
+    except ValueError:
+        problems.add(key, f"expected {what} as a number, got {text!r}")
+        return None
+    if not math.isfinite(value) or (positive and value <= 0.0):
+        problems.add(key, f"expected {what} as a {'positive' if positive else 'finite'} number, got {text!r}")
+        return None
+    return value
+
+
+# FMUs and the quantities of their variables --------------------------------------------------------
+
+@dataclass(frozen=True)
+class UnitDefinition:
+    """A unit as an FMU, an OSP model description or an SSD defines it."""
+
+    exponents: Exponents | None  # None: the definition has no BaseUnit (read the name)
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+def unit_exponents(unit: str, definitions: dict[str, UnitDefinition]) -> tuple[Exponents | None, str | None]:
+    """The SI base-unit exponents of ``unit`` (its definition, else its name read as a coherent SI unit
+    such as ``N``, ``m/s`` or ``kg.m/s2``), or (None, why it is not SI)."""
+    definition = definitions.get(unit)
+    if definition is not None and definition.exponents is not None:
+        if definition.factor != 1.0 or definition.offset != 0.0:
+            return None, (f"unit {unit!r} is not SI (factor {definition.factor:g}, offset {definition.offset:g}): "
+                          "zencosim exchanges SI values and converts none")
+        return definition.exponents, None
+    found = _exponents_of_name(unit)
+    if found is None:
+        return None, (f"unit {unit!r} is neither defined with base-unit exponents nor a coherent SI unit "
+                      f"(e.g. N, m, m/s, J): zencosim exchanges SI values and converts none")
+    return found, None
+
+
+def _exponents_of_name(unit: str) -> Exponents | None:
+    numerator, _, denominator = unit.strip().partition("/")
+    if "/" in denominator or not numerator.strip():
+        return None
+    total = [0] * len(BASE)
+    for part, sign in ((numerator, 1), (denominator, -1)):
+        for factor in filter(None, re.split(r"[.* ]+", part)):
+            if factor == "1":
+                continue
+            match = re.fullmatch(r"([A-Za-z]+)\^?(-?\d+)?", factor)
+            if match is None:
+                return None
+            name, power = match.group(1), int(match.group(2) or 1)
+            exponents = _dims(**{name: 1}) if name in BASE else _DERIVED.get(name)
+            if exponents is None:
+                return None
+            total = [t + sign * power * e for t, e in zip(total, exponents)]
+    return tuple(total)
+
+
+def quantity_of(exponents: Exponents) -> str:
+    """``force``, ``velocity``, ``displacement``, ``energy``, or the exponents written out."""
+    for name, (_, dims) in QUANTITIES.items():
+        if dims == exponents:
+            return name
+    return " ".join(f"{b}{e}" if e != 1 else b for b, e in zip(BASE, exponents) if e) or "dimensionless"
+
+
+@dataclass
+class Fmu:
+    """What an import needs of an FMU's modelDescription."""
+
+    label: str  # the file, for messages
+    model_name: str
+    variables: dict[str, Any]  # fmpy ModelVariable by name
+    units: dict[str, UnitDefinition]
+    default_step: float | None = None  # its DefaultExperiment stepSize [s]
+
+
+def read_fmu(source: Path | bytes, label: str) -> tuple[Fmu | None, str | None]:
+    """The FMU at ``source`` (a path, or the bytes of an FMU inside an archive), or (None, why not)."""
+    try:
+        from fmpy import read_model_description
+    except ImportError:
+        return None, "reading FMUs needs fmpy (pip install fmpy)"
+    try:
+        model = read_model_description(io.BytesIO(source) if isinstance(source, bytes) else str(source),
+                                       validate=False)
+    except Exception as error:  # noqa: BLE001 (fmpy raises any exception for a malformed FMU)
+        return None, f"its modelDescription.xml cannot be read: {type(error).__name__}: {error}"
+    version = str(model.fmiVersion)
+    if version not in ("2.0",) and not version.startswith("3."):
+        return None, f"FMI {version}; zencosim runs FMI 2.0 and 3.0 FMUs"
+    if model.coSimulation is None:
+        return None, "has no Co-Simulation interface (a co-simulation system steps Co-Simulation FMUs)"
+    units = {}
+    for unit in model.unitDefinitions:
+        base = unit.baseUnit
+        units[unit.name] = UnitDefinition(None if base is None else tuple(int(getattr(base, b)) for b in BASE),
+                                          1.0 if base is None else float(base.factor),
+                                          0.0 if base is None else float(base.offset))
+    experiment = model.defaultExperiment
+    try:
+        default_step = float(experiment.stepSize) if experiment is not None and experiment.stepSize else None
+    except ValueError:
+        default_step = None
+    if default_step is not None and not (math.isfinite(default_step) and default_step > 0.0):
+        default_step = None
+    return Fmu(label, str(model.modelName), {v.name: v for v in model.modelVariables}, units, default_step), None
+
+
+def variable_unit(variable: Any) -> str | None:
+    """The unit an FMU declares for a variable (its own, else its type's)."""
+    declared = variable.declaredType.unit if variable.declaredType is not None else None
+    return variable.unit or declared
+
+
+@dataclass
+class Component:
+    """An FMU subsystem of the system being imported."""
+
+    name: str  # its subsystem name in the scene
+    key: str  # the element that declares it, for problems
+    fmu: Fmu
+    path: str  # the FMU's path in the document, relative to the scene's directory
+    step: float | None  # its doStep size = its communication step [s] (None: not settled yet)
+    start: dict[str, float] = field(default_factory=dict)
+    comm_ratio: int = 1
+
+
+def check_variable(component: Component, name: str, key: str, problems: Problems) -> Any:
+    """The FMU variable ``name`` of ``component`` as a real variable, or None with a problem."""
+    variable = component.fmu.variables.get(name)
+    if variable is None:
+        problems.add(key, f"{component.name} ({component.fmu.label}) has no variable {name!r}")
+        return None
+    if variable.type not in REAL_TYPES:
+        problems.add(key, f"{component.name}.{name} is {variable.type}; zencosim couples real variables only")
+        return None
+    return variable
+
+
+def add_start(component: Component, name: str, kind: str, value: str | None, key: str, problems: Problems) -> None:
+    """A start value from the system description (``kind`` Real, Integer, …), checked against the FMU."""
+    variable = component.fmu.variables.get(name)
+    if variable is None:
+        problems.add(key, f"{component.name} ({component.fmu.label}) has no variable {name!r}")
+        return
+    if kind != "Real" or variable.type not in REAL_TYPES:
+        problems.add(key, f"start value of type {kind} for {component.name}.{name} ({variable.type}): zencosim sets "
+                          "real start values only")
+        return
+    if variable.causality == "output" or (variable.causality not in ("parameter", "input")
+                                          and variable.initial not in ("exact", "approx")):
+        problems.add(key, f"{component.name}.{name} ({variable.causality}, initial {variable.initial}) takes no "
+                          "start value")
+        return
+    number_value = number(value, key, f"the start value of {component.name}.{name}", problems)
+    if number_value is not None:
+        component.start[name] = number_value
+
+
+# Links and bonds -------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Link:
+    """The variables of one connection, directed from the outputs of ``source`` to the inputs of ``target``."""
+
+    key: str  # the element that declares it
+    source: Component
+    outputs: tuple[str, ...]
+    target: Component
+    inputs: tuple[str, ...]
+    quantity: str | None  # force, velocity, displacement, another quantity, or None: not declared
+    bond: str | None = None  # the bond it belongs to by declaration (OSP: a port connection, powerBond)
+
+    def text(self) -> str:
+        return (f"{self.source.name}.{'/'.join(self.outputs)} -> {self.target.name}.{'/'.join(self.inputs)}"
+                f" ({self.quantity or 'no unit'})")
+
+
+def orient(key: str, a: Component, a_names: list[str], b: Component, b_names: list[str],
+           problems: Problems) -> tuple[Component, tuple[str, ...], Component, tuple[str, ...]] | None:
+    """Variables ``a_names`` of ``a`` connected pairwise to ``b_names`` of ``b``, as (source, outputs,
+    target, inputs) by their causality in the FMUs; None with a problem if not one way output → input."""
+    if len(a_names) != len(b_names) or not a_names:
+        problems.add(key, f"connects {len(a_names)} variable(s) of {a.name} to {len(b_names)} of {b.name}; "
+                          "expected as many on both sides, at least one")
+        return None
+    found = [(check_variable(a, x, key, problems), check_variable(b, y, key, problems))
+             for x, y in zip(a_names, b_names)]
+    if any(va is None or vb is None for va, vb in found):
+        return None
+    directions = set()
+    for (x, y), (va, vb) in zip(zip(a_names, b_names), found):
+        pair = (va.causality, vb.causality)
+        if pair == ("output", "input"):
+            directions.add(1)
+        elif pair == ("input", "output"):
+            directions.add(-1)
+        else:
+            problems.add(key, f"connects {a.name}.{x} ({va.causality}) and {b.name}.{y} ({vb.causality}); "
+                              "expected an output and an input")
+            return None
+    if len(directions) != 1:
+        problems.add(key, f"connects variables of {a.name} and {b.name} in both directions; expected one group "
+                          "to flow one way")
+        return None
+    if directions == {1}:
+        return a, tuple(a_names), b, tuple(b_names)
+    return b, tuple(b_names), a, tuple(a_names)
+
+
+def link_quantity(key: str, source: Component, outputs: tuple[str, ...], target: Component,
+                  inputs: tuple[str, ...], problems: Problems, declared: dict[tuple[str, str], str] | None = None,
+                  definitions: dict[str, dict[str, UnitDefinition]] | None = None) -> str | None:
+    """The quantity a link carries, from the units of its variables (``declared``: units a system description
+    states for (subsystem, variable), resolved in ``definitions[subsystem]`` before the FMU's own): every
+    variable of the link must have the same one. None when no variable declares a unit."""
+    seen = set()
+    for component, names in ((source, outputs), (target, inputs)):
+        for name in names:
+            found = _quantity(component, name, key, problems, declared, definitions)
+            if found is not None:
+                seen.add(found)
+    if len(seen) > 1:
+        problems.add(key, f"connects variables of different quantities: {', '.join(sorted(seen))}")
+        return MIXED
+    return seen.pop() if len(seen) == 1 else None
+
+
+def _quantity(component: Component, name: str, key: str, problems: Problems,
+              declared: dict[tuple[str, str], str] | None,
+              definitions: dict[str, dict[str, UnitDefinition]] | None) -> str | None:
+    variable = component.fmu.variables.get(name)
+    candidates = []
+    unit = (declared or {}).get((component.name, name))
+    if unit:
+        candidates.append((unit, {**component.fmu.units, **(definitions or {}).get(component.name, {})}))
+    if variable is not None and variable_unit(variable):
+        candidates.append((variable_unit(variable), component.fmu.units))
+    found = set()
+    for unit_name, units in candidates:
+        exponents, problem = unit_exponents(unit_name, units)
+        if problem:
+            problems.add(key, f"{component.name}.{name}: {problem}")
+        else:
+            found.add(quantity_of(exponents))
+    if len(found) > 1:
+        problems.add(key, f"{component.name}.{name}: the system description and the FMU give it different "
+                          f"quantities ({', '.join(sorted(found))})")
+    return found.pop() if len(found) == 1 else None
+
+
+@dataclass
+class Bond:
+    """A power bond across two subsystems: the force one way, the velocity and displacement back."""
+
+    key: str  # the element(s) that declare it
+    force: Link  # force side -> motion side
+    velocity: Link  # motion side -> force side
+    displacement: list[Link] = field(default_factory=list)  # motion side -> force side, its components in order
+    name: str | None = None  # as declared (OSP powerBond); None: numbered
+    points: tuple[str | None, str | None] = (None, None)  # declared point names (OSP port groups): force, motion
+
+    @property
+    def force_side(self) -> Component:
+        return self.force.source
+
+    @property
+    def motion_side(self) -> Component:
+        return self.force.target
+
+
+def check_bond(bond: Bond, problems: Problems) -> bool:
+    """The bond's velocity and displacement flow from its motion side to its force side, with as many
+    components as its force."""
+    force_side, motion_side = bond.force_side.name, bond.motion_side.name
+    if force_side == motion_side:
+        problems.add(bond.key, f"a bond of {force_side} with itself: a coupling joins two subsystems")
+        return False
+    ok = True
+    for role, links in (("velocity", [bond.velocity]), ("displacement", bond.displacement)):
+        for link in links:
+            if (link.source.name, link.target.name) != (motion_side, force_side):
+                problems.add(link.key, f"the {role} of the bond whose force {force_side} outputs must flow from "
+                                       f"{motion_side} to {force_side}; got {link.text()}")
+                ok = False
+    size = len(bond.force.outputs)
+    sizes = {"force": size, "velocity": len(bond.velocity.outputs),
+             "displacement": sum(len(link.outputs) for link in bond.displacement)}
+    if sizes["displacement"] == 0:
+        problems.add(bond.key, f"the bond {force_side} -> {motion_side} has no displacement: connect the position "
+                               f"output [m] of {motion_side} to the position input of {force_side} (zencosim's "
+                               "force_displacement coupling sends the motion side's displacement and velocity)")
+        ok = False
+    elif len(set(sizes.values())) != 1:
+        problems.add(bond.key, f"the bond {force_side} -> {motion_side} needs as many components of force, velocity "
+                               f"and displacement, got {sizes}")
+        ok = False
+    return ok
+
+
+def check_coupled(components: list[Component], bonds: list[Bond], problems: Problems) -> None:
+    """Every component is a side of some bond (an FMU subsystem of zencosim needs a point a coupling uses);
+    checked when nothing else is wrong, as a refused bond leaves its sides uncoupled."""
+    if problems:
+        return
+    coupled = {side.name for bond in bonds for side in (bond.force_side, bond.motion_side)}
+    for component in components:
+        if component.name not in coupled:
+            problems.add(component.key, f"{component.name} is coupled to nothing: an FMU subsystem of zencosim needs "
+                                        "a power bond to another (zencosim has no free-running subsystem)")
+
+
+def energy_output(component: Component, notes: list[str]) -> str | None:
+    """The FMU's output in joules (not a torque), when it has exactly one: its energy for zencosim's balance."""
+    found = []
+    for name, variable in component.fmu.variables.items():
+        unit = variable_unit(variable)
+        if variable.causality != "output" or variable.type not in REAL_TYPES or not unit:
+            continue
+        exponents, problem = unit_exponents(unit, component.fmu.units)
+        torque = unit.replace(" ", "") in {u.replace(" ", "") for u in _TORQUE_NAMES} or \
+            "torque" in (variable.quantity or "").lower() or "moment" in (variable.quantity or "").lower()
+        if problem is None and exponents == QUANTITIES["energy"][1] and not torque:
+            found.append(name)
+    if len(found) == 1:
+        notes.append(f"subsystems.{component.name}.energy = {found[0]!r}: the FMU's only output in J")
+        return found[0]
+    if found:
+        notes.append(f"subsystems.{component.name}: no energy; the FMU has several outputs in J ({', '.join(found)}): "
+                     "set energy to the one that is its stored energy")
+    else:
+        notes.append(f"subsystems.{component.name}: no energy (the FMU has no output in J); residual power is "
+                     "still monitored at its bonds")
+    return None
+
+
+# Names, timing and the document -------------------------------------------------------------------
+
+def scene_name(raw: str, used: set[str], what: str, notes: list[str]) -> str:
+    """``raw`` as a scene name (letters, digits, ``_`` and ``-``), unique among ``used``."""
+    name = re.sub(r"[^A-Za-z0-9_-]+", "_", raw).strip("_") or "x"
+    candidate, counter = name, 2
+    while candidate in used:
+        candidate, counter = f"{name}_{counter}", counter + 1
+    used.add(candidate)
+    if candidate != raw:
+        notes.append(f"{what} {raw!r} is {candidate!r} in the scene (names are letters, digits, '_' and '-', unique)")
+    return candidate
+
+
+def document_path(fmu: Path, scene_directory: Path) -> str:
+    """The FMU's path relative to the scene's directory, with '/' separators."""
+    return Path(os.path.relpath(os.path.abspath(fmu), os.path.abspath(scene_directory))).as_posix()
+
+
+def _ns(seconds: float) -> int | None:
+    value = seconds * 1e9
+    return round(value) if abs(value - round(value)) <= 1e-3 else None
+
+
+def set_timing(base_step: float, base_key: str, components: list[Component], problems: Problems) -> None:
+    """Each component's communication ratio: its step over the base step, which must be whole."""
+    base_ns = _ns(base_step)
+    if base_ns is None or base_ns <= 0:
+        problems.add(base_key, f"expected a positive whole number of nanoseconds, got {base_step!r} s")
+        return
+    for component in components:
+        step_ns = _ns(component.step)
+        if step_ns is None or step_ns <= 0:
+            problems.add(component.key, f"step size {component.step!r} s: expected a positive whole number of "
+                                        "nanoseconds")
+        elif step_ns % base_ns:
+            problems.add(component.key, f"step size {component.step!r} s is not a whole multiple of the base step "
+                                        f"{base_step!r} s: zencosim communicates every whole number of base steps")
+        else:
+            component.comm_ratio = step_ns // base_ns
+
+
+def settle_duration(requested: float | None, declared: float | None, declared_by: str, base_step: float,
+                    components: list[Component], problems: Problems, notes: list[str]) -> float | None:
+    """The run's duration: ``requested``, else ``declared`` (the file's, by ``declared_by``: where it comes
+    from, or why there is none), else 10 s; rounded up to a whole number of periods (the base step times
+    the lcm of the communication ratios)."""
+    if requested is not None:
+        value, origin = requested, "from the duration asked for"
+        if isinstance(requested, bool) or not isinstance(requested, (int, float)) or not math.isfinite(requested) \
+                or requested <= 0:
+            problems.add("duration", f"expected a positive number of seconds, got {requested!r}")
+            return None
+    elif declared is not None:
+        value, origin = declared, f"from {declared_by}"
+    else:
+        value, origin = DEFAULT_DURATION, f"assumed ({declared_by}, and no duration was asked for)"
+    base_ns = _ns(base_step)
+    if not base_ns or base_ns <= 0:
+        return None
+    period = base_ns * math.lcm(*[c.comm_ratio for c in components] or [1])
+    periods = max(1, math.ceil(round(value * 1e9) / period - 1e-9))
+    duration = periods * period / 1e9
+    rounded = (f" ({value!r} s rounded up to a whole number of periods of {period / 1e9!r} s)"
+               if duration != value else "")
+    notes.append(f"manager.duration = {duration!r} s: {origin}{rounded}")
+    return duration
+
+
+def signal_names(coupling: str, stem: str, size: int) -> str | list[str]:
+    if size == 1:
+        return f"{coupling}.{stem}"
+    axes = "xyz" if size <= 3 else [str(i + 1) for i in range(size)]
+    return [f"{coupling}.{stem}_{axes[i]}" for i in range(size)]
+
+
+def _names_of(names: tuple[str, ...]) -> str | list[str]:
+    return names[0] if len(names) == 1 else list(names)
+
+
+def build_document(name: str, description: str, base_step: float, duration: float, components: list[Component],
+                   bonds: list[Bond], notes: list[str]) -> dict:
+    """The scene document of FMU subsystems and force–displacement couplings."""
+    used_couplings: set[str] = set()
+    coupling_names = {}
+    for bond in bonds:  # declared names first, so that numbered ones do not take them
+        if bond.name is not None:
+            coupling_names[id(bond)] = scene_name(bond.name, used_couplings, "the bond", notes)
+    counter = 0
+    for bond in bonds:
+        if bond.name is None:
+            counter += 1
+            while f"c{counter}" in used_couplings:
+                counter += 1
+            coupling_names[id(bond)] = f"c{counter}"
+            used_couplings.add(f"c{counter}")
+    points: dict[str, dict[str, dict]] = {c.name: {} for c in components}
+    used_points: dict[str, set[str]] = {c.name: set() for c in components}
+    declared_points = {}
+    for bond in bonds:
+        for side, declared in zip((bond.force_side, bond.motion_side), bond.points):
+            if declared is not None:
+                declared_points[(id(bond), side.name)] = scene_name(declared, used_points[side.name],
+                                                                    f"the port of {side.name}", notes)
+    point_counter = 0
+    couplings, signals = {}, []
+    for bond in bonds:
+        coupling = coupling_names[id(bond)]
+        side_points = []
+        for side in (bond.force_side, bond.motion_side):
+            point = declared_points.get((id(bond), side.name))
+            if point is None:
+                point_counter += 1
+                while f"p{point_counter}" in used_points[side.name]:
+                    point_counter += 1
+                point = f"p{point_counter}"
+                used_points[side.name].add(point)
+            side_points.append(point)
+        displacement = tuple(n for link in bond.displacement for n in link.outputs)
+        position_input = tuple(n for link in bond.displacement for n in link.inputs)
+        points[bond.force_side.name][side_points[0]] = {
+            "force": _names_of(bond.force.outputs), "position_input": _names_of(position_input),
+            "velocity_input": _names_of(bond.velocity.inputs)}
+        points[bond.motion_side.name][side_points[1]] = {
+            "force_input": _names_of(bond.force.inputs), "position": _names_of(displacement),
+            "velocity": _names_of(bond.velocity.outputs)}
+        size = len(bond.force.outputs)
+        couplings[coupling] = {
+            "type": "force_displacement",
+            "force_side": f"{bond.force_side.name}.{side_points[0]}",
+            "motion_side": f"{bond.motion_side.name}.{side_points[1]}",
+            "force": signal_names(coupling, "f", size),
+            "displacement": signal_names(coupling, "x", size),
+            "velocity": signal_names(coupling, "v", size)}
+        for stem in ("x", "f"):
+            names = signal_names(coupling, stem, size)
+            signals += [names] if isinstance(names, str) else names
+    subsystems = {}
+    for component in components:
+        table: dict[str, Any] = {"model": "fmu", "fmu": component.path, "micro_step": component.step}
+        if component.comm_ratio != 1:
+            table["comm_ratio"] = component.comm_ratio
+        if component.start:
+            table["start"] = dict(component.start)
+        energy = energy_output(component, notes)
+        if energy is not None:
+            table["energy"] = energy
+        table["points"] = points[component.name]
+        subsystems[component.name] = table
+    notes.append("outputs.reference = 'none': FMU subsystems have no reference solution; outputs.signals: each "
+                 "coupling's displacement and force")
+    return {"name": name, "description": description,
+            "manager": {"duration": duration, "macro_step": base_step},
+            "outputs": {"signals": signals, "reference": "none"},
+            "subsystems": subsystems, "couplings": couplings}

@@ -1,0 +1,642 @@
+"""Importing OSP system structures and SSP systems as scene documents (manager.scene.imports).
+
+The two-mass oscillator of paper 000 as two instances of one FMU (only a modelDescription.xml: nothing
+is run): the imported document equals the TOML scene written by hand; whatever cannot be mapped is a
+SceneError naming the file and the element, never a traceback.
+"""
+from __future__ import annotations
+
+import shutil
+import tomllib
+import zipfile
+from pathlib import Path
+
+import pytest
+import tomli_w
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from zencosim.manager.scene.imports import import_system
+from zencosim.manager.scene.load import SceneError, scene_from_text
+
+SCENE = """
+name = "two_mass_damped_fmu"
+description = "DESCRIPTION"
+
+[manager]
+duration = 10.0
+macro_step = 0.001
+
+[outputs]
+signals = ["COUPLING.x", "COUPLING.f"]
+reference = "none"
+
+[subsystems.S1]
+model = "fmu"
+fmu = "FMU"
+micro_step = 0.001
+start = { m = 1.0, k = 10.0, c = 0.1, kc = 100.0, cc = 0.1, v0 = 100.0 }
+energy = "E"
+points.p1 = { force = "fc", position_input = "x_in", velocity_input = "v_in" }
+
+[subsystems.S2]
+model = "fmu"
+fmu = "FMU"
+micro_step = 0.001
+start = { m = 1.0, k = 1000.0, c = 0.1, v0 = -100.0 }
+energy = "E"
+points.p2 = { force_input = "f_in", position = "x", velocity = "v" }
+
+[couplings.COUPLING]
+type = "force_displacement"
+force_side = "S1.p1"
+motion_side = "S2.p2"
+force = "COUPLING.f"
+displacement = "COUPLING.x"
+velocity = "COUPLING.v"
+"""
+
+
+def expected(description: str, coupling: str = "c1", fmu: str = "oscillator.fmu") -> dict:
+    text = SCENE.replace("DESCRIPTION", description).replace("COUPLING", coupling).replace("FMU", fmu)
+    return tomllib.loads(text)
+
+
+# An FMU of the oscillator: one mass with spring and damper to the ground, a coupling element (kc, cc) to a
+# received motion (force side) and an applied force (motion side). Only its modelDescription.xml.
+
+VARIABLES = [  # name, causality, unit, start
+    ("m", "parameter", "kg", "1"), ("k", "parameter", "N/m", "0"), ("c", "parameter", "N.s/m", "0"),
+    ("kc", "parameter", "N/m", "0"), ("cc", "parameter", "N.s/m", "0"), ("x0", "parameter", "m", "0"),
+    ("v0", "parameter", "m/s", "0"),
+    ("x", "output", "m", None), ("v", "output", "m/s", None), ("fc", "output", "N", None), ("E", "output", "J", None),
+    ("f_in", "input", "N", "0"), ("x_in", "input", "m", "0"), ("v_in", "input", "m/s", "0"),
+]
+QUOTE = '"'
+UNITS = {"kg": {"kg": 1}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "m": {"m": 1},
+         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}, "J": {"kg": 1, "m": 2, "s": -2}}
+
+
+def model_description(variables=VARIABLES, model_name: str = "oscillator") -> str:
+    units = "".join(f'<Unit name="{name}"><BaseUnit {" ".join(f"{b}={QUOTE}{e}{QUOTE}" for b, e in dims.items())}/>'
+                    "</Unit>" for name, dims in UNITS.items())
+    scalars, outputs = [], []
+    for index, (name, causality, unit, start) in enumerate(variables, start=1):
+        variability = ' variability="fixed"' if causality == "parameter" else ""
+        start_attribute = f' start="{start}"' if start is not None else ""
+        scalars.append(f'<ScalarVariable name="{name}" valueReference="{index}" causality="{causality}"{variability}>'
+                       f'<Real unit="{unit}"{start_attribute}/></ScalarVariable>')
+        if causality == "output":
+            outputs.append(f'<Unknown index="{index}"/>')
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="2.0" modelName="{model_name}" '
+            f'guid="{{8c4e810f-3df3-4a00-8276-176fa3c9f000}}" numberOfEventIndicators="0">'
+            f'<CoSimulation modelIdentifier="{model_name}" canGetAndSetFMUstate="true"/>'
+            f"<UnitDefinitions>{units}</UnitDefinitions><ModelVariables>{''.join(scalars)}</ModelVariables>"
+            f"<ModelStructure><Outputs>{''.join(outputs)}</Outputs></ModelStructure></fmiModelDescription>")
+
+
+def write_fmu(path: Path, description: str | None = None) -> Path:
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("modelDescription.xml", description or model_description())
+    return path
+
+
+# OSP --------------------------------------------------------------------------------------------------
+
+OSP_MODEL_DESCRIPTION = """<?xml version="1.0" encoding="utf-8"?>
+<OspModelDescription xmlns="https://open-simulation-platform.com/OspModelDescription/1.0.0" version="1.0">
+  <UnitDefinitions>
+    <Unit name="N"><BaseUnit kg="1" m="1" s="-2"/></Unit>
+    <Unit name="m/s"><BaseUnit m="1" s="-1"/></Unit>
+    <Unit name="m"><BaseUnit m="1"/></Unit>
+  </UnitDefinitions>
+  <VariableGroups>
+    <LinearMechanicalPort name="p1">
+      <Force name="p1 force"><Variable ref="fc" unit="N"/></Force>
+      <LinearVelocity name="p1 velocity"><Variable ref="v_in" unit="m/s"/></LinearVelocity>
+    </LinearMechanicalPort>
+    <LinearMechanicalPort name="p2">
+      <Force name="p2 force"><Variable ref="f_in" unit="N"/></Force>
+      <LinearVelocity name="p2 velocity"><Variable ref="v" unit="m/s"/></LinearVelocity>
+    </LinearMechanicalPort>
+    <LinearDisplacement name="position"><Variable ref="x" unit="m"/></LinearDisplacement>
+    <LinearDisplacement name="position input"><Variable ref="x_in" unit="m"/></LinearDisplacement>
+    <AngularMechanicalPort name="shaft">
+      <Torque name="torque"><Variable ref="fc"/></Torque>
+      <AngularVelocity name="speed"><Variable ref="v"/></AngularVelocity>
+    </AngularMechanicalPort>
+    <Generic name="coefficients"><Variable ref="k"/></Generic>
+  </VariableGroups>
+</OspModelDescription>
+"""
+
+PORTS = """
+    <VariableGroupConnection>
+      <VariableGroup simulator="S1" name="p1"/>
+      <VariableGroup simulator="S2" name="p2"/>
+    </VariableGroupConnection>"""
+POSITION = """
+    <VariableConnection>
+      <Variable simulator="S2" name="x"/>
+      <Variable simulator="S1" name="x_in"/>
+    </VariableConnection>"""
+POWER_BOND = """
+    <VariableConnection powerBond="c">
+      <Variable simulator="S1" name="v_in" causality="input"/>
+      <Variable simulator="S2" name="v" causality="output"/>
+    </VariableConnection>
+    <VariableConnection powerBond="c">
+      <Variable simulator="S2" name="f_in" causality="input"/>
+      <Variable simulator="S1" name="fc" causality="output"/>
+    </VariableConnection>"""
+
+
+def initial_values(**values: float) -> str:
+    return "".join(f'<InitialValue variable="{name}"><Real value="{value}"/></InitialValue>'
+                   for name, value in values.items())
+
+
+def osp_system(connections: str = PORTS + POSITION, end: str = "<EndTime>10.0</EndTime>", base: str = "0.001",
+               algorithm: str = "fixedStep", step_1: str = "0.001", source_1: str = "oscillator.fmu") -> str:
+    s1 = initial_values(m=1.0, k=10.0, c=0.1, kc=100.0, cc=0.1, v0=100.0)
+    s2 = initial_values(m=1.0, k=1000.0, c=0.1, v0=-100.0)
+    return f"""<?xml version="1.0" encoding="utf-8"?>
+<OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
+  <StartTime>0.0</StartTime>
+  {end}
+  <BaseStepSize>{base}</BaseStepSize>
+  <Algorithm>{algorithm}</Algorithm>
+  <Simulators>
+    <Simulator name="S1" source="{source_1}" stepSize="{step_1}">
+      <InitialValues>{s1}</InitialValues>
+    </Simulator>
+    <Simulator name="S2" source="oscillator.fmu" stepSize="0.001">
+      <InitialValues>{s2}</InitialValues>
+    </Simulator>
+  </Simulators>
+  <Connections>{connections}
+  </Connections>
+</OspSystemStructure>
+"""
+
+
+@pytest.fixture
+def osp_dir(tmp_path: Path) -> Path:
+    directory = tmp_path / "two_mass_damped_fmu"
+    directory.mkdir()
+    write_fmu(directory / "oscillator.fmu")
+    (directory / "oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)
+    return directory
+
+
+def osp_import(directory: Path, text: str, **options) -> tuple[dict, list[str]]:
+    path = directory / "OspSystemStructure.xml"
+    path.write_text(text)
+    return import_system(path, **options)
+
+
+def line(text: str, needle: str, occurrence: int = 1) -> int:
+    """The line (from 1) of the ``occurrence``-th ``needle`` in ``text``."""
+    at = -1
+    for _ in range(occurrence):
+        at = text.index(needle, at + 1)
+    return text.count("\n", 0, at) + 1
+
+
+S1_ELEMENT = '<Simulator name="S1"'
+S1_COMPONENT = '<ssd:Component name="S1"'
+
+
+def q(text: str) -> str:
+    """``text`` with its backquotes as double quotes (XML attributes in f-strings)."""
+    return text.replace("`", QUOTE)
+
+
+def osp_refusal(directory: Path, text: str, **options) -> dict[str, str]:
+    with pytest.raises(SceneError) as caught:
+        osp_import(directory, text, **options)
+    assert caught.value.path == str(directory / "OspSystemStructure.xml")
+    return {p.key: p.reason for p in caught.value.problems}
+
+
+OSP_DESCRIPTION = "imported from the OSP system structure OspSystemStructure.xml"
+
+
+def test_osp_ports_and_a_position_connection_are_the_two_mass_scene(osp_dir):
+    document, notes = osp_import(osp_dir, osp_system())
+    assert document == expected(OSP_DESCRIPTION)
+    assert tomllib.loads(tomli_w.dumps(document)) == document
+    assert "manager.duration = 10.0 s: from EndTime - StartTime" in notes
+    assert any("energy = 'E'" in n for n in notes)
+
+
+def test_osp_displacement_as_a_linear_displacement_group_connection(osp_dir):
+    position = """
+    <VariableGroupConnection>
+      <VariableGroup simulator="S1" name="position input"/>
+      <VariableGroup simulator="S2" name="position"/>
+    </VariableGroupConnection>"""
+    document, _ = osp_import(osp_dir, osp_system(PORTS + position))
+    assert document == expected(OSP_DESCRIPTION)
+
+
+def test_osp_power_bond_pair_names_the_coupling(osp_dir):
+    """libcosim's own bond marker: a force and a velocity connection sharing a powerBond name."""
+    document, _ = osp_import(osp_dir, osp_system(POWER_BOND + POSITION))
+    assert document == expected(OSP_DESCRIPTION, coupling="c")
+
+
+def test_osp_without_end_time_takes_the_duration_asked_for(osp_dir):
+    document, notes = osp_import(osp_dir, osp_system(end=""), duration=10.0)
+    assert document == expected(OSP_DESCRIPTION)
+    document, notes = osp_import(osp_dir, osp_system(end=""))
+    assert document["manager"]["duration"] == 10.0
+    assert any("assumed" in n and "no EndTime" in n for n in notes)
+    document, notes = osp_import(osp_dir, osp_system(end=""), duration=2.0004)
+    assert document["manager"]["duration"] == 2.001
+    assert any("rounded up" in n for n in notes)
+
+
+def test_osp_multi_rate_gives_communication_ratios(osp_dir):
+    document, _ = osp_import(osp_dir, osp_system(base="0.0005", step_1="0.001"))
+    assert document["manager"]["macro_step"] == 0.0005
+    assert document["subsystems"]["S1"]["comm_ratio"] == 2 and document["subsystems"]["S2"]["comm_ratio"] == 2
+    assert document["subsystems"]["S1"]["micro_step"] == 0.001
+
+
+def test_osp_refuses_an_unknown_algorithm(osp_dir):
+    text = osp_system(algorithm="jacobiWithRollback")
+    key = f"Algorithm (line {line(text, '<Algorithm>')})"
+    assert osp_refusal(osp_dir, text) == {key: "unknown algorithm 'jacobiWithRollback'; expected fixedStep"}
+    problems = osp_refusal(osp_dir, osp_system(algorithm="ecco"))
+    assert problems[key].startswith("algorithm 'ecco' (adaptive step size) is not supported: zencosim steps at a "
+                                    "fixed macro step")
+
+
+def test_osp_refuses_a_plain_connection_outside_a_bond(osp_dir):
+    plain = """
+    <VariableConnection>
+      <Variable simulator="S1" name="v"/>
+      <Variable simulator="S2" name="v_in"/>
+    </VariableConnection>"""
+    text = osp_system(POSITION + plain)
+    problems = osp_refusal(osp_dir, text)
+    assert problems == {
+        f"VariableConnection (line {line(text, '<VariableConnection>', 2)})":
+            "S1.v -> S2.v_in (velocity) carries velocity and is not part of a power bond: zencosim couples subsystems "
+            "through power bonds only (no plain signal coupling yet)",
+        f"VariableConnection (line {line(text, '<VariableConnection>', 1)})":
+            "S2.x -> S1.x_in (displacement) is not part of a power bond: no bond has S2 as motion side and S1 as "
+            "force side; zencosim has no plain signal coupling yet"}
+
+
+def test_osp_refuses_a_missing_fmu_file(osp_dir):
+    text = osp_system(source_1="missing.fmu")
+    problems = osp_refusal(osp_dir, text)
+    assert problems == {f"Simulator 'S1' (line {line(text, S1_ELEMENT)})":
+                        f"source 'missing.fmu': no FMU file at {osp_dir / 'missing.fmu'}"}
+
+
+def test_osp_refuses_a_step_size_that_does_not_divide_into_the_base_step(osp_dir):
+    text = osp_system(step_1="0.0015")
+    assert osp_refusal(osp_dir, text) == {
+        f"Simulator 'S1' (line {line(text, S1_ELEMENT)})":
+            "step size 0.0015 s is not a whole multiple of the base step 0.001 s: zencosim communicates every whole "
+            "number of base steps"}
+
+
+def test_osp_refuses_unknown_group_types_and_bonds_without_displacement(osp_dir):
+    shafts = """
+    <VariableGroupConnection>
+      <VariableGroup simulator="S1" name="shaft"/>
+      <VariableGroup simulator="S2" name="shaft"/>
+    </VariableGroupConnection>"""
+    text = osp_system(PORTS + shafts)
+    problems = osp_refusal(osp_dir, text)
+    ports, shaft = (f"VariableGroupConnection (line {line(text, '<VariableGroupConnection>', i)})" for i in (1, 2))
+    assert problems[ports].startswith("the bond S1 -> S2 has no displacement: connect the position output [m] of S2 "
+                                      "to the position input of S1")
+    assert problems[shaft].startswith("variable group type AngularMechanicalPort (S1.shaft) is not supported")
+    assert len(problems) == 2
+
+
+def test_osp_refuses_a_simulator_coupled_to_nothing(osp_dir):
+    text = osp_system().replace("</Simulators>", '<Simulator name="S3" source="oscillator.fmu"/>\n  </Simulators>')
+    assert osp_refusal(osp_dir, text) == {
+        f"Simulator 'S3' (line {line(text, q('name=`S3`'))})":
+            "S3 is coupled to nothing: an FMU subsystem of zencosim needs a power bond to another (zencosim has no "
+            "free-running subsystem)"}
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="building the example FMU needs gcc")
+def test_imported_scenes_load_with_the_example_fmu(tmp_path):
+    """With a real FMU (zencosim's example oscillator, built but not run) the imported documents are scenes
+    that zencosim loads: model "fmu", points, start values and energy as the FMU model reads them."""
+    from zencosim.examples.fmus.build import build_fmu
+
+    build_fmu(tmp_path / "oscillator.fmu", 2, ("cs",))
+    (tmp_path / "zencosim oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)  # its modelName
+    for name, text in (("OspSystemStructure.xml", osp_system()), ("SystemStructure.ssd", ssd_system())):
+        path = tmp_path / name
+        path.write_text(text)
+        document, _ = import_system(path)
+        scene = scene_from_text(tomli_w.dumps(document), str(tmp_path / "scene.toml"))
+        assert scene.subsystems["S1"].spec.start == {"m": 1.0, "k": 10.0, "c": 0.1, "kc": 100.0, "cc": 0.1, "v0": 100.0}
+        assert scene.subsystems["S2"].spec.energy == "E"
+        assert sorted(scene.couplings) == ["c1"] and scene.manager.duration == 10.0
+
+
+# SSP --------------------------------------------------------------------------------------------------
+
+def parameter_set(**values: float) -> str:
+    parameters = "".join(f'<ssv:Parameter name="{n}"><ssv:Real value="{v}"/></ssv:Parameter>'
+                         for n, v in values.items())
+    return (f'<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" '
+            f'name="start"><ssv:Parameters>{parameters}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>'
+            f"</ssd:ParameterBinding></ssd:ParameterBindings>")
+
+
+SSP_CONNECTIONS = """
+      <ssd:Connection startElement="S1" startConnector="fc" endElement="S2" endConnector="f_in"/>
+      <ssd:Connection startElement="S2" startConnector="v" endElement="S1" endConnector="v_in"/>
+      <ssd:Connection startElement="S2" startConnector="x" endElement="S1" endConnector="x_in"/>"""
+
+
+def ssd_system(connections: str = SSP_CONNECTIONS, source: str = "oscillator.fmu",
+               experiment: str = 'startTime="0" stopTime="10"', base: str = "0.001") -> str:
+    connectors = "".join(f'<ssd:Connector name="{n}" kind="{c}"/>' for n, c, _, _ in VARIABLES if c != "parameter")
+    s1 = parameter_set(m=1.0, k=10.0, c=0.1, kc=100.0, cc=0.1, v0=100.0)
+    s2 = parameter_set(m=1.0, k=1000.0, c=0.1, v0=-100.0)
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription name="two_mass_damped_fmu" version="1.0"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations">
+  <ssd:System name="two_mass">
+    <ssd:Elements>
+      <ssd:Component name="S1" source="{source}">
+        <ssd:Connectors>{connectors}</ssd:Connectors>{s1}
+      </ssd:Component>
+      <ssd:Component name="S2" source="{source}">
+        <ssd:Connectors>{connectors}</ssd:Connectors>{s2}
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>{connections}
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment {experiment}>
+    <ssd:Annotations>
+      <ssc:Annotation type="com.opensimulationplatform">
+        <osp:Algorithm><osp:FixedStepAlgorithm baseStepSize="{base}"/></osp:Algorithm>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:DefaultExperiment>
+</ssd:SystemStructureDescription>
+"""
+
+
+@pytest.fixture
+def ssp_dir(tmp_path: Path) -> Path:
+    directory = tmp_path / "ssp"
+    directory.mkdir()
+    write_fmu(directory / "oscillator.fmu")
+    return directory
+
+
+def ssd_import(directory: Path, text: str, **options) -> tuple[dict, list[str]]:
+    path = directory / "SystemStructure.ssd"
+    path.write_text(text)
+    return import_system(path, **options)
+
+
+def ssd_refusal(directory: Path, text: str) -> dict[str, str]:
+    with pytest.raises(SceneError) as caught:
+        ssd_import(directory, text)
+    assert caught.value.path == str(directory / "SystemStructure.ssd")
+    return {p.key: p.reason for p in caught.value.problems}
+
+
+def test_ssd_three_connections_are_the_two_mass_scene(ssp_dir):
+    document, notes = ssd_import(ssp_dir, ssd_system())
+    assert document == expected("imported from the SSP SystemStructure.ssd")
+    assert "manager.duration = 10.0 s: from DefaultExperiment stopTime - startTime" in notes
+
+
+def test_ssp_archive_reads_its_fmu_inside_and_says_where_to_unpack_it(tmp_path):
+    path = tmp_path / "two_mass.ssp"
+    fmu = write_fmu(tmp_path / "built.fmu")
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("SystemStructure.ssd", ssd_system(source="resources/oscillator.fmu"))
+        archive.write(fmu, "resources/oscillator.fmu")
+    document, notes = import_system(path)
+    assert document == expected("imported from the SSP two_mass.ssp", fmu="two_mass/resources/oscillator.fmu")
+    assert ("subsystems.S1.fmu = 'two_mass/resources/oscillator.fmu': the FMU is resources/oscillator.fmu inside "
+            "two_mass.ssp; unpack the archive beside the scene (unzip two_mass.ssp -d two_mass)") in notes
+
+
+def test_ssd_refuses_a_connection_outside_a_bond(ssp_dir):
+    text = ssd_system(SSP_CONNECTIONS + """
+      <ssd:Connection startElement="S1" startConnector="v" endElement="S2" endConnector="v_in"/>""")
+    key = f"Connection S1.v -> S2.v_in (line {line(text, q('startConnector=`v` endElement=`S2`'))})"
+    assert ssd_refusal(ssp_dir, text) == {
+        key: "connections between S2 and S1 do not form a bond: 0 force [N] S2 -> S1, 1 velocity [m/s] and 0 "
+             "displacement [m] S1 -> S2; a bond has as many of each"}
+
+
+def test_ssd_refuses_a_connection_of_another_quantity(ssp_dir):
+    text = ssd_system(SSP_CONNECTIONS.replace('startConnector="x"', 'startConnector="E"'))
+    problems = ssd_refusal(ssp_dir, text)
+    assert problems[f"Connection S2.E -> S1.x_in (line {line(text, q('startConnector=`E`'))})"] == (
+        "connects variables of different quantities: displacement, energy")
+
+
+def test_ssd_refuses_a_missing_fmu_file(ssp_dir):
+    text = ssd_system(source="resources/oscillator.fmu")
+    problems = ssd_refusal(ssp_dir, text)
+    assert problems == {f"Component {name!r} (line {line(text, q(f'<ssd:Component name=`{name}`'))})":
+                        f"source 'resources/oscillator.fmu': no FMU file at {ssp_dir / 'resources' / 'oscillator.fmu'}"
+                        for name in ("S1", "S2")}
+
+
+def test_ssd_refuses_a_step_size_that_does_not_divide_into_the_base_step(ssp_dir):
+    hint = ('<ssd:Annotations><ssc:Annotation type="com.opensimulationplatform"><osp:StepSizeHint value="0.0025"/>'
+            "</ssc:Annotation></ssd:Annotations>\n      </ssd:Component>")
+    text = ssd_system().replace("</ssd:Component>", hint, 1)
+    assert ssd_refusal(ssp_dir, text) == {
+        f"Component 'S1' (line {line(text, S1_COMPONENT)})":
+            "step size 0.0025 s is not a whole multiple of the base step 0.001 s: zencosim communicates every whole "
+            "number of base steps"}
+    document, _ = ssd_import(ssp_dir, text.replace("0.0025", "0.002"))
+    assert document["subsystems"]["S1"]["comm_ratio"] == 2 and document["subsystems"]["S1"]["micro_step"] == 0.002
+    assert document["manager"]["duration"] == 10.0
+
+
+def test_ssd_refuses_an_algorithm_other_than_fixed_step(ssp_dir):
+    text = ssd_system().replace('<osp:FixedStepAlgorithm baseStepSize="0.001"/>', '<osp:EccoAlgorithm/>')
+    problems = ssd_refusal(ssp_dir, text)
+    assert problems == {f"Algorithm (line {line(text, '<osp:Algorithm>')})":
+                        "OSP algorithm: expected FixedStepAlgorithm; zencosim steps at a fixed macro step"}
+
+
+def test_ssd_without_a_step_size_is_refused(ssp_dir):
+    text = ssd_system().replace('<osp:FixedStepAlgorithm baseStepSize="0.001"/>', "")
+    text = text.replace("<osp:Algorithm></osp:Algorithm>", "")
+    problems = ssd_refusal(ssp_dir, text)
+    (reason,) = problems.values()
+    assert reason.startswith("no step size for S1, S2: add the OSP annotation libcosim reads")
+
+
+# vectors, names ------------------------------------------------------------------------------------
+
+PLANAR = [("fx", "output", "N", None), ("fy", "output", "N", None), ("x", "output", "m", None),
+          ("y", "output", "m", None), ("vx", "output", "m/s", None), ("vy", "output", "m/s", None)] + [
+    (f"{name}_in", "input", unit, "0") for name, unit in (("fx", "N"), ("fy", "N"), ("x", "m"), ("y", "m"),
+                                                          ("vx", "m/s"), ("vy", "m/s"))]
+PLANAR_OSP = """<OspModelDescription xmlns="http://opensimulationplatform.com/MSMI/OSPModelDescription" version="0.1">
+  <VariableGroups>
+    <LinearMechanicalPort name="force port">
+      <Force name="f"><Variable ref="fx"/><Variable ref="fy"/></Force>
+      <LinearVelocity name="v in"><Variable ref="vx_in"/><Variable ref="vy_in"/></LinearVelocity>
+    </LinearMechanicalPort>
+    <LinearMechanicalPort name="motion port">
+      <Force name="f in"><Variable ref="fx_in"/><Variable ref="fy_in"/></Force>
+      <LinearVelocity name="v"><Variable ref="vx"/><Variable ref="vy"/></LinearVelocity>
+    </LinearMechanicalPort>
+    <LinearDisplacement name="position"><Variable ref="x"/><Variable ref="y"/></LinearDisplacement>
+    <LinearDisplacement name="position in"><Variable ref="x_in"/><Variable ref="y_in"/></LinearDisplacement>
+  </VariableGroups>
+</OspModelDescription>"""
+
+
+def test_osp_vector_ports_give_component_lists(tmp_path):
+    write_fmu(tmp_path / "planar.fmu", model_description(PLANAR, "planar"))
+    (tmp_path / "planar_OspModelDescription.xml").write_text(PLANAR_OSP)
+    text = """<OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
+      <BaseStepSize>0.002</BaseStepSize>
+      <Simulators>
+        <Simulator name="arm" source="planar.fmu"/>
+        <Simulator name="load 1" source="planar.fmu" stepSize="0.004"/>
+      </Simulators>
+      <Connections>
+        <VariableGroupConnection>
+          <VariableGroup simulator="load 1" name="motion port"/><VariableGroup simulator="arm" name="force port"/>
+        </VariableGroupConnection>
+        <VariableGroupConnection>
+          <VariableGroup simulator="load 1" name="position"/><VariableGroup simulator="arm" name="position in"/>
+        </VariableGroupConnection>
+      </Connections>
+    </OspSystemStructure>"""
+    path = tmp_path / "crane.xml"
+    path.write_text(text)
+    document, notes = import_system(path, duration=1.003)
+    assert document["name"] == "crane"
+    assert document["manager"] == {"duration": 1.004, "macro_step": 0.002}
+    assert document["couplings"] == {"c1": {
+        "type": "force_displacement", "force_side": "arm.force_port", "motion_side": "load_1.motion_port",
+        "force": ["c1.f_x", "c1.f_y"], "displacement": ["c1.x_x", "c1.x_y"], "velocity": ["c1.v_x", "c1.v_y"]}}
+    assert document["subsystems"]["arm"] == {
+        "model": "fmu", "fmu": "planar.fmu", "micro_step": 0.002,
+        "points": {"force_port": {"force": ["fx", "fy"], "position_input": ["x_in", "y_in"],
+                                  "velocity_input": ["vx_in", "vy_in"]}}}
+    assert document["subsystems"]["load_1"]["comm_ratio"] == 2
+    assert document["subsystems"]["load_1"]["points"] == {
+        "motion_port": {"force_input": ["fx_in", "fy_in"], "position": ["x", "y"], "velocity": ["vx", "vy"]}}
+    assert document["outputs"]["signals"] == ["c1.x_x", "c1.x_y", "c1.f_x", "c1.f_y"]
+    assert "the simulator 'load 1' is 'load_1' in the scene (names are letters, digits, '_' and '-', unique)" in notes
+    assert any(n.startswith("manager.duration = 1.004 s: from the duration asked for (1.003 s rounded up") for n in notes)
+    assert any(n.startswith("subsystems.arm.micro_step = 0.002 s: Simulator 'arm'") for n in notes)
+    assert "subsystems.arm: no energy (the FMU has no output in J); residual power is still monitored at its bonds" \
+        in notes
+
+
+# malformed input: a SceneError naming the file, never a traceback -------------------------------------
+
+def test_import_system_refuses_other_files(tmp_path):
+    with pytest.raises(SceneError) as caught:
+        import_system(tmp_path / "scene.json")
+    assert "expected an OSP system structure (.xml) or an SSP system (.ssp, .ssd)" in str(caught.value)
+
+
+def test_a_truncated_osp_file_is_a_scene_error(osp_dir):
+    text = osp_system()
+    problems = osp_refusal(osp_dir, text[:300])
+    assert list(problems) == ["OspSystemStructure.xml"]
+    assert problems["OspSystemStructure.xml"].startswith("not well-formed XML: ")
+    for cut in range(0, len(text) - 1, 23):
+        osp_refusal(osp_dir, text[:cut])
+
+
+def test_a_file_that_is_not_an_archive_is_a_scene_error(tmp_path):
+    (tmp_path / "broken.ssp").write_text("not a zip")
+    with pytest.raises(SceneError) as caught:
+        import_system(tmp_path / "broken.ssp")
+    assert caught.value.path == str(tmp_path / "broken.ssp")
+    assert caught.value.problems[0].reason.startswith("not an SSP archive (a zip file)")
+
+
+PIECES = ["<", ">", "/>", '"', "=", " ", "\n", "0", "-1", "1e-9", "nan", "inf", "&amp;", "S1", "S2", "S3", "x", "fc",
+          "Force", "Generic", "Real", "Integer", "name", "simulator", "../", "file:", "http:", "<Variable/>",
+          "</Connections>", "<InitialValues/>", 'powerBond="c"', 'causality="output"']
+
+
+def mutated(data, text: str) -> str:
+    """``text`` after one to three edits: a cut, a deletion, an insertion, a line dropped, doubled or swapped."""
+    for _ in range(data.draw(st.integers(1, 3), label="edits")):
+        if not text:
+            break
+        lines = text.split("\n")
+        at = data.draw(st.integers(0, len(text) - 1), label="at")
+        edit = data.draw(st.sampled_from(["cut", "delete", "insert", "drop", "double", "swap"]), label="edit")
+        if edit == "cut":
+            text = text[:at]
+        elif edit == "delete":
+            text = text[:at] + text[at + data.draw(st.integers(1, 12), label="length"):]
+        elif edit == "insert":
+            text = text[:at] + data.draw(st.sampled_from(PIECES), label="piece") + text[at:]
+        else:
+            i, j = (data.draw(st.integers(0, len(lines) - 1), label="line") for _ in range(2))
+            if edit == "drop":
+                del lines[i]
+            elif edit == "double":
+                lines.insert(i, lines[j])
+            else:
+                lines[i], lines[j] = lines[j], lines[i]
+            text = "\n".join(lines)
+    return text
+
+
+MUTATIONS = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@MUTATIONS
+@given(data=st.data())
+def test_a_mutated_osp_file_is_imported_or_a_scene_error(osp_dir, data):
+    connections = data.draw(st.sampled_from([PORTS + POSITION, POWER_BOND + POSITION]), label="bond")
+    try:
+        document, _ = osp_import(osp_dir, mutated(data, osp_system(connections)))
+    except SceneError as error:
+        assert error.path == str(osp_dir / "OspSystemStructure.xml") and error.problems
+    else:
+        assert tomllib.loads(tomli_w.dumps(document)) == document
+
+
+@MUTATIONS
+@given(data=st.data())
+def test_a_mutated_osp_model_description_is_imported_or_a_scene_error(osp_dir, data):
+    (osp_dir / "oscillator_OspModelDescription.xml").write_text(mutated(data, OSP_MODEL_DESCRIPTION))
+    try:
+        osp_import(osp_dir, osp_system())
+    except SceneError as error:
+        assert error.path == str(osp_dir / "OspSystemStructure.xml") and error.problems
+
+
+@MUTATIONS
+@given(data=st.data())
+def test_a_mutated_ssd_file_is_imported_or_a_scene_error(ssp_dir, data):
+    try:
+        document, _ = ssd_import(ssp_dir, mutated(data, ssd_system()))
+    except SceneError as error:
+        assert error.path == str(ssp_dir / "SystemStructure.ssd") and error.problems
+    else:
+        assert tomllib.loads(tomli_w.dumps(document)) == document
