@@ -58,6 +58,7 @@ class Scene:
     outputs: OutputSettings
     subsystems: dict[str, SubsystemScene]
     couplings: dict[str, Any]
+    notes: tuple[str, ...] = ()  # what an imported system description's mapping assumed (manager.scene.imports)
 
     @property
     def digest(self) -> str:
@@ -73,10 +74,13 @@ def bundled_scene_names() -> list[str]:
     return sorted(p.name[:-5] for p in resources.files("zencosim.scenes").iterdir() if p.name.endswith(".toml"))
 
 
+SYSTEM_DESCRIPTIONS = (".xml", ".ssp", ".ssd")  # OSP system structures and SSP systems (manager.scene.imports)
+
+
 def scene_path(name_or_path: str) -> Path:
-    """A bundled scene name or a path to a TOML file."""
+    """A bundled scene name, or a path to a TOML scene or a system description (OSP XML, SSP)."""
     candidate = Path(name_or_path)
-    if candidate.suffix == ".toml" or candidate.exists():
+    if candidate.suffix in (".toml", *SYSTEM_DESCRIPTIONS) or candidate.exists():
         return candidate
     bundled = resources.files("zencosim.scenes") / f"{name_or_path}.toml"
     if bundled.is_file():
@@ -92,8 +96,13 @@ def _problem(key: str, reason: str):
 
 
 def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
-    """Load, override and validate a scene; raise :class:`SceneError` listing every problem."""
+    """Load, override and validate a scene (a TOML scene, or an OSP or SSP system description mapped onto
+    one); raise :class:`SceneError` listing every problem."""
     path = scene_path(name_or_path)
+    if path.suffix in SYSTEM_DESCRIPTIONS:
+        from zencosim.manager.scene.imports import import_system
+        document, notes = import_system(path)
+        return scene_from_document(document, str(path), overrides, tuple(notes))
     try:
         text = path.read_text()
     except OSError as error:
@@ -107,12 +116,18 @@ def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scen
         document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise SceneError(path, [_problem("scene", f"not valid TOML: {error}")]) from None
+    return scene_from_document(document, path, overrides)
+
+
+def scene_from_document(document: dict, path: str, overrides: Sequence[str] = (), notes: tuple[str, ...] = ()
+                        ) -> Scene:
+    """Override and validate a scene document; paths in it are relative to ``path``'s directory."""
     problems = Problems()
     resolved = apply_overrides(document, overrides, problems)
     scene = _validate(resolved, path, tuple(overrides), problems)
     if problems:
         raise SceneError(path, problems)
-    return scene
+    return dataclasses.replace(scene, notes=notes)
 
 
 def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Problems) -> Scene | None:

@@ -283,3 +283,27 @@ def test_a_subsystem_started_by_hand_with_another_fmu_file_is_refused(examples, 
     assert manager.returncode == 1
     assert "subsystem S2: its component is not the manager's: sha256" in " ".join(stderr.split())
     assert "give both hosts the same file" in " ".join(stderr.split())
+
+
+# -- system descriptions users already have -------------------------------------------------------------------
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("system", ["OspSystemStructure.xml", "SystemStructure.ssd"])
+def test_osp_and_ssp_systems_load_as_their_toml_conversion_and_run_the_two_mass_system(examples, tmp_path, system):
+    from tests.manager.test_cli import zencosim as cli
+    from tests.manager.test_system_imports import OSP_MODEL_DESCRIPTION, osp_system, ssd_system
+    directory = tmp_path / "system"
+    directory.mkdir()
+    (directory / "oscillator.fmu").write_bytes((examples / "oscillator_fmi2.fmu").read_bytes())
+    (directory / "zencosim oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)
+    (directory / system).write_text(osp_system() if system.endswith(".xml") else ssd_system())
+    converted = cli("convert", str(directory / system), "--to", str(directory / "converted.toml"))
+    assert converted.returncode == 0, converted.stderr
+    imported = zencosim.load_scene(directory / system)
+    assert imported.digest == zencosim.load_scene(directory / "converted.toml").digest  # the same scene
+    assert imported.notes and "mapped:" in cli("check", str(directory / system)).stdout
+    run = zencosim.run(imported)
+    builtin = zencosim.run("two_mass_damped")
+    x2 = run.signal("c1.x").values
+    assert np.max(np.abs(x2 - builtin.signal("x2").values)) <= ROUNDING * np.max(np.abs(builtin.signal("x2").values))

@@ -2,12 +2,16 @@
 from __future__ import annotations
 
 import argparse
+import os
+from pathlib import Path
 
+import tomli_w
 from rich.markup import escape
 from rich.table import Table
 
-from zencosim.cli.console import add_scene_arguments, examples, out
+from zencosim.cli.console import add_scene_arguments, examples, out, say
 from zencosim.manager.assembly import plan_scene
+from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import bundled_scene_names, load_scene
 
 
@@ -25,6 +29,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, args.overrides)
     plan, _ = plan_scene(scene)
     out.print(f"[bold]scene {escape(scene.name)}[/]: valid — {escape(scene.description)}")
+    for note in scene.notes:
+        out.print(escape(f"  mapped: {note}"), highlight=False)
     out.print(f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s, scheme {scene.manager.scheme}, "
               f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(b.name for b in plan.bonds) or 'none'}")
     if scene.manager.implicit is not None:
@@ -42,6 +48,22 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_convert(args: argparse.Namespace) -> int:
+    """A system description (OSP XML, SSP) as a TOML scene, its FMU paths relative to the new file."""
+    from zencosim.manager.scene.imports import import_system
+    target = check_output_file(args.to, "scene", (".toml",))
+    document, notes = import_system(Path(args.system), args.duration)
+    source_directory = Path(args.system).resolve().parent
+    for table in document["subsystems"].values():
+        if "fmu" in table:
+            table["fmu"] = Path(os.path.relpath(source_directory / table["fmu"], target.resolve().parent)).as_posix()
+    header = "".join(f"# {line}\n" for line in [f"converted from {args.system} by zencosim convert", *notes])
+    target.write_text(header + "\n" + tomli_w.dumps(document))
+    load_scene(str(target))  # what was written loads as a scene
+    say(f"wrote {target}")
+    return 0
+
+
 def add_parsers(commands) -> None:
     commands.add_parser("scenes", help="list the bundled scenes").set_defaults(handler=cmd_scenes)
     check = commands.add_parser("check", help="validate a scene and show what it builds",
@@ -49,3 +71,13 @@ def add_parsers(commands) -> None:
                                            "zencosim check my_scene.toml --set manager.macro_step=0.002"))
     add_scene_arguments(check)
     check.set_defaults(handler=cmd_check)
+
+    convert = commands.add_parser(
+        "convert", help="write an OSP system structure (.xml) or an SSP system (.ssp, .ssd) as a TOML scene",
+        **examples("zencosim convert OspSystemStructure.xml --to two_mass.toml",
+                   "zencosim check OspSystemStructure.xml      # what it maps to, without writing it"))
+    convert.add_argument("system", help="an OSP system structure (.xml) or an SSP system (.ssp, .ssd)")
+    convert.add_argument("--to", required=True, metavar="SCENE.toml", help="the scene to write")
+    convert.add_argument("--duration", type=float, metavar="SECONDS",
+                         help="the simulated time (default: the file's end time, else 10 s)")
+    convert.set_defaults(handler=cmd_convert)

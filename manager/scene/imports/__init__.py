@@ -29,23 +29,11 @@ from typing import Any
 
 from zencosim.manager.scene.load import SceneError
 from zencosim.subsystems.params import Problems
-
-BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-Exponents = tuple[int, ...]
-
-
-def _dims(**powers: int) -> Exponents:
-    return tuple(powers.get(name, 0) for name in BASE)
-
+from zencosim.subsystems.units import BASE, Exponents, UnitError, describe, exponents
 
 QUANTITIES: dict[str, tuple[str, Exponents]] = {  # quantity -> (SI unit, base-unit exponents)
-    "force": ("N", _dims(kg=1, m=1, s=-2)),
-    "velocity": ("m/s", _dims(m=1, s=-1)),
-    "displacement": ("m", _dims(m=1)),
-    "energy": ("J", _dims(kg=1, m=2, s=-2)),
-}
-_DERIVED = {"N": QUANTITIES["force"][1], "J": QUANTITIES["energy"][1], "W": _dims(kg=1, m=2, s=-3),
-            "Pa": _dims(kg=1, m=-1, s=-2), "Hz": _dims(s=-1)}
+    name: (unit, exponents(unit)) for name, unit in (("force", "N"), ("velocity", "m/s"), ("displacement", "m"),
+                                                     ("energy", "J"))}
 _TORQUE_NAMES = {"N.m", "N*m", "N m", "Nm", "m.N"}
 REAL_TYPES = ("Real", "Float64")
 MIXED = "mixed quantities"  # a link whose variables disagree (reported where found)
@@ -150,39 +138,19 @@ def unit_exponents(unit: str, definitions: dict[str, UnitDefinition]) -> tuple[E
             return None, (f"unit {unit!r} is not SI (factor {definition.factor:g}, offset {definition.offset:g}): "
                           "zencosim exchanges SI values and converts none")
         return definition.exponents, None
-    found = _exponents_of_name(unit)
-    if found is None:
+    try:
+        return exponents(unit), None
+    except UnitError:
         return None, (f"unit {unit!r} is neither defined with base-unit exponents nor a coherent SI unit "
                       f"(e.g. N, m, m/s, J): zencosim exchanges SI values and converts none")
-    return found, None
 
 
-def _exponents_of_name(unit: str) -> Exponents | None:
-    numerator, _, denominator = unit.strip().partition("/")
-    if "/" in denominator or not numerator.strip():
-        return None
-    total = [0] * len(BASE)
-    for part, sign in ((numerator, 1), (denominator, -1)):
-        for factor in filter(None, re.split(r"[.* ]+", part)):
-            if factor == "1":
-                continue
-            match = re.fullmatch(r"([A-Za-z]+)\^?(-?\d+)?", factor)
-            if match is None:
-                return None
-            name, power = match.group(1), int(match.group(2) or 1)
-            exponents = _dims(**{name: 1}) if name in BASE else _DERIVED.get(name)
-            if exponents is None:
-                return None
-            total = [t + sign * power * e for t, e in zip(total, exponents)]
-    return tuple(total)
-
-
-def quantity_of(exponents: Exponents) -> str:
+def quantity_of(found: Exponents) -> str:
     """``force``, ``velocity``, ``displacement``, ``energy``, or the exponents written out."""
     for name, (_, dims) in QUANTITIES.items():
-        if dims == exponents:
+        if dims == found:
             return name
-    return " ".join(f"{b}{e}" if e != 1 else b for b, e in zip(BASE, exponents) if e) or "dimensionless"
+    return describe(found) if any(found) else "dimensionless"
 
 
 @dataclass

@@ -139,12 +139,17 @@ class _FmuInstance:
         self._u_view = np.ctypeslib.as_array(self._u) if inputs else np.zeros(0)
         self._y_view = np.ctypeslib.as_array(self._y) if outputs else np.zeros(0)
         self.time = 0.0
-        with self.calling("initialisation"):
+        from fmpy.fmi1 import FMICallException
+        self.FailedCall = FMICallException  # fmpy raises it for a status worse than warning
+        try:
             self._initialise(start)
+        except FMICallException as error:
+            raise self.failure(error, "initialising it") from None
 
-    def calling(self, what: str):
-        """A context in which a failed FMI call becomes an :class:`FmuError` naming the FMU and time."""
-        return _Calling(self, what)
+    def failure(self, error, what: str) -> FmuError:
+        """A failed FMI call as an :class:`FmuError` naming the FMU, the call, its status and the time."""
+        return FmuError(f"FMU {self.path.name}: {error.function} failed with status {error.status} "
+                        f"({_STATUS.get(error.status, 'unknown')}) while {what} at t = {self.time:.9g} s")
 
     def set_inputs(self, u: np.ndarray) -> None:
         if len(self._u_view):
@@ -158,22 +163,26 @@ class _FmuInstance:
 
     def save_state(self) -> bytes | object:
         """The FMU state: serialised bytes where the FMU can serialise it, else the FMU's own handle."""
-        with self.calling("saving its state"):
+        try:
             state = self.fmu.getFMUState()
             if not self._serialise:
                 return _Handle(self.fmu, state)
             data = self._serialize(state)
             self.fmu.freeFMUState(state)
             return data
+        except self.FailedCall as error:
+            raise self.failure(error, "saving its state") from None
 
     def restore_state(self, state) -> None:
-        with self.calling("restoring its state"):
+        try:
             if isinstance(state, _Handle):
                 self.fmu.setFMUState(state.state)
             else:
                 handle = self._deserialize(state)
                 self.fmu.setFMUState(handle)
                 self.fmu.freeFMUState(handle)
+        except self.FailedCall as error:
+            raise self.failure(error, "restoring its state") from None
 
 
 class FmuCoSimulation(_FmuInstance):
@@ -213,17 +222,21 @@ class FmuCoSimulation(_FmuInstance):
 
     def do_step(self, t: float, h: float, u: np.ndarray) -> None:
         self.time = t
-        with self.calling("doStep"):
+        try:
             self.set_inputs(u)
             result = self._step(t, h, False)  # False: zencosim may set an earlier state (rollback)
+        except self.FailedCall as error:
+            raise self.failure(error, "doStep") from None
         if self.version == "3" and result[1]:  # terminateSimulation
             raise FmuError(f"FMU {self.path.name}: asked to terminate the simulation at t = {t:.9g} s")
 
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         self.time = t
-        with self.calling("reading its outputs"):
+        try:
             self.set_inputs(u)
             return self.get_outputs()
+        except self.FailedCall as error:
+            raise self.failure(error, "reading its outputs") from None
 
 
 class FmuModelExchange(_FmuInstance):
@@ -268,15 +281,19 @@ class FmuModelExchange(_FmuInstance):
         self.set_inputs(u)
 
     def derivative(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
-        with self.calling("its derivatives"):
+        try:
             self._at(t, z, u)
             self.fmu.fmi2GetDerivatives(self.fmu.component, self._dx, self.n_states)
             return self._dx_view.copy()
+        except self.FailedCall as error:
+            raise self.failure(error, "computing its derivatives") from None
 
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
-        with self.calling("reading its outputs"):
+        try:
             self._at(t, z, u)
             return self.get_outputs()
+        except self.FailedCall as error:
+            raise self.failure(error, "reading its outputs") from None
 
 
 def _set_start(setter, references: dict[str, int], start: dict[str, float]) -> None:
@@ -290,22 +307,6 @@ class _Handle:
     def __init__(self, fmu, state) -> None:
         self.state = state
         weakref.finalize(self, fmu.freeFMUState, state)
-
-
-class _Calling:
-    def __init__(self, instance: _FmuInstance, what: str) -> None:
-        self.instance, self.what = instance, what
-
-    def __enter__(self) -> None:
-        return None
-
-    def __exit__(self, kind, error, _traceback) -> bool:
-        from fmpy.fmi1 import FMICallException
-        if isinstance(error, FMICallException):
-            raise FmuError(f"FMU {self.instance.path.name}: {error.function} failed with status {error.status} "
-                           f"({_STATUS.get(error.status, 'unknown')}) while {self.what} at t = "
-                           f"{self.instance.time:.9g} s") from None
-        return False
 
 
 _STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
