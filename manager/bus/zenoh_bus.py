@@ -48,6 +48,8 @@ STARTUP_TIMEOUT_S = 30.0  # a spawned subsystem process must join within this ti
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
 START_DELAY_NS = 50_000_000  # the first step is released this long after the start signal (real time)
 PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
+SETTLE_S = 2.0  # a failure is reported after the follower has taken what was sent before it, waiting at most this
+SETTLE_QUIET_S = 0.2  # and until no batch has arrived for this long
 
 
 class ZenohBus:
@@ -247,6 +249,7 @@ class ZenohBus:
             while not self._done.wait(0.05):
                 failure = self._watchdog()
                 if failure is not None:
+                    self._settle()
                     with self._lock:
                         self._error = self._error or failure
                         self._done.set()
@@ -334,6 +337,16 @@ class ZenohBus:
             return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
                                           + ("; its process does not respond" if frozen else ""))
         return None
+
+    def _settle(self) -> None:
+        """Before a process that exited or went silent is blamed: let the follower take the replies that are
+        still arriving or queued (a subsystem that failed sent the reason first, in its last batch, and then
+        exited), at most ``SETTLE_S``; the reason it finds is the run's error."""
+        deadline = time.monotonic() + SETTLE_S
+        while time.monotonic() < deadline and not self._done.is_set():
+            if self._batches.empty() and time.monotonic() - self._heard > SETTLE_QUIET_S:
+                return
+            time.sleep(0.01)
 
     def _unresponsive(self) -> list[str]:
         """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together)."""

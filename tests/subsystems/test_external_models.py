@@ -10,6 +10,7 @@ which a damped run of 10 000 steps keeps near 1e-13 relative (measured 3.5e-14 f
 from __future__ import annotations
 
 import os
+import sys
 import zipfile
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from tests.conftest import alive, children_of
 from zencosim.examples.fmus.build import build_fmu
 from zencosim.examples.write import write_examples
 from zencosim.manager.bus.zenoh_session import free_tcp_port
+from zencosim.subsystems.models.external import model as external_model
 
 ROUNDING = 1e-12  # relative to the signal's largest value (module text)
 
@@ -130,6 +132,9 @@ def user_module(tmp_path, monkeypatch) -> Path:
     """A module ``user_spring`` outside the package, importable here and by child processes (PYTHONPATH)."""
     (tmp_path / "user_spring.py").write_text(USER_MODEL)
     monkeypatch.syspath_prepend(str(tmp_path))
+    for module in ("user_spring", "broken_spring"):  # each test imports its own copy, not an earlier test's
+        monkeypatch.delitem(sys.modules, module, raising=False)
+    monkeypatch.setattr(external_model, "_PYTHON_MODELS", {})
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
     return tmp_path
 
@@ -307,3 +312,29 @@ def test_osp_and_ssp_systems_load_as_their_toml_conversion_and_run_the_two_mass_
     builtin = zencosim.run("two_mass_damped")
     x2 = run.signal("c1.x").values
     assert np.max(np.abs(x2 - builtin.signal("x2").values)) <= ROUNDING * np.max(np.abs(builtin.signal("x2").values))
+
+
+def test_a_model_a_package_registers_in_the_entry_points_is_found_by_name(user_module):
+    """What pip writes for a package that declares [project.entry-points."zencosim.models"]."""
+    info = user_module / "user_models-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: user-models\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[zencosim.models]\nspring = user_spring:Spring\n")
+    by_name = zencosim.run(zencosim.load_scene(_user_scene(user_module, "spring"), {"manager.duration": 0.1}))
+    by_class = zencosim.run(zencosim.load_scene(_user_scene(user_module, "user_spring:Spring"), {"manager.duration": 0.1}))
+    assert by_name.digest == by_class.digest
+    with pytest.raises(zencosim.SceneError, match="no model 'sprung': expected a built-in model, 'fmu', "
+                                                  "'package.module:Class' or a name registered in the entry-point "
+                                                  "group 'zencosim.models' \\(spring\\)"):
+        zencosim.load_scene(_user_scene(user_module, "sprung"))
+
+
+@pytest.mark.multiprocess
+def test_zencosim_examples_writes_scenes_that_load(tmp_path):
+    from tests.manager.test_cli import zencosim as cli
+    result = cli("examples", str(tmp_path / "examples"))
+    assert result.returncode == 0, result.stderr
+    written = sorted(p.name for p in (tmp_path / "examples").glob("*.toml"))
+    assert "two_mass_damped_fmu.toml" in written and "two_mass_damped_python.toml" in written
+    for scene in written:
+        zencosim.load_scene(tmp_path / "examples" / scene)
