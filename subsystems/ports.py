@@ -25,10 +25,17 @@ class Port:
     quantity: Quantity
     feedthrough: bool = False  # an output that depends on the inputs at the same instant
     signal_unit: str | None = None  # the SI unit of a "signal": any other quantity (a component's variable)
+    depends_on: tuple[str, ...] | None = None  # the inputs a feedthrough output depends on (None: all of them)
 
     @property
     def unit(self) -> str:
         return self.signal_unit if self.quantity == "signal" else UNITS[self.quantity]
+
+    def direct_inputs(self, inputs: tuple["Port", ...]) -> tuple[int, ...]:
+        """Indices, among ``inputs``, of the inputs this output depends on at the same instant."""
+        if not self.feedthrough:
+            return ()
+        return tuple(j for j, p in enumerate(inputs) if self.depends_on is None or p.name in self.depends_on)
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,15 @@ class Feed:
 
 
 @dataclass(frozen=True)
+class InitStep:
+    """One initial-output request: subsystem ``subsystem`` gets the values of its ``ready`` inputs (the
+    final ones), 0 for the others."""
+
+    subsystem: int
+    ready: tuple[int, ...]
+
+
+@dataclass(frozen=True)
 class SubsystemPlan:
     index: int
     name: str
@@ -60,7 +69,7 @@ class BondPlan:
 class Plan:
     subsystems: tuple[SubsystemPlan, ...]
     bonds: tuple[BondPlan, ...]
-    init_rounds: tuple[tuple[int, ...], ...]  # who reports initial outputs first (no feedthrough), then who
+    init_rounds: tuple[tuple[InitStep, ...], ...]  # the initial-output requests, round by round (_init_rounds)
     signals: dict[str, tuple[int, int]]  # coupling signal name -> (subsystem, output)
     base_step_ns: int
     n_ticks: int
@@ -73,7 +82,8 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     """Build the plan; ``ports[name] = (inputs, outputs, effects)`` of each built subsystem.
 
     Raises :class:`SceneError` when an input is unfed, a route joins ports of different units, or
-    outputs with direct feedthrough form an algebraic loop that an explicit scheme cannot initialise.
+    outputs with direct feedthrough form an algebraic loop that an explicit scheme cannot initialise
+    (feedthrough is per output: a chain whose force sides feed through from states is no loop).
     Inputs that a coupling's ``computed_inputs()`` lists (coupling variables of a rigid joint) are fed
     by the manager.
     """
@@ -127,18 +137,44 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
                 scene.manager.duration_ns // scene.manager.macro_step_ns)
 
 
-def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[int, ...], ...]:
-    """Order the initial-output requests: a subsystem with a feedthrough output waits for its sources."""
-    waits = {s.index: ({f.source for f in s.feeds} if any(p.feedthrough for p in s.outputs) else set()) for s in plans}
-    done: set[int] = set()
+def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[InitStep, ...], ...]:
+    """Order the initial-output requests by output: an output is final once every input it depends on at the
+    same instant (``Port.direct_inputs``) carries a final value; each round asks every subsystem with outputs
+    that can now be finalised, with the inputs that are final (the others 0, which those outputs ignore).
+    Outputs without feedthrough are final in the first round. Outputs left over sit on or behind a real
+    algebraic loop, which is named."""
+    sources = {(s.index, j): (f.source, o) for s in plans for f in s.feeds for o, j in zip(f.outputs, f.inputs)}
+    depends = {(s.index, k): [sources[(s.index, j)] for j in port.direct_inputs(s.inputs) if (s.index, j) in sources]
+               for s in plans for k, port in enumerate(s.outputs)}
+    final: set[tuple[int, int]] = set()
     rounds = []
-    while len(done) < len(plans):
-        ready = tuple(sorted(i for i, deps in waits.items() if i not in done and deps <= done))
-        if not ready:
-            loop = ", ".join(plans[i].name for i in sorted(set(waits) - done))
-            problems.add("couplings", f"outputs with direct feedthrough form an algebraic loop between {loop}; "
-                         "an explicit scheme cannot initialise them")
+    while len(final) < len(depends):
+        steps, newly = [], set()
+        for s in plans:
+            finalisable = [(s.index, k) for k in range(len(s.outputs))
+                           if (s.index, k) not in final and all(d in final for d in depends[(s.index, k)])]
+            if finalisable:
+                ready = tuple(j for j in range(len(s.inputs)) if sources.get((s.index, j)) in final)
+                steps.append(InitStep(s.index, ready))
+                newly.update(finalisable)
+        if not steps:
+            problems.add("couplings", "outputs with direct feedthrough form an algebraic loop: "
+                         + _loop_text(plans, depends, final) + "; an explicit scheme cannot initialise them")
             break
-        rounds.append(ready)
-        done.update(ready)
+        rounds.append(tuple(steps))
+        final |= newly
     return tuple(rounds)
+
+
+def _loop_text(plans: list[SubsystemPlan], depends: dict, final: set) -> str:
+    """One cycle among the outputs that could not be finalised: ``S1.fc <- S2.x2 <- S1.fc``."""
+    def name(node: tuple[int, int]) -> str:
+        return f"{plans[node[0]].name}.{plans[node[0]].outputs[node[1]].name}"
+
+    node = next(n for n in depends if n not in final)
+    path: list[tuple[int, int]] = []
+    while node not in path:  # every pending output depends on a pending one: walking back must repeat
+        path.append(node)
+        node = next(d for d in depends[node] if d not in final)
+    cycle = path[path.index(node):] + [node]
+    return " <- ".join(name(n) for n in cycle)

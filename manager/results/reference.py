@@ -117,7 +117,8 @@ class CoupledSystem:
         """Every subsystem's input values at time t [s] and state ``Z``."""
         outputs: list = [None] * len(self.models)
         for round_ in self.plan.init_rounds:
-            for i in round_:
+            for step in round_:
+                i = step.subsystem
                 outputs[i] = self.models[i].outputs_at(t, Z[self.slices[i]], self._inputs(i, outputs))
         inputs = [self._inputs(i, outputs) for i in range(len(self.models))]
         for joint in self.joints:

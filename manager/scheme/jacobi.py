@@ -115,21 +115,21 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
 
 def _initial_outputs(plan: Plan, traj: list[np.ndarray], input_polynomial) -> Generator[Exchange, dict[str, bytes], None]:
-    """The outputs at t_0, sources before the subsystems whose feedthrough outputs need them; a subsystem
-    without feedthrough reports before its sources, with zero inputs that its outputs do not depend on."""
+    """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
+    each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
+    its last reply."""
     subs = plan.subsystems
-    initialised: set[int] = set()
     for round_ in plan.init_rounds:
         sends = {}
-        for i in round_:
-            s = subs[i]
-            ready = all(f.source in initialised for f in s.feeds)
-            w0 = input_polynomial(s, 0)[:1] if ready else np.zeros((1, len(s.inputs)))
+        for step in round_:
+            s = subs[step.subsystem]
+            w0 = np.zeros((1, len(s.inputs)))
+            if step.ready:
+                w0[0, list(step.ready)] = input_polynomial(s, 0)[0, list(step.ready)]
             sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
         replies = yield Exchange(sends, tuple(sends))
-        for i in round_:
-            traj[i][0] = decode_output(replies[subs[i].name], subs[i], 0)
-        initialised.update(round_)
+        for step in round_:
+            traj[step.subsystem][0] = decode_output(replies[subs[step.subsystem].name], subs[step.subsystem], 0)
 
 
 def _schedule(plan: Plan) -> tuple:

@@ -33,6 +33,7 @@ They are the whole model when ``nonlinear`` is false.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -237,14 +238,15 @@ class MassesModel:
                 if relay.port == out.ports[0]:
                     relayed = self._relayed_force(relay, layout)
                     row_z, row_w, row_f = row_z + relayed[0], row_w + relayed[1], row_f + relayed[2]
-            feedthrough = bool(np.any(row_w != 0.0))
+            through_elements = []  # the inputs of the nonlinear elements' terminals (their forces are not in row_w)
             for name in out.effects:
                 if name in nonlinear_index:
                     endpoints = layout.by_name[name].endpoints
                     self._nonlinear_outputs.append((len(rows.ports), nonlinear_index[name],
                                                     1.0 if endpoints[0] == out.point else -1.0))
-                    feedthrough |= any(p is not None and point_index[p] >= n for p in endpoints)
-            rows.add(Port(out.ports[0], "force", feedthrough=feedthrough), row_z, row_w, row_f)
+                    through_elements += [port for p in endpoints if p is not None and point_index[p] >= n
+                                         for port in layout.terminal_inputs(p)]
+            rows.add(Port(out.ports[0], "force"), row_z, row_w, row_f, through=tuple(through_elements))
 
     def _add_joint_outputs(self, layout: "_Layout", forces: "_Forces", rows: "_Rows") -> None:
         """Per joint side: position, velocity, acceleration, force ``f = sign × (joint force on the body)``, 1/m.
@@ -265,10 +267,8 @@ class MassesModel:
                 self._joint_nonlinear.append((len(rows.ports) + 3, i, -side.sign))  # μ −= sign f_nl
             rows.add(Port(side.positions[0], "position"), np.eye(2 * n)[i])
             rows.add(Port(side.velocities[0], "velocity"), np.eye(2 * n)[n + i])
-            accelerating = bool(np.any(self.B_a[i] != 0.0))
-            rows.add(Port(side.accelerations[0], "acceleration", feedthrough=accelerating), self.A_a[i], self.B_a[i],
-                     self._E_a[i])
-            rows.add(Port(side.forces[0], "force", feedthrough=bool(np.any(f_w != 0.0))), f_z, f_w, f_e)
+            rows.add(Port(side.accelerations[0], "acceleration"), self.A_a[i], self.B_a[i], self._E_a[i])
+            rows.add(Port(side.forces[0], "force"), f_z, f_w, f_e)
             rows.add(Port(side.inverse_masses[0], "inverse_mass"), np.zeros(2 * n), constant=1.0 / mass)
 
     def _build_energy(self, layout: "_Layout", rows: "_Rows", forces: "_Forces") -> None:
@@ -399,12 +399,17 @@ class _Rows:
 
     def __init__(self, layout: "_Layout", n_external: int) -> None:
         self.n_inputs, self.n_external = layout.n_in, n_external
+        self.input_names = tuple(sorted(layout.input_index, key=layout.input_index.get))
         self.z, self.w, self.F_y, self.constants, self.ports = [], [], [], [], []
 
     def add(self, port: Port, row_z: np.ndarray, row_w: np.ndarray | None = None, row_f: np.ndarray | None = None,
-            constant: float = 0.0) -> None:
-        """One output (missing rows: zero)."""
-        self.ports.append(port)
+            constant: float = 0.0, through: tuple[str, ...] = ()) -> None:
+        """One output (missing rows: zero); it feeds through the inputs its w-row weighs and those ``through``
+        names (inputs that act on it beyond the linear rows)."""
+        direct = {self.input_names[j] for j in np.flatnonzero(row_w)} if row_w is not None else set()
+        direct.update(through)
+        depends_on = tuple(name for name in self.input_names if name in direct)
+        self.ports.append(dataclasses.replace(port, feedthrough=bool(depends_on), depends_on=depends_on or None))
         self.z.append(row_z)
         self.w.append(np.zeros(self.n_inputs) if row_w is None else row_w)
         self.F_y.append(np.zeros(self.n_external) if row_f is None else row_f)
@@ -424,6 +429,11 @@ class _Layout:
         self.input_index = {p.name: j for j, p in enumerate(inputs)}
         self.n_in = len(inputs)
         self.by_name = by_name  # the active effects, in scene order
+
+    def terminal_inputs(self, point: str) -> tuple[str, ...]:
+        """The position and velocity inputs of terminal ``point``."""
+        t = self.terminals[self.point_index[point] - self.n]
+        return (t.position_inputs[0], t.velocity_inputs[0])
 
     def coordinates(self, point: str | None) -> tuple[int, int] | None:
         """Indices of a point's position and velocity in ``s = [x, v, w]`` (None: the ground)."""

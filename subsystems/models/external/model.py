@@ -348,14 +348,17 @@ class _Ports:
             self.u_columns.append(len(self.inputs) - 1)
             self.u_scale.append(sign)
 
-    def _feeds_through(self, variable: str) -> bool:
+    def _direct_inputs(self, variable: str) -> tuple[str, ...]:
+        """The zencosim input ports a component output depends on at the same instant."""
         depends = self.spec.description.variables[variable].depends_on
-        return bool(self.component_inputs) if depends is None else bool(set(depends) & set(self.component_inputs))
+        return tuple(port.name for port, name in zip(self.inputs, self.component_inputs)
+                     if depends is None or name in depends)
 
     def _variable_output(self, port: Port, variable: str, scale: float) -> None:
         if variable not in self.component_outputs:
             self.component_outputs.append(variable)
-        self.outputs.append(Port(port.name, port.quantity, feedthrough=self._feeds_through(variable)))
+        direct = self._direct_inputs(variable)
+        self.outputs.append(Port(port.name, port.quantity, bool(direct), port.signal_unit, direct))
         self.output_sources.append(("variable", self.component_outputs.index(variable), scale))
 
     def _output(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, scale: float = 1.0) -> None:
@@ -370,7 +373,7 @@ class _Ports:
             self._output(side.forces, point_map, "joint_force", "force", side.sign)
         else:  # force drive: the applied force sign × λ*, so f = λ*, the input itself
             for port, received in zip(side.forces, side.inputs):
-                self.outputs.append(Port(port, "force", feedthrough=True))
+                self.outputs.append(Port(port, "force", feedthrough=True, depends_on=(received,)))
                 self.output_sources.append(("input", [p.name for p in self.inputs].index(received)))
         if isinstance(point_map.inverse_mass, float):
             for port in side.inverse_masses:

@@ -1,0 +1,89 @@
+"""Topology by output: a chain runs (each force output feeds through only from the next mass's motion, a
+state), a star runs, and a real algebraic loop is refused naming the outputs on it."""
+from __future__ import annotations
+
+import pytest
+
+import zencosim
+from tests.conftest import REPO
+from zencosim.scenes.topologies import mass_chain, mass_star
+
+LOOPING_MODEL = '''
+import numpy as np
+
+class Soft:
+    """A mass whose reported position leads by the applied force: x_out = x + f / k_out (feedthrough)."""
+    inputs = {"f": "N"}
+    outputs = {"x": "m", "v": "m/s"}
+    feedthrough = {"x": ("f",)}
+    parameters = {"m": 1.0, "k_out": 1000.0}
+    second_order = True
+
+    def __init__(self, m, k_out):
+        self.m, self.k_out = m, k_out
+
+    def initial_state(self):
+        return np.array([0.0, 0.0])
+
+    def acceleration(self, t, z, u):
+        return np.array([u[0] / self.m])
+
+    def outputs_at(self, t, z, u):
+        return np.array([z[0] + u[0] / self.k_out, z[1]])
+'''
+
+
+def test_the_bundled_chain_is_the_generated_one():
+    assert (REPO / "scenes" / "mass_chain.toml").read_text() == mass_chain(5)
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+def test_a_chain_of_five_runs_on_both_buses_with_one_digest():
+    scene = zencosim.load_scene("mass_chain", {"manager.duration": 1.0})
+    inproc = zencosim.run(scene)
+    assert inproc.summary["stable"] and inproc.summary["signals"]["x5"]["nrms"] < 0.05  # against the analytic solution
+    assert zencosim.run(scene, "zenoh").digest == inproc.digest
+
+
+def test_chains_and_stars_initialise_in_two_rounds_whatever_their_size(tmp_path):
+    for n in (2, 3, 9):
+        for kind, text in (("chain", mass_chain(n, duration=0.01)), ("star", mass_star(n, duration=0.01))):
+            path = tmp_path / f"{kind}{n}.toml"
+            path.write_text(text)
+            result = zencosim.run(path)
+            assert len(result.record.plan.init_rounds) == 2, (kind, n)  # motion outputs, then the forces
+            assert result.summary["stable"]
+
+
+def test_a_real_algebraic_loop_is_refused_naming_its_outputs(tmp_path, monkeypatch):
+    (tmp_path / "soft_mass.py").write_text(LOOPING_MODEL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    scene = tmp_path / "loop.toml"
+    scene.write_text('''
+name = "loop"
+[manager]
+duration = 0.01
+macro_step = 0.001
+[outputs]
+reference = "none"
+[subsystems.S1]
+model = "masses"
+micro_step = 0.001
+bodies.m1 = { mass = 1.0 }
+[subsystems.S2]
+model = "soft_mass:Soft"
+micro_step = 0.001
+points.p = { force_input = "f", position = "x", velocity = "v" }
+[couplings.c]
+type = "force_displacement"
+force_side = "S1.m1"
+motion_side = "S2.p"
+force = "fc"
+displacement = "x2"
+velocity = "v2"
+effects.kc = { type = "spring", stiffness = 100.0 }
+''')
+    with pytest.raises(zencosim.SceneError, match=r"couplings: outputs with direct feedthrough form an algebraic loop: "
+                                                  r"S1\.fc <- S2\.x2 <- S1\.fc; an explicit scheme cannot initialise"):
+        zencosim.run(scene)
