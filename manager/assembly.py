@@ -43,12 +43,23 @@ def plan_scene(scene: Scene) -> tuple[Plan, dict]:
 
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
                 progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
-                spin_ns: int = SPIN_ALONE_NS):
+                spin_ns: int = SPIN_ALONE_NS, local: frozenset[int] | None = None):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
-    recorded run); ``spin_ns``: see ``manager.scheme.pacing``."""
+    recorded run); ``spin_ns``: see ``manager.scheme.pacing``; ``local``: the subsystems this process computes
+    commands for (``manager.scheme.jacobi``; None: all; the implicit scheme always follows all)."""
     pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns, spin_ns) if realtime else None
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status)
-    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction), status)
+    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local), status, local)
+
+
+def process_scope(scene: Scene, plan: Plan, name: str) -> tuple[frozenset[int] | None, frozenset[str]]:
+    """What the process of subsystem ``name`` computes and whom it exchanges with: its ``local`` set for
+    ``make_scheme`` (its own subsystem; None under the implicit scheme, whose every process follows the
+    whole joint) and the names of the processes it needs direct links to."""
+    own = plan.by_name(name).index
+    if scene.manager.scheme == "implicit":
+        return None, frozenset(s.name for s in plan.subsystems if s.name != name)
+    return frozenset({own}), frozenset(plan.subsystems[i].name for i in plan.partners(own))

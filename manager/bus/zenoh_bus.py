@@ -25,7 +25,7 @@ from typing import Callable
 
 import zenoh
 
-from zencosim.manager.assembly import make_scheme
+from zencosim.manager.assembly import make_scheme, process_scope
 from zencosim.manager.bus.children import start_child
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
@@ -132,7 +132,8 @@ class ZenohBus:
         """The ``zencosim`` arguments of subsystem ``name``'s process (also what a user runs by hand, plus --run-id).
 
         A spawned subsystem listens on ``listen`` and connects to the manager and to ``peers``, the
-        subsystems spawned before it, so that every pair of processes has a direct link."""
+        subsystems spawned before it that it exchanges values with, so that every pair of processes that
+        exchanges has a direct link (and no other pair: links grow with the couplings, not with n²)."""
         command = ["subsystem", self.scene.path, name, "--connect", reachable(self.endpoint, "127.0.0.1")]
         for peer in peers:
             command += ["--connect", peer]
@@ -146,7 +147,7 @@ class ZenohBus:
         return command
 
     def _spawn(self) -> None:
-        spawned: list[str] = []
+        spawned: dict[str, str] = {}  # name -> the endpoint the others reach it at
         for name in self.names:
             if name in self.external:
                 if self.announce is not None:
@@ -157,10 +158,12 @@ class ZenohBus:
             host = endpoint_host(self.endpoint)  # where the manager listens: loopback, or every interface
             listen = f"tcp/{host}:{free_tcp_port(host)}"
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
-            self.children[name] = start_child("zencosim", self.spawn_arguments(name, listen, tuple(spawned)),
+            _, partners = process_scope(self.scene, self.plan, name)
+            peers = tuple(endpoint for peer, endpoint in spawned.items() if peer in partners)
+            self.children[name] = start_child("zencosim", self.spawn_arguments(name, listen, peers),
                                               stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
             log.close()
-            spawned.append(reachable(listen, "127.0.0.1"))
+            spawned[name] = reachable(listen, "127.0.0.1")
             self._endpoints[name] = listen  # a subsystem started by hand elsewhere connects to it (subsystems.process.host)
         # a subsystem started by hand finds the run only now, with every spawned subsystem's endpoint in the
         # answer: asked earlier, it would miss one, and the two would never link directly
@@ -249,7 +252,6 @@ class ZenohBus:
             while not self._done.wait(0.05):
                 failure = self._watchdog()
                 if failure is not None:
-                    self._settle()
                     with self._lock:
                         self._error = self._error or failure
                         self._done.set()
@@ -321,10 +323,10 @@ class ZenohBus:
         for name in self.names:
             failure = self._exited(name)
             if failure:
-                return failure
+                return self._settle(failure)
         if self._lost:
             name = self._lost[0]
-            return SubsystemFailure(name, "its process is gone (liveliness token lost)")
+            return self._settle(SubsystemFailure(name, "its process is gone (liveliness token lost)"))
         # read without the lock, which the idle-priority follower may hold while it waits for a core
         steps, missing = self._replica.steps_done, self._replica.waiting_for()
         if steps != self._progress[0]:
@@ -338,15 +340,19 @@ class ZenohBus:
                                           + ("; its process does not respond" if frozen else ""))
         return None
 
-    def _settle(self) -> None:
-        """Before a process that exited or went silent is blamed: let the follower take the replies that are
-        still arriving or queued (a subsystem that failed sent the reason first, in its last batch, and then
-        exited), at most ``SETTLE_S``; the reason it finds is the run's error."""
+    def _settle(self, failure: SubsystemFailure) -> SubsystemFailure:
+        """Before a process that exited or left is blamed: let the follower take the replies
+        still arriving or queued (a subsystem that failed sends the reason first, in its last batch, then
+        exits), and let a process that left the run exit, at most ``SETTLE_S``. The reason the follower finds
+        is the run's error; else a spawned process's exit status and the end of its log; else ``failure``."""
         deadline = time.monotonic() + SETTLE_S
+        child = self.children.get(failure.subsystem)
         while time.monotonic() < deadline and not self._done.is_set():
-            if self._batches.empty() and time.monotonic() - self._heard > SETTLE_QUIET_S:
-                return
+            quiet = self._batches.empty() and time.monotonic() - self._heard > SETTLE_QUIET_S
+            if quiet and (child is None or child.poll() is not None):
+                break
             time.sleep(0.01)
+        return self._exited(failure.subsystem) or failure
 
     def _unresponsive(self) -> list[str]:
         """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together)."""

@@ -77,6 +77,18 @@ class Plan:
     def by_name(self, name: str) -> SubsystemPlan:
         return next(s for s in self.subsystems if s.name == name)
 
+    def sources(self, index: int) -> frozenset[int]:
+        """The subsystems whose outputs feed subsystem ``index``."""
+        return frozenset(f.source for f in self.subsystems[index].feeds)
+
+    def partners(self, index: int) -> frozenset[int]:
+        """The subsystems subsystem ``index`` exchanges values with: its sources and the ones it feeds."""
+        return self.sources(index) | frozenset(s.index for s in self.subsystems if index in self.sources(s.index))
+
+    def tracked(self, local: frozenset[int]) -> frozenset[int]:
+        """What a replica computing the commands of ``local`` subsystems follows: them and their sources."""
+        return frozenset(local).union(*(self.sources(i) for i in local))
+
 
 def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Port, ...], tuple[str, ...]]]) -> Plan:
     """Build the plan; ``ports[name] = (inputs, outputs, effects)`` of each built subsystem.
@@ -142,17 +154,19 @@ def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[
     same instant (``Port.direct_inputs``) carries a final value; each round asks every subsystem with outputs
     that can now be finalised, with the inputs that are final (the others 0, which those outputs ignore).
     Outputs without feedthrough are final in the first round. Outputs left over sit on or behind a real
-    algebraic loop, which is named."""
+    algebraic loop, which is named. The energy, which feeds nothing, is what the last request gives (a
+    subsystem with no other output is asked once, in the first round)."""
     sources = {(s.index, j): (f.source, o) for s in plans for f in s.feeds for o, j in zip(f.outputs, f.inputs)}
     depends = {(s.index, k): [sources[(s.index, j)] for j in port.direct_inputs(s.inputs) if (s.index, j) in sources]
-               for s in plans for k, port in enumerate(s.outputs)}
+               for s in plans for k, port in enumerate(s.outputs)
+               if port.quantity != "energy" or len(s.outputs) == 1}
     final: set[tuple[int, int]] = set()
     rounds = []
     while len(final) < len(depends):
         steps, newly = [], set()
         for s in plans:
-            finalisable = [(s.index, k) for k in range(len(s.outputs))
-                           if (s.index, k) not in final and all(d in final for d in depends[(s.index, k)])]
+            finalisable = [(s.index, k) for k in range(len(s.outputs)) if (s.index, k) in depends
+                           and (s.index, k) not in final and all(d in final for d in depends[(s.index, k)])]
             if finalisable:
                 ready = tuple(j for j in range(len(s.inputs)) if sources.get((s.index, j)) in final)
                 steps.append(InitStep(s.index, ready))

@@ -86,10 +86,13 @@ class _Group:
 class EnergyCorrector:
     """The :class:`manager.scheme.base.Corrector` of paper 002 §3.2, for every power bond of a plan."""
 
-    def __init__(self, plan: Plan, settings: CorrectionSettings) -> None:
+    def __init__(self, plan: Plan, settings: CorrectionSettings, local: frozenset[int] | None = None) -> None:
+        """Every receiving point's group, or those of the ``local`` subsystems (a subsystem process corrects
+        its own inputs only)."""
         members: dict[tuple, list[int]] = {}
         for b, bond in enumerate(plan.bonds):
-            members.setdefault((bond.motion_side, bond.velocity_output), []).append(b)
+            if local is None or bond.motion_side in local:
+                members.setdefault((bond.motion_side, bond.velocity_output), []).append(b)
         self.groups = [_Group(plan, bonds, settings) for bonds in members.values()]
         self.targets = frozenset(g.motion for g in self.groups)
         self._by_target = {sub: [g for g in self.groups if g.motion == sub] for sub in self.targets}
@@ -127,8 +130,9 @@ class EnergyCorrector:
         return tuple(g.log for g in self.groups)
 
 
-def build_correctors(plan: Plan, settings: CorrectionSettings | None) -> tuple:
-    """The correctors a scene asks for (none when it asks for none)."""
+def build_correctors(plan: Plan, settings: CorrectionSettings | None, local: frozenset[int] | None = None) -> tuple:
+    """The correctors a scene asks for (none when it asks for none), for the ``local`` subsystems' inputs
+    (None: every subsystem's)."""
     if settings is None or not settings.enabled:
         return ()
-    return (EnergyCorrector(plan, settings),)
+    return (EnergyCorrector(plan, settings, local),)

@@ -42,16 +42,24 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 
 
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
-           correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None
-           ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+           correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None,
+           local: frozenset[int] | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
     With ``status``, every exchange after the first step carries the status of the step before it, and
-    a last exchange without commands carries the status of the last step."""
+    a last exchange without commands carries the status of the last step.
+
+    ``local``: the subsystems whose commands this replica computes (a subsystem process: its own). It
+    then follows only them and the sources of their inputs (``Plan.tracked``), takes only those replies,
+    and evaluates only the bonds they take part in, so that its cost per step grows with its own inputs,
+    not with the number of subsystems; every command it computes is bit for bit the full replica's.
+    None: every subsystem (the manager's replica, the in-process bus)."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
-    traj = [np.full((n_ticks // s.ratio + 1, len(s.outputs)), np.nan) for s in subs]
+    local = frozenset(range(len(subs))) if local is None else local
+    tracked = plan.tracked(local)
+    traj = [np.full((n_ticks // s.ratio + 1 if s.index in tracked else 0, len(s.outputs)), np.nan) for s in subs]
     n_bonds = len(plan.bonds)
     p_res = np.full((n_ticks + 1, n_bonds), np.nan)
     e_res = np.full((n_ticks + 1, n_bonds), np.nan)
@@ -59,7 +67,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     last_bond_tick = [0] * n_bonds
     send_time = np.zeros(n_ticks, dtype=np.int64)
     sent: list[tuple[int, np.ndarray] | None] = [None] * len(subs)  # (start tick, coefficients)
-    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds] for s in subs]
+    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds
+              if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
 
@@ -72,8 +81,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    yield from _initial_outputs(plan, traj, input_polynomial)
-    period, starting, due, due_names, bonds_due = _schedule(plan)
+    yield from _initial_outputs(plan, traj, input_polynomial, local, tracked)
+    period, starting, partners_starting, due, due_names, bonds_due = _schedule(plan, local, tracked)
     step_s = base * 1e-9
     step_status = None
 
@@ -86,6 +95,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             for corrector in adjusters[s.index]:
                 coefficients = corrector.adjust(s.index, tick, coefficients)
             sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
+        for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
+            sent[s.index] = (tick, input_polynomial(s, tick))
         next_tick = tick + 1
         if pacer is not None:
             pacer.wait(tick)
@@ -114,36 +125,47 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 
-def _initial_outputs(plan: Plan, traj: list[np.ndarray], input_polynomial) -> Generator[Exchange, dict[str, bytes], None]:
+def _initial_outputs(plan: Plan, traj: list[np.ndarray], input_polynomial, local: frozenset[int],
+                     tracked: frozenset[int]) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
-    its last reply."""
+    its last reply. Requests go to the ``local`` subsystems; the replies of the ``tracked`` ones are taken."""
     subs = plan.subsystems
     for round_ in plan.init_rounds:
         sends = {}
         for step in round_:
+            if step.subsystem not in local:
+                continue
             s = subs[step.subsystem]
             w0 = np.zeros((1, len(s.inputs)))
             if step.ready:
                 w0[0, list(step.ready)] = input_polynomial(s, 0)[0, list(step.ready)]
             sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
-        replies = yield Exchange(sends, tuple(sends))
-        for step in round_:
-            traj[step.subsystem][0] = decode_output(replies[subs[step.subsystem].name], subs[step.subsystem], 0)
+        taken = [step.subsystem for step in round_ if step.subsystem in tracked]
+        replies = yield Exchange(sends, tuple(subs[i].name for i in taken))
+        for i in taken:
+            traj[i][0] = decode_output(replies[subs[i].name], subs[i], 0)
 
 
-def _schedule(plan: Plan) -> tuple:
-    """What happens at each phase of the schedule, which repeats every lcm of the ratios: (period, the
-    subsystems starting a step, those due at its end and their names, the bonds evaluated at its end)."""
+def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:
+    """What happens at each phase of the schedule, which repeats every lcm of the ratios: (period, the local
+    subsystems starting a step, the non-local sides of their bonds starting one (whose input polynomial the
+    residual power needs: the columns this replica can compute are those it needs), the tracked subsystems
+    due at its end and their names, the bonds of local subsystems evaluated at its end)."""
     subs = plan.subsystems
     period = math.lcm(*(s.ratio for s in subs))
-    starting = [tuple(s for s in subs if phase % s.ratio == 0) for phase in range(period)]
-    due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0) for phase in range(period)]
+    partners = {side for bond in plan.bonds if {bond.force_side, bond.motion_side} & local
+                for side in (bond.force_side, bond.motion_side)} - local
+    starting = [tuple(s for s in subs if phase % s.ratio == 0 and s.index in local) for phase in range(period)]
+    partners_starting = [tuple(s for s in subs if phase % s.ratio == 0 and s.index in partners)
+                         for phase in range(period)]
+    due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0 and s.index in tracked) for phase in range(period)]
     due_names = [tuple(s.name for s in d) for d in due]
     bonds_due = [tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
                        if (phase + 1) % subs[bond.force_side].ratio == 0
-                       and (phase + 1) % subs[bond.motion_side].ratio == 0) for phase in range(period)]
-    return period, starting, due, due_names, bonds_due
+                       and (phase + 1) % subs[bond.motion_side].ratio == 0
+                       and {bond.force_side, bond.motion_side} & local) for phase in range(period)]
+    return period, starting, partners_starting, due, due_names, bonds_due
 
 
 def _bond_residual_power(subs, traj: list[np.ndarray], sent: list, bond, components, tick: int, step_s: float) -> float:

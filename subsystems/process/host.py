@@ -23,7 +23,7 @@ import time
 
 import zenoh
 
-from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.assembly import make_scheme, plan_scene, process_scope
 from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.bus.timing import step_timing
@@ -105,7 +105,9 @@ class _Host:
         self.plan, subsystems = plan_scene(scene)
         self.subsystem = subsystems[name]
         self.local = endpoints(self.plan, subsystems, [name])
-        self.names = [s.name for s in self.plan.subsystems]
+        self.scope, self.partners = process_scope(scene, self.plan, name)
+        tracked = self.plan.tracked(self.scope) if self.scope is not None else range(len(self.plan.subsystems))
+        self.names = [self.plan.subsystems[i].name for i in sorted(tracked)]  # whose replies its replica takes
         self.lock = threading.Lock()
         self.finished = threading.Event()
         self.reasons: list[str] = []
@@ -156,7 +158,8 @@ class _Host:
         # the start on this process's monotonic clock (which paces; the wall clock may be stepped)
         start_ns = time.perf_counter_ns() + (go["start_unix_ns"] - time.time_ns())
         with self.lock:
-            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS)
+            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS,
+                                 local=self.scope)
             self.replica = Replica(scheme, self.names, self.local, self.publish)
             self._guarded(self.replica.start)
             for sender, data in self.early:
@@ -193,6 +196,15 @@ class _Host:
             self.stop("the manager is gone")
 
 
+def _wait_for(endpoints: list[str], wait_s: float) -> None:
+    """Until something listens at every endpoint; HostError naming the first that nothing answers on."""
+    try:
+        for endpoint in endpoints:
+            wait_for_listener(endpoint, wait_s)
+    except TimeoutError as error:
+        raise HostError(f"cannot reach the run: {error}") from None
+
+
 def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, options: ZenohOptions,
           wait_s: float = 30.0, listen: str = "tcp/127.0.0.1:0") -> int:
     """Serve subsystem ``name`` until the run ends; return the process exit code."""
@@ -200,24 +212,23 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
     listen = concrete_endpoint(listen)
     if run_id is None:
-        # started by hand: find the run, then connect to every process already in it (gossip would
-        # too, but not reliably in time), so that every pair of processes has a direct link
-        for endpoint in connect:
-            wait_for_listener(endpoint, wait_s)
+        # started by hand: find the run, then connect to the processes it exchanges with that are already in
+        # it (gossip would too, but not reliably in time), so that every pair that exchanges has a direct link
+        _wait_for(connect, wait_s)
         with zenoh.open(peer_config(connect=connect, options=options)) as probe:
             info = find_run(probe, scene, name, wait_s)
         run_id = info["run_id"]
         via_host = endpoint_host(connect[0])  # the manager's host, where its spawned subsystems listen
-        peers = [reachable(ep, via_host) for peer, ep in info.get("endpoints", {}).items() if peer != name]
+        _, partners = process_scope(scene, plan_scene(scene)[0], name)
+        peers = [reachable(ep, via_host) for peer, ep in info.get("endpoints", {}).items() if peer in partners]
         connect = connect + [ep for ep in peers if ep not in connect]
-    for endpoint in connect:
-        wait_for_listener(endpoint, wait_s)
+    _wait_for(connect, wait_s)
     with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:
         host = _Host(scene, name, run_id, session)
         signals = SignalNote(signal.SIGINT, signal.SIGTERM)
         entities = [
             *(session.declare_subscriber(key(run_id, peer, "y"), functools.partial(host.on_reply, peer))
-              for peer in host.names if peer != name),
+              for peer in host.names if peer != name),  # the sources its replica takes replies from
             session.declare_queryable(key(run_id, name, "timing"), host.on_timing),
             session.declare_subscriber(key(run_id, name, "u"), host.on_control),
             session.declare_subscriber(key(run_id, "manager", "go"), host.on_go),
@@ -226,7 +237,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
             session.liveliness().declare_token(key(run_id, name, "alive")),
         ]
-        others = set(host.names) - {name} | {"manager"}
+        others = set(host.partners) | {"manager"}
         deadline = time.monotonic() + wait_s
         while not others <= host.seen and not host.ended(signals):
             if time.monotonic() > deadline:
