@@ -32,7 +32,9 @@ def step_timing(record: RunRecord) -> dict:
 
 
 def worst_timing(reports: dict[str, dict]) -> dict:
-    """The subsystems' step timings combined: each statistic at its worst (largest) over the subsystems."""
+    """The subsystems' step timings combined: each statistic at its worst (largest) over the subsystems
+    (``replies_received``: the most replies a process took from the network; ``cpu_s``: the most CPU time a
+    process used while it stepped)."""
     keys = {k for report in reports.values() for k in report}
     return {k: (True if k == "realtime" else max(report[k] for report in reports.values() if k in report))
             for k in sorted(keys)}

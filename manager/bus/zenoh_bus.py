@@ -199,7 +199,8 @@ class ZenohBus:
             if failure:
                 raise failure
             if time.monotonic() > deadline:
-                raise SubsystemFailure(name, f"{failing} within {wait_s:g} s")
+                tail = self.log_tail(name) if name in self.children else ""
+                raise SubsystemFailure(name, f"{failing} within {wait_s:g} s" + (f"; its output:\n{tail}" if tail else ""))
 
     def _check_description(self, name: str) -> None:
         replies = [r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=self.timeout_s) if r.ok]
@@ -239,7 +240,7 @@ class ZenohBus:
         self._driving = True
         self._progress = (0, time.monotonic())
         self._heard = time.monotonic()  # when the last batch of replies arrived
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
         if self.announce is not None:
             self.announce(f"run {self.run_id}: {len(self.names)} subsystem processes connected, starting")
@@ -264,6 +265,7 @@ class ZenohBus:
             raise self._error
         record = self._replica.result
         record.reported_timing = self._timing_reports()
+        record.manager_cpu_s = time.process_time() - cpu_started
         return record, wall_s
 
     def _timing_reports(self) -> dict[str, dict]:

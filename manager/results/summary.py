@@ -121,7 +121,8 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     growth = energy_summary["growth_rate_per_s"] if energy_summary is not None else (0.0 if finite else math.inf)
     timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
     if record.reported_timing:  # over Zenoh: as the subsystems released the steps
-        timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing)
+        timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing,
+                      manager_cpu_s=record.manager_cpu_s)
     else:
         timing.update(step_timing(record))
     summary = {

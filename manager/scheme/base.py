@@ -74,6 +74,7 @@ class RunRecord:
     corrections: tuple = ()  # the correctors' logs (manager.scheme.correction.CorrectionLog), one per corrected point
     implicit: ImplicitRecord | None = None  # what the implicit scheme adds (manager.scheme.implicit)
     reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.bus.timing)
+    manager_cpu_s: float | None = None  # over Zenoh: the manager's CPU time [s] while the run stepped
 
     @property
     def last_step(self) -> int:

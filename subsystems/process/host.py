@@ -117,6 +117,8 @@ class _Host:
         self.replies = coupling_publisher(session, key(run_id, name, "y"))
         self.log = coupling_publisher(session, key(run_id, name, "log"))
         self.unsent: list[bytes] = []  # replies not yet sent to the manager
+        self.received = 0  # replies taken from the network (its sources')
+        self.cpu_s = [0.0, 0.0]  # this process's CPU time when the run started and when its replica finished
         self.last_sent = time.monotonic()
 
     def stop(self, why: str) -> None:
@@ -146,6 +148,7 @@ class _Host:
     def on_reply(self, sender: str, sample: zenoh.Sample) -> None:
         data = sample.payload.to_bytes()
         with self.lock:
+            self.received += 1
             if self.finished.is_set():  # stopping: the peers' replies no longer advance the run
                 return
             if self.replica is None:
@@ -158,6 +161,7 @@ class _Host:
         # the start on this process's monotonic clock (which paces; the wall clock may be stepped)
         start_ns = time.perf_counter_ns() + (go["start_unix_ns"] - time.time_ns())
         with self.lock:
+            self.cpu_s[0] = time.process_time()
             scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS,
                                  local=self.scope)
             self.replica = Replica(scheme, self.names, self.local, self.publish)
@@ -171,6 +175,9 @@ class _Host:
         with self.lock:
             finished = self.replica is not None and self.replica.finished
             report = step_timing(self.replica.result) if finished else None
+            if report is not None:
+                report["replies_received"] = self.received
+                report["cpu_s"] = self.cpu_s[1] - self.cpu_s[0]  # every thread of the process, while it stepped
         if report is None:
             query.reply_err(b"the run has not finished here")
         else:
@@ -183,6 +190,7 @@ class _Host:
         except Exception as error:
             self.stop(f"{type(error).__name__}: {error}")
         if self.replica is not None and self.replica.finished:
+            self.cpu_s[1] = self.cpu_s[1] or time.process_time()
             self.send_log()  # the last replies: the manager finishes the run once it has them
 
     def on_control(self, sample: zenoh.Sample) -> None:
