@@ -11,7 +11,6 @@ from __future__ import annotations
 from math import factorial
 
 import numpy as np
-from scipy.linalg import expm
 
 
 def polynomial_input_response(A: np.ndarray, B: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
@@ -26,6 +25,7 @@ def polynomial_input_response(A: np.ndarray, B: np.ndarray, degree: int) -> tupl
     augmented[:n, :n] = A
     augmented[:n, n] = B
     augmented[n : n + chain - 1, n + 1 :] = np.eye(chain - 1)
+    from scipy.linalg import expm  # here: loading scipy.linalg costs every process that never integrates exactly
     exponential = expm(augmented)
     taylor_to_monomial = np.array([factorial(i) for i in range(chain)], dtype=float)
     return exponential[:n, :n], exponential[:n, n:] * taylor_to_monomial

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Callable
 
-from zencosim.manager.analysis.compensator import scene_compensator
 from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.plan.run_plan import Plan, compile_plan
 from zencosim.manager.scene.load import Scene
@@ -24,6 +23,9 @@ def attachments(scene: Scene) -> dict[str, Attachments]:
     """What every coupling, then the compensator the scene asks for, adds to every subsystem."""
     result = coupling_attachments(scene)
     if scene.manager.compensation == "eigenstructure":
+        # imported here: the design needs scipy.optimize, which a subsystem process of any other scene need
+        # not load (it starts in about half the time without it)
+        from zencosim.manager.analysis.compensator import scene_compensator
         for sub, added in scene_compensator(scene).attachments.items():
             result[sub] = result[sub] + added
     return result

@@ -12,7 +12,6 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from zencosim.compensation.analytic import linear_response
 from zencosim.manager.analysis.monolithic import build_monolithic
@@ -165,7 +164,8 @@ class JointForce:
 def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL) -> Reference:
     """The scene's coupled equations (:class:`CoupledSystem`) integrated by scipy ``solve_ivp`` (LSODA,
     tolerances ``rtol``, ``atol``), sampled on the base macro-step grid."""
-    system = CoupledSystem(scene)
+    from scipy.integrate import solve_ivp  # here: scipy.integrate takes a second to load, which a run without
+    system = CoupledSystem(scene)          # this reference (every subsystem process) need not pay
     base = scene.manager.macro_step_ns
     n_ticks = scene.manager.duration_ns // base
     t = np.arange(n_ticks + 1) * (base * 1e-9)

@@ -16,7 +16,6 @@ from __future__ import annotations
 from math import comb
 
 import numpy as np
-from scipy.linalg import expm
 
 from zencosim.compensation.macro_step_response import polynomial_input_response
 from zencosim.subsystems.inputs import InputPolynomial
@@ -38,6 +37,7 @@ def polynomial_step(A_a: np.ndarray, B_a: np.ndarray, h: float, rows: int) -> tu
     powers = h ** np.arange(rows)  # the dimensionless s of macro_step_response is s / h
     responses = [polynomial_input_response(h * F, h * column, rows - 1) for column in G.T]
     if not responses:
+        from scipy.linalg import expm  # here: loading scipy.linalg costs every process that never integrates exactly
         return expm(h * F), np.zeros((2 * n, rows, 0))
     return responses[0][0], np.stack([psi * powers for _, psi in responses], axis=-1)
 
