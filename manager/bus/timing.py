@@ -27,7 +27,7 @@ def step_timing(record: RunRecord) -> dict:
     if record.lateness_ns is not None:
         late = _percentiles_us(record.lateness_ns)
         timing.update(lateness_us_median=late["median"], lateness_us_p99=late["p99"], lateness_us_max=late["max"],
-                      missed_deadlines=record.missed_deadlines, realtime=True)
+                      missed_deadlines=record.missed_deadlines, paced_steps=len(record.lateness_ns), realtime=True)
     return timing
 
 

@@ -254,9 +254,7 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     for tick in range(n_ticks):
         yield from exchanges.control(Kind.SAVE, tick, subs, step_status)
         step_status = None  # reported
-        if pacer is not None:
-            pacer.wait(tick)
-        send_time[tick] = time.perf_counter_ns()
+        send_time[tick] = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
         predicted = yield from exchanges.run(tick, subs, tick, 0)
         newest_first = history[max(0, tick - k):tick + 1][::-1]  # e_N, ..., e_{N-k}
         e_predicted = extrapolation_weights(len(newest_first) - 1) @ newest_first

@@ -98,9 +98,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
             sent[s.index] = (tick, input_polynomial(s, tick))
         next_tick = tick + 1
-        if pacer is not None:
-            pacer.wait(tick)
-        send_time[tick] = released_ns = time.perf_counter_ns()
+        send_time[tick] = released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
         replies = yield Exchange(sends, due_names[phase], step_status)
         for s in due[phase]:
             traj[s.index][next_tick // s.ratio] = decode_output(replies[s.name], s, next_tick)

