@@ -17,14 +17,14 @@ import time
 
 import zenoh
 
-from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, peer_config
+from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, session_config
 
 PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
 
 
 def _config(endpoint: str, listen: bool, official: bool) -> zenoh.Config:
     if not official:
-        return peer_config(listen=[endpoint] if listen else [], connect=[] if listen else [endpoint],
+        return session_config(listen=[endpoint] if listen else [], connect=[] if listen else [endpoint],
                            options=ZenohOptions(lowlatency=True))
     config = zenoh.Config()  # the examples' defaults, plus explicit loopback endpoints and no multicast
     config.insert_json5("mode", '"peer"')

@@ -51,7 +51,7 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             progress: Callable[[int], None] | None = None, zenoh_options: ZenohOptions = ZenohOptions(),
             listen: str | None = None, external: tuple[str, ...] = (),
             announce: Callable[[str], None] | None = None,
-            recorder: RunRecorder | None = None) -> tuple[RunRecord, float]:
+            recorder: RunRecorder | None = None, routers: tuple[str, ...] = ()) -> tuple[RunRecord, float]:
     """Run the co-simulation; return the record and the wall-clock time [s] of the stepping loop.
 
     With ``recorder``, the recording is finished before this returns or raises (its ``result`` says
@@ -76,7 +76,8 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             record = run_in_process(scheme, plan, subsystems, tap)
             wall_s = time.perf_counter() - start
         else:
-            with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id) as zbus:
+            with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id,
+                          routers=routers) as zbus:
                 record, wall_s = zbus.drive(realtime, progress, status, tap)
         if recorder is not None:
             recorder.finish("completed")

@@ -2,7 +2,9 @@
 
 The manager listens on one TCP endpoint (a free port on 127.0.0.1 unless told otherwise), starts a
 subsystem process per subsystem (or waits for the ones started by hand), checks that each loaded
-the same scene and ports and is connected to every other process, then gives the start signal. Every
+the same scene and ports and is connected to every other process, then gives the start signal. Given
+routers (``zencosim router``), the manager and the subsystems it starts also connect to them, and
+subsystems started by hand on hosts that reach only a router join through it. Every
 process runs a replica of the scheme (``manager.scheme.replica``); the manager's replica holds no subsystem:
 it follows the replies, checks that every subsystem executed the commands the manager computed, and
 produces the run record; it takes the replies in the batches the subsystems send it (``<sub>/log``,
@@ -27,6 +29,7 @@ import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
 from zencosim.manager.bus.children import start_child
+from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
     coupling_publisher,
@@ -34,8 +37,9 @@ from zencosim.manager.bus.zenoh_session import (
     free_tcp_port,
     key,
     new_run_id,
-    peer_config,
     reachable,
+    session_config,
+    wait_for_listener,
 )
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scene.load import Scene
@@ -44,6 +48,7 @@ from zencosim.manager.scheme.replica import Replica
 from zencosim.manager.wire.protocol import Kind, encode, split_messages
 from zencosim.manager.wire.status import StatusReport
 
+ROUTER_WAIT_S = 10.0  # how long the manager waits for a --connect router to listen
 STARTUP_TIMEOUT_S = 30.0  # start-up fails when no spawned subsystem process has joined or connected for this long
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
 START_DELAY_NS = 50_000_000  # the first step is released this long after the start signal (real time)
@@ -57,7 +62,8 @@ class ZenohBus:
 
     def __init__(self, scene: Scene, plan: Plan, options: ZenohOptions = ZenohOptions(),
                  listen: str | None = None, external: tuple[str, ...] = (), wait_external_s: float = 60.0,
-                 announce: Callable[[str], None] | None = None, run_id: str | None = None) -> None:
+                 announce: Callable[[str], None] | None = None, run_id: str | None = None,
+                 routers: tuple[str, ...] = ()) -> None:
         unknown = set(external) - set(scene.subsystems)
         if unknown:
             raise ValueError(f"--external names no subsystem of scene {scene.name}: {', '.join(sorted(unknown))}")
@@ -67,6 +73,7 @@ class ZenohBus:
         self.run_id = run_id or new_run_id()
         self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
         self.external = tuple(external)
+        self.routers = tuple(routers)
         self.wait_external_s = wait_external_s
         self.announce = announce
         self.timeout_s = scene.manager.timeout
@@ -98,7 +105,12 @@ class ZenohBus:
         self.close()
 
     def _open(self) -> None:
-        self._session = zenoh.open(peer_config(listen=[self.endpoint], options=self.options))
+        for router in self.routers:
+            try:
+                wait_for_listener(router, ROUTER_WAIT_S)
+            except TimeoutError as error:
+                raise RouterError(f"cannot reach the router: {error}") from None
+        self._session = zenoh.open(session_config(listen=[self.endpoint], connect=self.routers, options=self.options))
         session = self._session
         self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
         self._entities.append(session.declare_subscriber(key(self.run_id, "*", "log"), self._on_log))
@@ -131,18 +143,23 @@ class ZenohBus:
             self._ready[name].set()
             self._started_at = time.monotonic()
 
-    def spawn_arguments(self, name: str, listen: str | None = None, peers: tuple[str, ...] = ()) -> list[str]:
-        """The ``zencosim`` arguments of subsystem ``name``'s process (also what a user runs by hand, plus --run-id).
+    def spawn_arguments(self, name: str, listen: str | None = None, peers: tuple[str, ...] = (),
+                        by_hand: bool = False) -> list[str]:
+        """The ``zencosim`` arguments of subsystem ``name``'s process (``by_hand``: what a user runs on another host).
 
-        A spawned subsystem listens on ``listen`` and connects to the manager and to ``peers``, the
+        A spawned subsystem listens on ``listen`` and connects to the manager, to ``peers``, the
         subsystems spawned before it that it exchanges values with, so that every pair of processes that
-        exchanges has a direct link (and no other pair: links grow with the couplings, not with n²)."""
-        command = ["subsystem", self.scene.path, name, "--connect", reachable(self.endpoint, "127.0.0.1")]
-        for peer in peers:
-            command += ["--connect", peer]
+        exchanges has a direct link (and no other pair: links grow with the couplings, not with n²), and to
+        the routers. One started by hand connects to the routers if there are any, else to the manager."""
+        command = ["subsystem", self.scene.path, name]
+        connect = (self.routers if by_hand and self.routers
+                   else (reachable(self.endpoint, "127.0.0.1"), *peers, *self.routers))
+        for endpoint in connect:
+            command += ["--connect", endpoint]
         if listen is not None:
             command += ["--listen", listen]
-        command += ["--run-id", self.run_id]
+        if not by_hand:
+            command += ["--run-id", self.run_id]
         for override in self.scene.overrides:
             command += ["--set", override]
         if not self.options.lowlatency:
@@ -154,7 +171,8 @@ class ZenohBus:
         for name in self.names:
             if name in self.external:
                 if self.announce is not None:
-                    arguments = self.spawn_arguments(name, "tcp/<its-address>:<port>")
+                    arguments = self.spawn_arguments(name, None if self.routers else "tcp/<its-address>:<port>",
+                                                     by_hand=True)
                     command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
                     self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
                 continue
@@ -213,7 +231,8 @@ class ZenohBus:
         if not replies:
             raise SubsystemFailure(name, "did not describe itself")
         info = json.loads(replies[0].ok.payload.to_bytes())
-        self._endpoints.setdefault(name, info["listen"])
+        if info["listen"] is not None:  # a router's client listens nowhere
+            self._endpoints.setdefault(name, info["listen"])
         if info["scene_digest"] != self.scene.digest:
             raise SubsystemFailure(name, f"loaded a different scene (digest {info['scene_digest'][:12]}, manager has "
                                          f"{self.scene.digest[:12]}): start it with the same scene file and --set options")

@@ -6,9 +6,10 @@ from the manager (STOP), ``<sub>/ctl`` a queryable that describes a subsystem, `
 that reports the timing of its steps at the end, ``<sub>/alive`` and ``manager/alive`` liveliness
 tokens (a crashed process is seen at once), ``<sub>/ready`` a token declared once the subsystem is
 connected to every other process, ``manager/go`` the start signal, ``manager/run`` a queryable that
-lets a subsystem started by hand find the run. Sessions are peers with explicit endpoints and
-multicast scouting off; a subsystem connects to every other process of the run (gossip over existing
-links is a fallback), so that a reply reaches every process in one hop.
+lets a subsystem started by hand find the run. Sessions have explicit endpoints, multicast scouting and
+gossip off: a run's processes are peers, each linked to the ones it exchanges with, so that a reply
+reaches them in one hop; hosts that reach each other only through a Zenoh router (``zencosim router``)
+join as its clients (:func:`session_config`).
 """
 from __future__ import annotations
 
@@ -90,13 +91,24 @@ class ZenohOptions:
     lowlatency: bool = True
 
 
-def peer_config(listen: list[str] = (), connect: list[str] = (), options: ZenohOptions = ZenohOptions()) -> zenoh.Config:
-    """A peer-mode configuration with explicit endpoints, multicast scouting and gossip off: every process
-    connects itself to the ones it exchanges with (Zenoh peers do not forward), and to no other. Gossip would
-    have every peer learn of every other through the manager and connect to it too: n² links whose
-    simultaneous opening, measured, lost a link in about 1 of 10 starts of a 9-subsystem chain."""
+MODES = ("peer", "client", "router")
+
+
+def session_config(listen: list[str] = (), connect: list[str] = (), options: ZenohOptions = ZenohOptions(),
+                   mode: str = "peer") -> zenoh.Config:
+    """A session configuration with explicit endpoints, multicast scouting and gossip off.
+
+    A run's processes are peers: every process connects itself to the ones it exchanges with (Zenoh peers
+    do not forward), and to no other. Gossip would have every peer learn of every other through the manager
+    and connect to it too: n² links whose simultaneous opening, measured, lost a link in about 1 of 10
+    starts of a 9-subsystem chain. A process that reaches the run only through a router is that router's
+    client (a Zenoh router forwards between its clients and everyone, not between two peers, which it
+    takes to be linked), and ``zencosim router`` is a router; every link of a run has the same transport
+    settings (``options``)."""
+    if mode not in MODES:
+        raise ValueError(f"Zenoh mode {mode!r}: expected one of {', '.join(MODES)}")
     config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
+    config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "false")
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))

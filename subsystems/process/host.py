@@ -33,8 +33,8 @@ from zencosim.manager.bus.zenoh_session import (
     coupling_publisher,
     endpoint_host,
     key,
-    peer_config,
     reachable,
+    session_config,
     wait_for_listener,
 )
 from zencosim.manager.scene.load import Scene
@@ -47,8 +47,9 @@ class HostError(RuntimeError):
     """The subsystem process could not join a run."""
 
 
-def describe(scene: Scene, name: str, subsystem, listen: str) -> bytes:
-    """What the manager checks before a run (same scene, same ports), and where this process listens."""
+def describe(scene: Scene, name: str, subsystem, listen: str | None) -> bytes:
+    """What the manager checks before a run (same scene, same ports), and where this process listens (None:
+    nowhere, a router's client)."""
     return json.dumps({
         "subsystem": name,
         "listen": listen,
@@ -218,20 +219,26 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
     """Serve subsystem ``name`` until the run ends; return the process exit code."""
     if name not in scene.subsystems:
         raise HostError(f"scene {scene.name} has no subsystem {name!r}; expected one of {', '.join(scene.subsystems)}")
-    listen = concrete_endpoint(listen)
+    mode = "peer"
     if run_id is None:
-        # started by hand: find the run, then connect to the processes it exchanges with that are already in
-        # it (gossip would too, but not reliably in time), so that every pair that exchanges has a direct link
+        # started by hand: find the run (as a client, which a router serves too), then connect to the processes
+        # it exchanges with that are already in it, so that every pair that exchanges has a direct link; a
+        # process that found the run through a router stays the router's client (the router forwards for it)
         _wait_for(connect, wait_s)
-        with zenoh.open(peer_config(connect=connect, options=options)) as probe:
+        with zenoh.open(session_config(connect=connect, options=options, mode="client")) as probe:
             info = find_run(probe, scene, name, wait_s)
+            through_router = any(True for _ in probe.info.routers_zid())
         run_id = info["run_id"]
-        via_host = endpoint_host(connect[0])  # the manager's host, where its spawned subsystems listen
-        _, partners = process_scope(scene, plan_scene(scene)[0], name)
-        peers = [reachable(ep, via_host) for peer, ep in info.get("endpoints", {}).items() if peer in partners]
-        connect = connect + [ep for ep in peers if ep not in connect]
+        if through_router:
+            mode = "client"
+        else:
+            via_host = endpoint_host(connect[0])  # the manager's host, where its spawned subsystems listen
+            _, partners = process_scope(scene, plan_scene(scene)[0], name)
+            peers = [reachable(ep, via_host) for peer, ep in info.get("endpoints", {}).items() if peer in partners]
+            connect = connect + [ep for ep in peers if ep not in connect]
     _wait_for(connect, wait_s)
-    with zenoh.open(peer_config(listen=[listen], connect=connect, options=options)) as session:
+    listen = concrete_endpoint(listen) if mode == "peer" else None
+    with zenoh.open(session_config([listen] if listen else [], connect, options, mode)) as session:
         host = _Host(scene, name, run_id, session)
         signals = SignalNote(signal.SIGINT, signal.SIGTERM)
         entities = [

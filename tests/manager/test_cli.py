@@ -57,18 +57,38 @@ def test_realtime_run_is_paced_to_the_wall_clock(tmp_path, record_property):
 def test_bad_arguments_exit_2():
     assert zencosim("run", "two_mass_damped", "--bus", "carrier-pigeon").returncode == 2
     assert zencosim("run", "two_mass_damped", "--set", "novalue").returncode == 2
+    inproc_with_router = zencosim("run", "two_mass_damped", "--connect", "tcp/127.0.0.1:7447")
+    assert inproc_with_router.returncode == 2 and "add --bus zenoh" in inproc_with_router.stderr
 
 
-def test_docker_compose_commands_are_valid_zencosim_command_lines():
-    # no Docker engine runs here; what can be checked is that every container's command parses and names a real scene
+def test_a_router_that_cannot_listen_says_where_in_one_line():
+    result = zencosim("router", "--listen", "tcp/192.0.2.1:7447")  # TEST-NET-1: not an address of this host
+    assert result.returncode == 1
+    assert "cannot start the router on tcp/192.0.2.1:7447" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_docker_compose_is_a_run_through_its_router_with_valid_command_lines():
+    # no container engine runs here: what is checked is that every service's command parses, names a real
+    # scene, that everyone connects to the router service's port, and that the manager waits for exactly the
+    # subsystems the other services serve
+    import yaml
+
     from zencosim.cli.main import build_parser
     from zencosim.manager.scene.load import load_scene
-    commands = [json.loads(line.split("command:", 1)[1]) for line in (REPO / "docker" / "compose.yaml").read_text().splitlines()
-                if line.strip().startswith("command:")]
-    assert len(commands) == 3
-    for command in commands:
-        args = build_parser().parse_args(command)
-        load_scene(args.scene, args.overrides)
+    services = yaml.safe_load((REPO / "docker" / "compose.yaml").read_text())["services"]
+    args = {name: build_parser().parse_args(service["command"]) for name, service in services.items()}
+    assert {a.command for a in args.values()} == {"router", "run", "subsystem"}
+    (router,) = [name for name, a in args.items() if a.command == "router"]
+    port = args[router].listen[0].rpartition(":")[2]
+    (manager,) = [a for a in args.values() if a.command == "run"]
+    served = {a.name: a for a in args.values() if a.command == "subsystem"}
+    assert set(manager.external) == set(served)
+    for name, a in args.items():
+        if name != router:
+            assert a.connect == [f"tcp/{router}:{port}"], name
+            scene = load_scene(a.scene, a.overrides)
+            assert set(served) <= set(scene.subsystems), name
+    assert all("build" in service for service in services.values())
 
 
 def test_version_names_zencosim_its_protocol_and_what_a_run_depends_on():

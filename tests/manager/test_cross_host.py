@@ -28,28 +28,62 @@ def _ip(*args: str) -> None:
     subprocess.run(["ip", *args], check=True, capture_output=True, text=True, timeout=10)
 
 
+class Network:
+    """Network namespaces joined by veth pairs on /30s of the test's own; all removed by :meth:`remove`."""
+
+    def __init__(self) -> None:
+        self.namespaces: list[str] = []
+        self.links: list[str] = []  # veth pairs with an end in this namespace (the others go with theirs)
+        self.made = 0
+
+    def namespace(self, tag: str) -> str:
+        name = f"zc{os.getpid()}{tag}"
+        _ip("netns", "add", name)
+        self.namespaces.append(name)
+        _ip("-n", name, "link", "set", "lo", "up")
+        return name
+
+    def link(self, a: str | None, a_address: str, b: str, b_address: str) -> None:
+        """A veth pair from namespace ``a`` (None: this one) to ``b``, addressed ``a_address`` and ``b_address``."""
+        self.made += 1
+        veth = f"zv{os.getpid() % 10000}n{self.made}"
+        here = () if a is None else ("-n", a)
+        _ip(*here, "link", "add", veth, "type", "veth", "peer", "name", veth + "b", "netns", b)
+        if a is None:
+            self.links.append(veth)
+        _ip(*here, "addr", "add", f"{a_address}/30", "dev", veth)
+        _ip(*here, "link", "set", veth, "up")
+        _ip("-n", b, "addr", "add", f"{b_address}/30", "dev", veth + "b")
+        _ip("-n", b, "link", "set", veth + "b", "up")
+
+    def remove(self) -> None:
+        for veth in self.links:
+            subprocess.run(["ip", "link", "del", veth], capture_output=True, timeout=10)
+        for name in self.namespaces:
+            subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
+
+
 @pytest.fixture
-def other_host():
-    """A network namespace reachable from here at OTHER_ADDRESS; removed (with its veth pair) at the end."""
+def network():
     if shutil.which("ip") is None or os.geteuid() != 0:
-        pytest.skip("needs root and iproute2 to make a network namespace")
-    namespace, veth = f"zc{os.getpid()}", f"zcv{os.getpid() % 100000}"
+        pytest.skip("needs root and iproute2 to make network namespaces")
+    made = Network()
     try:
-        _ip("netns", "add", namespace)
-    except subprocess.CalledProcessError as error:
-        pytest.skip(f"cannot make a network namespace here: {error.stderr.strip()}")
-    try:
-        _ip("link", "add", veth, "type", "veth", "peer", "name", veth + "b")
-        _ip("link", "set", veth + "b", "netns", namespace)
-        _ip("addr", "add", f"{HOST_ADDRESS}/30", "dev", veth)
-        _ip("link", "set", veth, "up")
-        _ip("-n", namespace, "addr", "add", f"{OTHER_ADDRESS}/30", "dev", veth + "b")
-        _ip("-n", namespace, "link", "set", veth + "b", "up")
-        _ip("-n", namespace, "link", "set", "lo", "up")
-        yield ("ip", "netns", "exec", namespace)
+        try:
+            made.namespace("p")  # can this machine make one?
+        except subprocess.CalledProcessError as error:
+            pytest.skip(f"cannot make a network namespace here: {error.stderr.strip()}")
+        yield made
     finally:
-        subprocess.run(["ip", "link", "del", veth], capture_output=True, timeout=10)
-        subprocess.run(["ip", "netns", "del", namespace], capture_output=True, timeout=10)
+        made.remove()
+
+
+@pytest.fixture
+def other_host(network):
+    """A network namespace reachable from here at OTHER_ADDRESS."""
+    namespace = network.namespace("h")
+    network.link(None, HOST_ADDRESS, namespace, OTHER_ADDRESS)
+    return ("ip", "netns", "exec", namespace)
 
 
 def test_an_endpoint_on_every_interface_is_reached_through_the_run_s_host():
@@ -70,4 +104,37 @@ def test_a_subsystem_on_another_host_joins_and_the_digest_is_the_in_process_one(
     _, remote_err = remote.communicate(timeout=30)
     assert manager.returncode == 0, manager_err + remote_err
     assert remote.returncode == 0, remote_err
+    assert json.loads(summary.read_text())["digest"] == summary_of("two_mass_damped")["digest"]
+
+
+ROUTER_A, SIDE_A = "10.213.78.1", "10.213.78.2"  # the router's namespace and host A's, one /30
+ROUTER_B, SIDE_B = "10.213.79.1", "10.213.79.2"  # the router's namespace and host B's, another /30
+
+
+@pytest.mark.timeout(150)
+def test_two_hosts_that_reach_each_other_only_through_a_router_run_with_the_in_process_digest(
+        processes, network, tmp_path):
+    # host A (the manager, which spawns S1) and host B (S2, started by hand) each reach the router's namespace
+    # on a link of their own; the router does not forward IP, so every message between A and B passes the
+    # Zenoh router, and S2 joins as its client
+    router_ns, a, b = network.namespace("r"), network.namespace("a"), network.namespace("b")
+    network.link(router_ns, ROUTER_A, a, SIDE_A)
+    network.link(router_ns, ROUTER_B, b, SIDE_B)
+    _ip("netns", "exec", router_ns, "sysctl", "-qw", "net.ipv4.ip_forward=0")
+    unreachable = subprocess.run(["ip", "netns", "exec", a, "ip", "route", "get", SIDE_B], capture_output=True, text=True)
+    assert unreachable.returncode != 0, "host A must not reach host B directly: " + unreachable.stdout
+
+    def on(namespace: str) -> tuple[str, ...]:
+        return ("ip", "netns", "exec", namespace)
+
+    summary = tmp_path / "summary.json"
+    router = processes("router", "--listen", "tcp/0.0.0.0:7447", prefix=on(router_ns))
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--connect", f"tcp/{ROUTER_A}:7447",
+                        "--external", "S2", "--summary", str(summary), prefix=on(a))
+    remote = processes("subsystem", "two_mass_damped", "S2", "--connect", f"tcp/{ROUTER_B}:7447", prefix=on(b))
+    _, manager_err = manager.communicate(timeout=120)
+    _, remote_err = remote.communicate(timeout=30)
+    assert manager.returncode == 0, manager_err + remote_err
+    assert remote.returncode == 0, remote_err
+    assert router.poll() is None, "the router ended with the run"
     assert json.loads(summary.read_text())["digest"] == summary_of("two_mass_damped")["digest"]

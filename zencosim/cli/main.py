@@ -15,6 +15,7 @@ from importlib.metadata import version
 
 from zencosim.cli.console import UsageError, err, examples, warn
 from zencosim.extras import MissingExtra
+from zencosim.manager.bus.router import RouterError
 from zencosim.manager.results.output_files import OutputFileError
 from zencosim.manager.scene.load import SceneError
 from zencosim.manager.scheme.base import SubsystemFailure
@@ -22,12 +23,13 @@ from zencosim.manager.wire.protocol import VERSION, ProtocolError
 from zencosim.recordings import RecordingError
 from zencosim.subsystems.process.host import HostError
 
-COMMANDS = ("scenes", "run", "analysis", "recordings", "subsystem", "models")  # zencosim.cli modules, each adds parsers
+# the modules of zencosim.cli, each adds its parsers
+COMMANDS = ("scenes", "run", "analysis", "recordings", "subsystem", "router", "models")
 # a run starts one `zencosim subsystem` process per subsystem: it imports its own command only (about 0.5 s of CPU
 # instead of 0.85 s each, which 33 processes starting on 2 cores feel)
 SUBSYSTEM_ONLY = "subsystem"
 BAD_INPUT = (SceneError, RecordingError, OutputFileError, MissingExtra, UsageError)  # exit status 2
-RUN_FAILED = (SubsystemFailure, ProtocolError, HostError)  # exit status 1
+RUN_FAILED = (SubsystemFailure, ProtocolError, HostError, RouterError)  # exit status 1
 
 
 def versions() -> str:

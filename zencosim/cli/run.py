@@ -84,6 +84,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     if unknown:
         raise UsageError(f"--external {', '.join(unknown)}: no such subsystem in scene {scene.name}; expected one of "
                          f"{', '.join(scene.subsystems)}")
+    zenoh_only = [option for option, given in (("--listen", args.listen), ("--connect", args.connect),
+                                               ("--external", args.external), ("--no-lowlatency", args.no_lowlatency))
+                  if given]
+    if args.bus != "zenoh" and zenoh_only:
+        raise UsageError(f"{', '.join(zenoh_only)} configure the Zenoh bus: add --bus zenoh")
     # every file the run writes is checked before it starts
     summary_path = check_output_file(args.summary, "summary") if args.summary else None
     out_path = check_table_path(args.out) if args.out else None
@@ -96,7 +101,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     bus_options = {}
     if args.bus == "zenoh":
         bus_options = dict(zenoh_options=ZenohOptions(lowlatency=not args.no_lowlatency), listen=args.listen,
-                           external=tuple(args.external), announce=None if args.quiet else warn)
+                           external=tuple(args.external), announce=None if args.quiet else warn,
+                           routers=tuple(args.connect))
     show_progress = err.is_terminal and not args.quiet
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(), TimeRemainingColumn(),
                   console=err, disable=not show_progress) as progress:
@@ -137,6 +143,8 @@ def add_parsers(commands) -> None:
     run.add_argument("--realtime", action="store_true", help="pace macro-steps to wall-clock deadlines")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
     run.add_argument("--listen", metavar="ENDPOINT", help="Zenoh endpoint of the manager (default: a free port on 127.0.0.1)")
+    run.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                     help="a Zenoh router (zencosim router) to reach subsystems started by hand through (repeatable)")
     run.add_argument("--external", action="append", default=[], metavar="NAME",
                      help="do not start subsystem NAME: wait for 'zencosim subsystem' started by hand")
     run.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
