@@ -38,3 +38,15 @@ def worst_timing(reports: dict[str, dict]) -> dict:
     keys = {k for report in reports.values() for k in report}
     return {k: (True if k == "realtime" else max(report[k] for report in reports.values() if k in report))
             for k in sorted(keys)}
+
+
+def run_timing(record: RunRecord, wall_s: float) -> dict:
+    """The timing of a run as the summary gives it (docs/summary.md): wall time, steps per second and the
+    step statistics, over Zenoh as the subsystems released the steps (the worst, and each one's)."""
+    timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
+    if record.reported_timing:
+        timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing,
+                      manager_cpu_s=record.manager_cpu_s)
+    else:
+        timing.update(step_timing(record))
+    return timing

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from zencosim.compensation.implicit.coupling_laws import method_name
-from zencosim.manager.bus.timing import step_timing, worst_timing
+from zencosim.manager.bus.timing import run_timing
 from zencosim.manager.results.monitor import residual_power_spikes
 from zencosim.manager.results.reference import Reference
 from zencosim.manager.scene.load import Scene
@@ -119,12 +119,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     signals = signal_accuracy(scene, record, references, reference, finite)
     energy_summary = energy_balance(record, reference, finite)
     growth = energy_summary["growth_rate_per_s"] if energy_summary is not None else (0.0 if finite else math.inf)
-    timing = {"wall_s": wall_s, "steps_per_s": len(record.send_time_ns) / wall_s}  # the macro-steps executed
-    if record.reported_timing:  # over Zenoh: as the subsystems released the steps
-        timing.update(worst_timing(record.reported_timing), subsystems=record.reported_timing,
-                      manager_cpu_s=record.manager_cpu_s)
-    else:
-        timing.update(step_timing(record))
+    timing = run_timing(record, wall_s)
     summary = {
         "scene": scene.name,
         "bus": bus,

@@ -31,7 +31,7 @@ LAYERS = (
     ("bus", ("zencosim.manager.bus", "zencosim.subsystems.process")),
     ("results", ("zencosim.manager.results",)),
     ("record", ("zencosim.recordings",)),
-    ("run", ("zencosim.manager.run",)),
+    ("run", ("zencosim.manager.run", "zencosim.manager.realtime_probe")),
     ("entry points", ("zencosim.api", "zencosim.cli", "zencosim.__main__", "zencosim.examples")),
 )
 PACKAGE_ROOTS = tuple(folder for folder in layer_folders() if folder != "scenes")  # the folders with modules
