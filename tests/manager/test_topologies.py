@@ -46,6 +46,25 @@ def test_a_chain_of_five_runs_on_both_buses_with_one_digest():
     assert zencosim.run(scene, "zenoh").digest == inproc.digest
 
 
+@pytest.mark.slow
+@pytest.mark.multiprocess
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize("kind", ["chain", "star"])
+def test_nine_subsystems_over_zenoh_give_the_in_process_digest(tmp_path, kind):
+    # nine processes and the manager on two cores: each process follows only its sources (a chain's middle
+    # mass two neighbours, the star's hub all eight), and the run is bit-identical to the in-process one
+    path = tmp_path / f"{kind}9.toml"
+    path.write_text((mass_chain if kind == "chain" else mass_star)(9, duration=0.2))
+    inproc = zencosim.run(path)
+    zenoh = zencosim.run(path, "zenoh")
+    assert zenoh.digest == inproc.digest
+    received = {name: report["replies_received"] for name, report in zenoh.summary["timing"]["subsystems"].items()}
+    steps = inproc.record.plan.n_ticks
+    sources = {name: len(zenoh.record.plan.sources(zenoh.record.plan.by_name(name).index)) for name in received}
+    for name, count in received.items():  # each process took only its sources' replies (one per step each)
+        assert count <= (steps + 2) * sources[name], (name, count, sources[name])
+
+
 def test_chains_and_stars_initialise_in_two_rounds_whatever_their_size(tmp_path):
     for n in (2, 3, 9):
         for kind, text in (("chain", mass_chain(n, duration=0.01)), ("star", mass_star(n, duration=0.01))):
