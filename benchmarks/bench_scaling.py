@@ -8,7 +8,13 @@ wall time / macro-steps), the replies a subsystem process takes from the network
 and mean over the processes: its sources' replies), and the CPU time per macro-step of the subsystem
 processes together and of the manager, while the run steps (as the processes report it: start-up is left out). Every Zenoh
 run's digest is checked against the in-process one.
-docs/scaling.md reads the figures and states the cost model they give.
+
+The cost model (docs/scaling.md) is fitted from the same runs: every subsystem process's CPU time per
+macro-step against the replies it takes per macro-step, ``cpu = a + b * replies`` (least squares over
+every process of every run), and the hop latency ``L`` from the two-subsystem chain, whose two processes
+each had a core: ``L = step(chain 2) - (a + b)``. With one core per subsystem a step then takes
+``L + a + b * r_max`` (r_max: the largest fan-in); on this machine, with fewer cores than processes, at
+least the CPU of all processes shared over the cores. The table compares both with what was measured.
 """
 from __future__ import annotations
 
@@ -19,6 +25,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
@@ -32,7 +39,7 @@ TOPOLOGIES = {"chain": mass_chain, "star": mass_star}
 def measure(scene, repeats: int) -> dict:
     """Medians over ``repeats`` of the in-process and Zenoh figures of one scene."""
     steps = scene.manager.duration_ns // scene.manager.macro_step_ns
-    inproc, zenoh, children, manager, most, mean = [], [], [], [], [], []
+    inproc, zenoh, children, manager, most, mean, points = [], [], [], [], [], [], []
     digest = None
     for _ in range(repeats):
         record, wall_s = execute(scene, "inproc")
@@ -45,12 +52,29 @@ def measure(scene, repeats: int) -> dict:
         if result.digest != digest:
             raise SystemExit(f"{scene.name}: the Zenoh run's digest differs from the in-process one")
         zenoh.append(result.summary["timing"]["wall_s"] / steps * 1e6)
-        received = [report["replies_received"] / steps for report in result.summary["timing"]["subsystems"].values()]
+        received = [report["replies_received"] / steps for report in reports.values()]
+        points += [(report["replies_received"] / steps, report["cpu_s"] / steps * 1e6) for report in reports.values()]
         most.append(max(received))
         mean.append(statistics.mean(received))
     return {"inproc_us": statistics.median(inproc), "zenoh_us": statistics.median(zenoh),
             "replies_per_step_max": statistics.median(most), "replies_per_step_mean": statistics.median(mean),
-            "subsystem_cpu_us": statistics.median(children), "manager_cpu_us": statistics.median(manager)}
+            "subsystem_cpu_us": statistics.median(children), "manager_cpu_us": statistics.median(manager),
+            "processes": points}
+
+
+def fit_cost_model(runs: dict) -> dict:
+    """``cpu = a + b * replies`` per process and step over every process of every run, and the hop latency."""
+    replies, cpu = np.array([p for row in runs.values() for p in row["processes"]]).T
+    b, a = np.polyfit(replies, cpu, 1)
+    latency = runs["chain/2"]["zenoh_us"] - (a + b) if "chain/2" in runs else float("nan")
+    return {"cpu_per_step_us": float(a), "cpu_per_reply_us": float(b), "hop_latency_us": float(latency)}
+
+
+def predicted_us(model: dict, row: dict, n: int, cores: int) -> tuple[float, float]:
+    """µs per step with one core per subsystem, and on ``cores`` cores shared by the n processes and the manager."""
+    own_core = model["hop_latency_us"] + model["cpu_per_step_us"] + model["cpu_per_reply_us"] * row["replies_per_step_max"]
+    total_cpu = n * model["cpu_per_step_us"] + model["cpu_per_reply_us"] * row["replies_per_step_mean"] * n
+    return own_core, max(own_core, (total_cpu + row["manager_cpu_us"]) / cores)
 
 
 def main() -> None:
@@ -78,7 +102,18 @@ def main() -> None:
                 table.add_row(topology, str(n), f"{row['inproc_us']:.0f}", f"{row['zenoh_us']:.0f}",
                               f"{row['replies_per_step_max']:.2f}, {row['replies_per_step_mean']:.2f}",
                               f"{row['subsystem_cpu_us']:.0f}", f"{row['manager_cpu_us']:.0f}")
+    model = figures["model"] = fit_cost_model(figures["runs"])
+    fit = Table(title=f"cost model: CPU per process and step = {model['cpu_per_step_us']:.1f} µs + "
+                      f"{model['cpu_per_reply_us']:.1f} µs per reply taken; hop latency {model['hop_latency_us']:.0f} µs")
+    for column in ("topology", "n", "measured [µs/step]", f"model, {os.cpu_count()} cores", "model, a core each"):
+        fit.add_column(column, justify="left" if column == "topology" else "right")
+    for name, row in figures["runs"].items():
+        topology, n = name.split("/")
+        own_core, here = predicted_us(model, row, int(n), os.cpu_count())
+        row["model_us"] = {"own_core": own_core, "here": here}
+        fit.add_row(topology, n, f"{row['zenoh_us']:.0f}", f"{here:.0f}", f"{own_core:.0f}")
     Console().print(table)
+    Console().print(fit)
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
 
