@@ -12,7 +12,7 @@ import signal
 import sys
 from importlib.metadata import version
 
-from zencosim.cli import analysis, models, recordings, run, scenes, subsystem
+from zencosim.cli import analysis, models, recordings, run, scenes, study, subsystem
 from zencosim.cli.console import UsageError, err, examples, warn
 from zencosim.extras import MissingExtra
 from zencosim.manager.results.output_files import OutputFileError
@@ -22,7 +22,7 @@ from zencosim.manager.wire.protocol import VERSION, ProtocolError
 from zencosim.recordings import RecordingError
 from zencosim.subsystems.process.host import HostError
 
-COMMANDS = (scenes, run, analysis, recordings, subsystem, models)  # each adds its parsers
+COMMANDS = (scenes, run, analysis, study, recordings, subsystem, models)  # each adds its parsers
 BAD_INPUT = (SceneError, RecordingError, OutputFileError, MissingExtra, UsageError)  # exit status 2
 RUN_FAILED = (SubsystemFailure, ProtocolError, HostError)  # exit status 1
 
