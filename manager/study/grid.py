@@ -83,11 +83,13 @@ def parse_axis(text: str) -> Axis:
 
 
 def merge_axes(axes: list[Axis]) -> list[Axis]:
-    """One axis per key (a key given twice is an error); the macro-step first."""
+    """The axes of ``--vary`` options, the macro-step first: each key once, the macro-step among them."""
     keys = [a.key for a in axes]
     twice = sorted({k for k in keys if keys.count(k) > 1})
     if twice:
         raise GridError(f"--vary {', '.join(twice)}: given more than once; give every value in one --vary")
+    if MACRO_STEP not in keys:
+        raise GridError(f"the grid must vary {MACRO_STEP}: it is the axis of every plot and answer")
     return sorted(axes, key=lambda a: a.key != MACRO_STEP)
 
 
@@ -115,8 +117,6 @@ def _whole_ns(seconds: float) -> float:
 def expand(scene: Scene, axes: list[Axis]) -> tuple[list[Point], list[tuple[dict, str]]]:
     """Every combination of the axes' values as a point of ``scene`` (loaded with its own overrides): the points
     that load, and the ones that do not with the first reason (a compensator with energy correction, …)."""
-    if MACRO_STEP not in (a.key for a in axes):
-        raise GridError(f"the grid must vary {MACRO_STEP}: it is the axis of every plot and answer")
     points, skipped = [], []
     for combination in itertools.product(*(a.values for a in axes)):
         values = dict(zip((a.key for a in axes), combination))

@@ -41,10 +41,7 @@ def cmd_study(args: argparse.Namespace) -> int:
                                             total=total)
             bar.update(tasks[phase], completed=done, total=total)
 
-        try:
-            study = run_study(scene, axes, options, args.cache, progress)
-        except GridError as error:
-            raise UsageError(str(error)) from None
+        study = run_study(scene, axes, options, args.cache, progress)
     written = write_report(study, folder)
     if not args.quiet:
         run = study["run"]
