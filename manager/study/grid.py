@@ -38,9 +38,6 @@ class Axis:
     key: str
     values: tuple
 
-    def describe(self) -> str:
-        return f"{self.key}={','.join(toml_value(v) for v in self.values)}"
-
 
 @dataclass(frozen=True)
 class Point:

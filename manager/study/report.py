@@ -106,13 +106,9 @@ def _plot_error_cost(study: dict, path: Path) -> None:
         axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], color=f"C{color % 10}", label=method)
     front = sorted((r for r in study["points"] if r["pareto"]), key=_cost_ms)
     axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], "k--", linewidth=0.8, label="Pareto front of all")
-    if study["target"]:
-        axes.axhline(study["target"], color="grey", linewidth=0.8)
-    axes.set_xscale("log")
-    axes.set_yscale("log")
-    axes.set_xlabel("CPU time of the in-process stepping loop per simulated second [ms]")
-    axes.set_ylabel(f"NRMS of {study['signal']}")
-    axes.set_title(f"{study['scene']}: error against cost (stable points; lines: Pareto front per method)")
+    axes.axhline(study["target"], color="grey", linewidth=0.8)
+    _log_log(axes, study, "CPU time of the in-process stepping loop per simulated second [ms]",
+             "error against cost (stable points; lines: Pareto front per method)")
     _save(pyplot, figure, axes, path)
 
 
@@ -127,12 +123,17 @@ def _plot_error_step(study: dict, path: Path) -> None:
         label = f"{method} (order {order:.2f})" if order is not None else method
         axes.plot([r["macro_step"] * 1e3 for r in shown], [r["error"] for r in shown], "o-", markersize=3,
                   color=f"C{color % 10}", label=label)
+    _log_log(axes, study, "macro-step [ms]", "error against macro-step (stable points), fitted order")
+    _save(pyplot, figure, axes, path)
+
+
+def _log_log(axes, study: dict, xlabel: str, title: str) -> None:
+    """Logarithmic axes with the study's error on y."""
     axes.set_xscale("log")
     axes.set_yscale("log")
-    axes.set_xlabel("macro-step [ms]")
+    axes.set_xlabel(xlabel)
     axes.set_ylabel(f"NRMS of {study['signal']}")
-    axes.set_title(f"{study['scene']}: error against macro-step (stable points), fitted order")
-    _save(pyplot, figure, axes, path)
+    axes.set_title(f"{study['scene']}: {title}")
 
 
 def _plot_stability(study: dict, path: Path) -> None:
