@@ -50,7 +50,8 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
 
     rows = [_row(p, entries[p.key], signal_name) for p in points]
     _mark_pareto(rows)
-    chosen = [r for r in rows if r["failed"] is None and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]))]
+    chosen = [r for r in rows
+              if r["failed"] is None and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]))]
     for done, row in enumerate(chosen, 1):
         entry = entries[row["key"]]
         if entry.get("zenoh") is None or entry["zenoh"]["repeats"] != options.zenoh_repeats:
