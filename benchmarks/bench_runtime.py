@@ -1,24 +1,37 @@
 """Runtime benchmark: macro-steps per second in-process and over Zenoh, against baselines measured in
-the same run (zenoh-python ping-pong between two processes, raw loopback UDP round trip).
+the same run (the plain-Python floor of the same arithmetic, zenoh-python ping-pong between two processes,
+raw loopback UDP round trip).
 
     python benchmarks/bench_runtime.py [--repeats 5] [--json out.json]
+    python benchmarks/bench_runtime.py --inprocess-only --tree ../zencosim-before   # before/after, side by side
 
 Reports medians over repeats and the ratios the targets are stated in: the Zenoh macro-step of
 two_mass_damped (2 subsystem processes + manager, as fast as possible) over the zenoh-python ping-pong
-round trip (target <= 1.2), and in-process macro-steps per second (target >= 13 000).
+round trip (target <= 1.2), in-process macro-steps per second (target >= 13 000), and the in-process
+macro-step over the floor (``benchmarks/floor.py``: the same symplectic-Euler Jacobi arithmetic as one
+Python loop over floats), each repeat's floor measured just before its run (target <= 30).
+
+``--tree DIR`` also measures the in-process step of the zencosim source tree at ``DIR`` (a checkout of
+another commit), alternating with this one, each repeat in a fresh process of its own: a before/after
+table from one run on one machine.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shutil
 import statistics
+import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import pingpong
+from floor import floor_step_s
 from rich.console import Console
 from rich.table import Table
 
@@ -29,13 +42,50 @@ from zencosim.manager.scene.load import load_scene
 SCENE = "two_mass_damped"
 
 
-def inprocess_steps_per_s(repeats: int) -> float:
+def inprocess_step(repeats: int) -> dict:
+    """Medians over repeats of the in-process macro-step [µs] (wall and CPU time of the stepping loop), of the
+    floor measured just before each run, and of their ratio."""
     scene = load_scene(SCENE)
-    rates = []
+    walls, cpus, floors, ratios = [], [], [], []
     for _ in range(repeats):
+        floor_us = floor_step_s(scene, scene.manager.duration_ns // scene.manager.macro_step_ns) * 1e6
+        cpu = time.process_time()
         record, wall = execute(scene, "inproc")
-        rates.append(record.plan.n_ticks / wall)
-    return statistics.median(rates)
+        cpus.append((time.process_time() - cpu) / record.plan.n_ticks * 1e6)
+        walls.append(wall / record.plan.n_ticks * 1e6)
+        floors.append(floor_us)
+        ratios.append(walls[-1] / floor_us)
+    return {"step_us": statistics.median(walls), "step_cpu_us": statistics.median(cpus),
+            "floor_us": statistics.median(floors), "ratio_to_floor": statistics.median(ratios)}
+
+
+def package_farm(tree: Path) -> Path:
+    """A folder to put on PYTHONPATH that imports the source tree ``tree`` as ``zencosim`` (its layer folders
+    inside the package, as setup.py installs them)."""
+    farm = Path(tempfile.mkdtemp(prefix="zencosim-tree-")) / "zencosim"
+    farm.mkdir()
+    for entry in (tree / "zencosim").iterdir():
+        (farm / entry.name).symlink_to(entry.resolve())
+    for folder in ("manager", "subsystems", "compensation", "recordings", "scenes"):
+        (farm / folder).symlink_to((tree / folder).resolve())
+    return farm.parent
+
+
+def compare_trees(tree: Path, repeats: int) -> dict:
+    """The in-process step of this tree and of ``tree``, alternating, one fresh process per repeat each."""
+    farm = package_farm(tree)
+    runs = {"this": [], "other": []}
+    try:
+        for _ in range(repeats):
+            for which, path in (("other", str(farm)), ("this", "")):
+                env = {**os.environ, "PYTHONPATH": path}
+                out = subprocess.run([sys.executable, __file__, "--measure-inprocess"], env=env, capture_output=True,
+                                     text=True, check=True).stdout
+                runs[which].append(json.loads(out))
+    finally:
+        shutil.rmtree(farm)
+    return {which: {key: statistics.median(r[key] for r in measured) for key in measured[0]}
+            for which, measured in runs.items()}
 
 
 def zenoh_step_s(repeats: int, lowlatency: bool) -> float:
@@ -53,33 +103,60 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--round-trips", type=int, default=5000)
     parser.add_argument("--json", help="write the figures as JSON")
+    parser.add_argument("--inprocess-only", action="store_true", help="only the in-process step and its floor")
+    parser.add_argument("--tree", type=Path, help="also measure the in-process step of this source tree (before/after)")
+    parser.add_argument("--measure-inprocess", action="store_true", help=argparse.SUPPRESS)  # one repeat, as JSON
     args = parser.parse_args()
+    if args.measure_inprocess:
+        import zencosim
+        print(json.dumps({**inprocess_step(1), "package": str(Path(zencosim.__file__).parent)}))
+        return
     n = args.round_trips
+    inproc = inprocess_step(args.repeats)
     figures = {
-        "scene": SCENE, "repeats": args.repeats, "cpus": os.cpu_count(),
-        "inprocess_steps_per_s": inprocess_steps_per_s(args.repeats),
-        "zenoh_step_us_lowlatency": zenoh_step_s(args.repeats, True) * 1e6,
-        "zenoh_step_us_default_transport": zenoh_step_s(args.repeats, False) * 1e6,
-        "pingpong_rtt_us_official": statistics.median(pingpong.zenoh_round_trips(n, official=True)) * 1e6,
-        "pingpong_rtt_us_bus_settings": statistics.median(pingpong.zenoh_round_trips(n, official=False)) * 1e6,
-        "udp_rtt_us": statistics.median(pingpong.udp_round_trips(n)) * 1e6,
+        "scene": SCENE, "repeats": args.repeats, "cpus": os.cpu_count(), "load_average": os.getloadavg(),
+        "inprocess_steps_per_s": 1e6 / inproc["step_us"],
+        "inprocess_step_us": inproc["step_us"], "inprocess_step_cpu_us": inproc["step_cpu_us"],
+        "floor_step_us": inproc["floor_us"], "ratio_step_to_floor": inproc["ratio_to_floor"],
     }
-    figures["ratio_step_to_official_pingpong"] = figures["zenoh_step_us_lowlatency"] / figures["pingpong_rtt_us_official"]
-    figures["ratio_step_to_pingpong_same_settings"] = (figures["zenoh_step_us_lowlatency"]
-                                                       / figures["pingpong_rtt_us_bus_settings"])
+    if not args.inprocess_only:
+        figures.update({
+            "zenoh_step_us_lowlatency": zenoh_step_s(args.repeats, True) * 1e6,
+            "zenoh_step_us_default_transport": zenoh_step_s(args.repeats, False) * 1e6,
+            "pingpong_rtt_us_official": statistics.median(pingpong.zenoh_round_trips(n, official=True)) * 1e6,
+            "pingpong_rtt_us_bus_settings": statistics.median(pingpong.zenoh_round_trips(n, official=False)) * 1e6,
+            "udp_rtt_us": statistics.median(pingpong.udp_round_trips(n)) * 1e6,
+        })
+        figures["ratio_step_to_official_pingpong"] = figures["zenoh_step_us_lowlatency"] / figures["pingpong_rtt_us_official"]
+        figures["ratio_step_to_pingpong_same_settings"] = (figures["zenoh_step_us_lowlatency"]
+                                                           / figures["pingpong_rtt_us_bus_settings"])
+    if args.tree:
+        figures["trees"] = compare_trees(args.tree, args.repeats)
 
-    table = Table(title=f"{SCENE}: medians over {args.repeats} runs and {n} round trips, {os.cpu_count()} CPUs")
+    load = ", ".join(f"{x:.2f}" for x in figures["load_average"])
+    table = Table(title=f"{SCENE}: medians over {args.repeats} runs and {n} round trips, {os.cpu_count()} CPUs, "
+                        f"load average {load}")
     table.add_column("measure")
     table.add_column("value", justify="right")
     table.add_column("target", justify="right")
     table.add_row("in-process macro-steps/s", f"{figures['inprocess_steps_per_s']:.0f}", ">= 13000")
-    table.add_row("Zenoh macro-step, low-latency transport [µs]", f"{figures['zenoh_step_us_lowlatency']:.1f}", "")
-    table.add_row("Zenoh macro-step, default transport [µs]", f"{figures['zenoh_step_us_default_transport']:.1f}", "")
-    table.add_row("zenoh-python ping-pong RTT, z_ping/z_pong [µs]", f"{figures['pingpong_rtt_us_official']:.1f}", "")
-    table.add_row("ping-pong RTT with the bus's settings [µs]", f"{figures['pingpong_rtt_us_bus_settings']:.1f}", "")
-    table.add_row("raw loopback UDP RTT [µs]", f"{figures['udp_rtt_us']:.1f}", "")
-    table.add_row("macro-step / z_ping RTT", f"{figures['ratio_step_to_official_pingpong']:.2f}", "<= 1.2")
-    table.add_row("macro-step / ping-pong with the same settings", f"{figures['ratio_step_to_pingpong_same_settings']:.2f}", "")
+    table.add_row("in-process macro-step, wall / CPU [µs]", f"{inproc['step_us']:.2f} / {inproc['step_cpu_us']:.2f}", "")
+    table.add_row("floor: the same arithmetic as one Python loop [µs]", f"{inproc['floor_us']:.3f}", "")
+    table.add_row("in-process macro-step / floor", f"{inproc['ratio_to_floor']:.1f}", "<= 30")
+    if not args.inprocess_only:
+        table.add_row("Zenoh macro-step, low-latency transport [µs]", f"{figures['zenoh_step_us_lowlatency']:.1f}", "")
+        table.add_row("Zenoh macro-step, default transport [µs]", f"{figures['zenoh_step_us_default_transport']:.1f}", "")
+        table.add_row("zenoh-python ping-pong RTT, z_ping/z_pong [µs]", f"{figures['pingpong_rtt_us_official']:.1f}", "")
+        table.add_row("ping-pong RTT with the bus's settings [µs]", f"{figures['pingpong_rtt_us_bus_settings']:.1f}", "")
+        table.add_row("raw loopback UDP RTT [µs]", f"{figures['udp_rtt_us']:.1f}", "")
+        table.add_row("macro-step / z_ping RTT", f"{figures['ratio_step_to_official_pingpong']:.2f}", "<= 1.2")
+        table.add_row("macro-step / ping-pong with the same settings",
+                      f"{figures['ratio_step_to_pingpong_same_settings']:.2f}", "")
+    for which, label in (("other", f"tree {args.tree}"), ("this", "this tree")) if args.tree else ():
+        measured = figures["trees"][which]
+        table.add_row(f"{label}: in-process step wall / CPU [µs], floor [µs], ratio",
+                      f"{measured['step_us']:.2f} / {measured['step_cpu_us']:.2f}, {measured['floor_us']:.3f}, "
+                      f"{measured['ratio_to_floor']:.1f}", "")
     Console().print(table)
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")

@@ -41,11 +41,14 @@ class Subsystem:
         self.name = name
         self.model = model
         self.micro_step_ns = micro_step_ns
-        self.z = model.initial_state()
+        self._linear = _linear_dynamics(model, integrator_cls)
+        z0 = model.initial_state()
+        # a linear model's state is the head of s = [z, w], the vector its outputs are one product of
+        self._s = np.concatenate((z0, np.zeros(len(model.inputs)))) if self._linear is not None else None
+        self.z = z0 if self._s is None else self._s[:z0.size]
         self.t_ns = 0
         self.w = np.zeros(len(model.inputs))  # input values at t_ns, as the last step or INIT used them
         self.integrator = integrator_cls(model, self.z)
-        self._linear = _linear_dynamics(model, integrator_cls)
         self._steps: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (micro-steps, rows) -> (Φ^m, Ψ)
 
     @property
@@ -75,14 +78,18 @@ class Subsystem:
             raise ValueError(f"subsystem {self.name}: step of {span} ns is not a positive multiple "
                              f"of the micro-step {h_ns} ns")
         h = h_ns * 1e-9
-        if self._linear is not None:
-            Phi_m, Psi = self._composed_step(span // h_ns, inputs.coefficients.shape[0], h)
-            self.z[:] = Phi_m.dot(self.z) + Psi.dot(inputs.coefficients.ravel())
-        else:
-            step = self.integrator.step
-            for j in range(span // h_ns):
-                offset_ns = j * h_ns
-                step((t0_ns + offset_ns) * 1e-9, offset_ns * 1e-9, h, inputs)
+        if self._linear is not None:  # z ← Φ^m z + Ψ c in place; the outputs from s = [z, w(t1)] as it stands
+            c = inputs.coefficients
+            Phi_m, Psi = self._composed_step(span // h_ns, c.shape[0], h)
+            z = self.z
+            np.add(Phi_m.dot(z), Psi.dot(c.ravel()), out=z)
+            self.t_ns = t1_ns
+            self.w = self._s[z.size:] = inputs.at(span * 1e-9)
+            return self.model.outputs_of(t1_ns * 1e-9, self._s)
+        step = self.integrator.step
+        for j in range(span // h_ns):
+            offset_ns = j * h_ns
+            step((t0_ns + offset_ns) * 1e-9, offset_ns * 1e-9, h, inputs)
         self.t_ns = t1_ns
         self.w = inputs.at(span * 1e-9)
         return self.model.outputs_at(t1_ns * 1e-9, self.z, self.w)
@@ -114,8 +121,10 @@ class Subsystem:
 
 
 def _linear_dynamics(model, integrator_cls: type) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(A_a, B_a)`` when the model is linear and time-invariant and the integrator a linear map."""
-    if not hasattr(integrator_cls, "linear_step") or not hasattr(model, "linear_dynamics"):
+    """``(A_a, B_a)`` when the model is linear and time-invariant (and gives its outputs from ``s = [z, w]``:
+    ``outputs_of``) and the integrator a linear map."""
+    if not hasattr(integrator_cls, "linear_step") or not hasattr(model, "linear_dynamics") \
+            or not hasattr(model, "outputs_of"):
         return None
     try:
         return model.linear_dynamics()

@@ -17,8 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
-import tomli_w
-
 from zencosim.extras import MissingExtra as MissingExtra
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.output_files import OutputFileError as OutputFileError
@@ -27,6 +25,7 @@ from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import Scene, bundled_scene_names
 from zencosim.manager.scene.load import SceneError as SceneError
 from zencosim.manager.scene.load import load_scene as _load_scene
+from zencosim.manager.scene.overrides import toml_value
 from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.scheme.base import SubsystemFailure as SubsystemFailure
 from zencosim.manager.wire.protocol import ProtocolError as ProtocolError
@@ -48,13 +47,8 @@ def load_scene(scene: str | Path, overrides: Mapping[str, object] | Sequence[str
     ``"key=value"`` strings as ``--set`` takes them. Raises :class:`SceneError` listing every problem.
     """
     if isinstance(overrides, Mapping):
-        overrides = [f"{key}={_toml_value(value)}" for key, value in overrides.items()]
+        overrides = [f"{key}={toml_value(value)}" for key, value in overrides.items()]
     return _load_scene(str(scene), list(overrides))
-
-
-def _toml_value(value: object) -> str:
-    """``value`` written as TOML (floats exactly: they are read back bit for bit)."""
-    return tomli_w.dumps({"v": value}).partition("=")[2].strip()
 
 
 @dataclass(frozen=True)

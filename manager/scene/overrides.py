@@ -5,7 +5,14 @@ import copy
 import tomllib
 from typing import Any, Sequence
 
+import tomli_w
+
 from zencosim.subsystems.params import Problems
+
+
+def toml_value(value: object) -> str:
+    """``value`` written as TOML for ``key=value`` (floats exactly: they are read back bit for bit)."""
+    return tomli_w.dumps({"v": value}).partition("=")[2].strip()
 
 
 def parse_override(text: str) -> tuple[list[str], Any]:

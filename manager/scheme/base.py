@@ -7,8 +7,9 @@ which name the subsystem in every error.
 """
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -26,8 +27,7 @@ class SubsystemFailure(RuntimeError):
         super().__init__(f"subsystem {subsystem}: {reason}")
 
 
-@dataclass(frozen=True)
-class Exchange:
+class Exchange(NamedTuple):
     """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``; ``status``, when
     the run reports it, is the manager's STATUS message of the macro-step that has just ended."""
 
@@ -93,13 +93,41 @@ class RunRecord:
 
 def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
     """The outputs a reply of ``sub`` carries for ``step``; anything else is a named error."""
+    check_output(data, sub, step)
+    return np.frombuffer(data, dtype="<f8", count=len(sub.outputs), offset=HEADER.size)
+
+
+def check_output(data: bytes, sub: SubsystemPlan, step: int) -> None:
+    """Raise a named error unless ``data`` is the reply of ``sub`` with its outputs for ``step``."""
     n = len(sub.outputs)
-    if len(data) == HEADER.size + 8 * n:  # the expected reply: one header check, a view on the values
+    if len(data) == HEADER.size + 8 * n:  # the expected reply: one header check
         version, kind, _, count, reply_step, _, _ = HEADER.unpack_from(data)
         if version == VERSION and kind == Kind.OUTPUT and reply_step == step and count == n:
-            return np.frombuffer(data, dtype="<f8", count=n, offset=HEADER.size)
+            return
     message = expect_reply(data, sub, Kind.OUTPUT, step)
     raise ProtocolError(f"subsystem {sub.name}: expected {n} outputs, got {message.values.size}")
+
+
+class OutputReader:
+    """The committed outputs of one subsystem: its trajectory at its communication points, filled as its replies
+    arrive (their values copied as they are, bytes), and the newest reply with its values as floats."""
+
+    def __init__(self, sub: SubsystemPlan, points: int) -> None:
+        self.sub = sub
+        self.trajectory = np.full((points, len(sub.outputs)), np.nan, dtype="<f8")
+        self._bytes = memoryview(self.trajectory.view(np.uint8).reshape(-1))  # also for no rows (an untracked source)
+        self._width = 8 * len(sub.outputs)
+        self._unpack = struct.Struct(f"<{len(sub.outputs)}d").unpack_from
+        self.newest: tuple[float, ...] = ()  # the values of the newest reply
+        self.newest_bytes = b""  # the newest reply, header and values
+
+    def commit(self, data: bytes, step: int) -> None:
+        """Take ``sub``'s reply for ``step`` (a named error when it is not one)."""
+        check_output(data, self.sub, step)
+        start = step // self.sub.ratio * self._width
+        self._bytes[start:start + self._width] = memoryview(data)[HEADER.size:]
+        self.newest = self._unpack(data, HEADER.size)
+        self.newest_bytes = data
 
 
 def expect_reply(data: bytes, sub: SubsystemPlan, expected: Kind, step: int, command: Kind | None = None):

@@ -51,9 +51,10 @@ def lagrange_coefficients(samples: np.ndarray, columns: slice | np.ndarray, newe
     return extrapolation_matrix(points, sample_step_ns, offset_ns).dot(samples[newest - points + 1:newest + 1, columns])
 
 
-def evaluate(coefficients: np.ndarray, column: int, tau: float) -> float:
-    """One input of an input polynomial at ``tau`` [s] (Horner's scheme)."""
+def evaluate(rows: list, column: int, tau: float) -> float:
+    """One input of an input polynomial at ``tau`` [s] (Horner's scheme); ``rows`` are its coefficients as
+    sequences of floats, one per power of ``tau``."""
     value = 0.0
-    for row in coefficients[::-1, column].tolist():
-        value = value * tau + row
+    for row in reversed(rows):
+        value = value * tau + row[column]
     return value

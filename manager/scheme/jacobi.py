@@ -21,16 +21,17 @@ the committed outputs and residual energies at t_j+1.
 from __future__ import annotations
 
 import math
+import struct
 import time
 from typing import Callable, Generator
 
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
-from zencosim.manager.scheme.base import PROGRESS_EVERY, Corrector, Exchange, RunRecord, decode_output
+from zencosim.manager.scheme.base import PROGRESS_EVERY, Corrector, Exchange, OutputReader, RunRecord
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
 from zencosim.manager.scheme.residual import residual_power
-from zencosim.manager.wire.protocol import Kind, encode
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
 from zencosim.manager.wire.status import StatusReport
 
 
@@ -59,18 +60,21 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     n_ticks = plan.n_ticks
     local = frozenset(range(len(subs))) if local is None else local
     tracked = plan.tracked(local)
-    traj = [np.full((n_ticks // s.ratio + 1 if s.index in tracked else 0, len(s.outputs)), np.nan) for s in subs]
+    readers = [OutputReader(s, n_ticks // s.ratio + 1 if s.index in tracked else 0) for s in subs]
+    traj = [reader.trajectory for reader in readers]
     n_bonds = len(plan.bonds)
     p_res = np.full((n_ticks + 1, n_bonds), np.nan)
     e_res = np.full((n_ticks + 1, n_bonds), np.nan)
     p_res[0], e_res[0] = 0.0, 0.0
     last_bond_tick = [0] * n_bonds
+    last_bond_energy = [0.0] * n_bonds
     send_time = np.zeros(n_ticks, dtype=np.int64)
-    sent: list[tuple[int, np.ndarray] | None] = [None] * len(subs)  # (start tick, coefficients)
+    sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds
               if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
+    copied = [None if adjusters[s.index] else _copied_inputs(s) for s in subs]
 
     def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
         order = s.order
@@ -81,31 +85,39 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    yield from _initial_outputs(plan, traj, input_polynomial, local, tracked)
+    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked)
     period, starting, partners_starting, due, due_names, bonds_due = _schedule(plan, local, tracked)
     step_s = base * 1e-9
     step_status = None
+    header = HEADER.pack
 
     for tick in range(n_ticks):
         phase = tick % period
         sends = {}
         for s in starting[phase]:
+            segments = copied[s.index]
+            if segments is not None:  # ZOH: the sources' newest values, as they arrived
+                payload = b"".join([readers[source].newest_bytes[start:end] for source, start, end in segments])
+                sends[s.name] = command = header(VERSION, Kind.STEP, 1, len(s.inputs), tick, tick * base, 0) + payload
+                sent[s.index] = (tick, [_float_rows(command, len(s.inputs))])
+                continue
             coefficients = input_polynomial(s, tick)
-            sent[s.index] = (tick, coefficients)
+            sent[s.index] = (tick, coefficients.tolist())
             for corrector in adjusters[s.index]:
                 coefficients = corrector.adjust(s.index, tick, coefficients)
             sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
         for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
-            sent[s.index] = (tick, input_polynomial(s, tick))
+            sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
         send_time[tick] = released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
         replies = yield Exchange(sends, due_names[phase], step_status)
         for s in due[phase]:
-            traj[s.index][next_tick // s.ratio] = decode_output(replies[s.name], s, next_tick)
+            readers[s.index].commit(replies[s.name], next_tick)
         for b, bond, components in bonds_due[phase]:
-            delta_p = _bond_residual_power(subs, traj, sent, bond, components, next_tick, step_s)
+            delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
             p_res[next_tick, b] = delta_p
-            e_res[next_tick, b] = e_res[last_bond_tick[b], b] + delta_p * (next_tick - last_bond_tick[b]) * step_s
+            e_res[next_tick, b] = last_bond_energy[b] = (last_bond_energy[b]
+                                                         + delta_p * (next_tick - last_bond_tick[b]) * step_s)
             last_bond_tick[b] = next_tick
         for corrector in correctors:
             corrector.observe(next_tick, traj, e_res)
@@ -123,7 +135,29 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 
-def _initial_outputs(plan: Plan, traj: list[np.ndarray], input_polynomial, local: frozenset[int],
+def _copied_inputs(s: SubsystemPlan) -> tuple[tuple[int, int, int], ...] | None:
+    """For a subsystem with zero-order inputs, every input fed once: where its input values lie in its sources'
+    newest replies, as byte ranges ``(source, start, end)`` in input order, adjacent ranges merged (the
+    command's values are then these bytes, unchanged: a ZOH polynomial is the newest sample). None otherwise."""
+    if s.order != 0:
+        return None
+    where = {}
+    for feed in s.feeds:
+        for output, target in zip(feed.outputs, feed.inputs):
+            where[target] = (feed.source, HEADER.size + 8 * output)
+    if sorted(where) != list(range(len(s.inputs))):
+        return None
+    segments: list[list[int]] = []
+    for target in range(len(s.inputs)):
+        source, start = where[target]
+        if segments and segments[-1][0] == source and segments[-1][2] == start:
+            segments[-1][2] = start + 8
+        else:
+            segments.append([source, start, start + 8])
+    return tuple(map(tuple, segments))
+
+
+def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
                      tracked: frozenset[int]) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
@@ -142,7 +176,7 @@ def _initial_outputs(plan: Plan, traj: list[np.ndarray], input_polynomial, local
         taken = [step.subsystem for step in round_ if step.subsystem in tracked]
         replies = yield Exchange(sends, tuple(subs[i].name for i in taken))
         for i in taken:
-            traj[i][0] = decode_output(replies[subs[i].name], subs[i], 0)
+            readers[i].commit(replies[subs[i].name], 0)
 
 
 def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:
@@ -166,13 +200,18 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
     return period, starting, partners_starting, due, due_names, bonds_due
 
 
-def _bond_residual_power(subs, traj: list[np.ndarray], sent: list, bond, components, tick: int, step_s: float) -> float:
+def _float_rows(command: bytes, n_inputs: int) -> tuple[float, ...]:
+    """The values of a one-row command (a ZOH polynomial) as floats."""
+    return struct.unpack_from(f"<{n_inputs}d", command, HEADER.size)
+
+
+def _bond_residual_power(readers: list[OutputReader], sent: list, bond, components, tick: int, step_s: float) -> float:
     """δP of ``bond`` at ``tick`` (paper 002 Eqs. 8–9) from both sides' committed outputs and the input
     polynomials they received; a vector bond's residual power is the dot product: the sum over its components."""
     f_start, f_coefficients = sent[bond.force_side]
     m_start, m_coefficients = sent[bond.motion_side]
-    f_row = traj[bond.force_side][tick // subs[bond.force_side].ratio]
-    m_row = traj[bond.motion_side][tick // subs[bond.motion_side].ratio]
+    f_row = readers[bond.force_side].newest
+    m_row = readers[bond.motion_side].newest
     f_tau, m_tau = (tick - f_start) * step_s, (tick - m_start) * step_s
     delta_p = 0.0
     for force, velocity_input, force_input, velocity in components:

@@ -338,7 +338,10 @@ class MassesModel:
 
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Coupling outputs followed by the mechanical energy [J] of the subsystem (incl. its coupling springs)."""
-        s = np.concatenate((z, w))
+        return self.outputs_of(t, np.concatenate((z, w)))
+
+    def outputs_of(self, t: float, s: np.ndarray) -> np.ndarray:
+        """``outputs_at`` of ``s = [z, w]`` (a subsystem keeps its linear state in such a vector)."""
         r = self._G.dot(s)
         k = self._n_linear
         y = r[:k + 1]

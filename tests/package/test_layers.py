@@ -32,6 +32,7 @@ LAYERS = (
     ("results", ("zencosim.manager.results",)),
     ("record", ("zencosim.recordings",)),
     ("run", ("zencosim.manager.run", "zencosim.manager.realtime_probe")),
+    ("study", ("zencosim.manager.study",)),
     ("entry points", ("zencosim.api", "zencosim.cli", "zencosim.__main__", "zencosim.examples")),
 )
 PACKAGE_ROOTS = tuple(folder for folder in layer_folders() if folder != "scenes")  # the folders with modules

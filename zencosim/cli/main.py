@@ -24,7 +24,7 @@ from zencosim.recordings import RecordingError
 from zencosim.subsystems.process.host import HostError
 
 # the modules of zencosim.cli, each adds its parsers
-COMMANDS = ("scenes", "run", "realtime", "analysis", "recordings", "subsystem", "router", "models")
+COMMANDS = ("scenes", "run", "realtime", "analysis", "study", "recordings", "subsystem", "router", "models")
 # a run starts one `zencosim subsystem` process per subsystem: it imports its own command only (about 0.5 s of CPU
 # instead of 0.85 s each, which 33 processes starting on 2 cores feel)
 SUBSYSTEM_ONLY = "subsystem"

@@ -1,0 +1,70 @@
+"""Instructions per in-process macro-step of two_mass_damped and of its plain-Python floor, counted by valgrind.
+
+    python benchmarks/bench_instructions.py [--tree DIR]
+
+Wall time on a shared machine swings with what else runs; the number of instructions a step executes
+does not. Each figure is the difference of two runs under ``valgrind --tool=cachegrind`` (``STEPS``
+macro-steps apart) divided by the difference in steps, so start-up and imports cancel. ``--tree DIR``
+counts the in-process step of another source tree too (see bench_runtime.py). Needs valgrind.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+STEPS = (500, 2500)
+ONE_RUN = """
+import sys
+sys.path.insert(0, {benchmarks!r})
+from floor import floor_x2, parameters
+from zencosim.manager.run import execute
+from zencosim.manager.scene.load import load_scene
+scene = load_scene("two_mass_damped", [f"manager.duration={{int(sys.argv[2]) / 1000}}"])
+if sys.argv[1] == "floor":
+    floor_x2(parameters(scene), int(sys.argv[2]))
+else:
+    execute(scene, "inproc")
+"""
+
+
+def instructions(what: str, steps: int, pythonpath: str) -> int:
+    program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
+    result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
+                             sys.executable, "-c", program, what, str(steps)],
+                            env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True, check=True)
+    return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
+
+
+def per_step(what: str, pythonpath: str = "") -> float:
+    low, high = (instructions(what, n, pythonpath) for n in STEPS)
+    return (high - low) / (STEPS[1] - STEPS[0])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tree", type=Path, help="also count the step of this source tree (before/after)")
+    args = parser.parse_args()
+    if shutil.which("valgrind") is None:
+        print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
+        return 2
+    floor = per_step("floor")
+    rows = [("floor: the same arithmetic as one Python loop", floor), ("in-process step, this tree", per_step("run"))]
+    if args.tree:
+        from bench_runtime import package_farm
+        farm = package_farm(args.tree)
+        try:
+            rows.append((f"in-process step, tree {args.tree}", per_step("run", str(farm))))
+        finally:
+            shutil.rmtree(farm)
+    for label, count in rows:
+        print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""What a study measures at one point: accuracy, stability and cost (docs/study.md has every key).
+
+* accuracy: the run summary's NRMS of every output signal against the scene's reference (paper 000 Eq. 42;
+  ``manager.results.summary``) and the energy error at the end, ``(E(t_end) - E_ref(t_end)) / |E(0)|``;
+* stability: the exact discrete verdict of ``zencosim analyze`` where the scene is linear and has no energy
+  correction (the spectral radius of the runtime's own scheme, compensated or not:
+  ``manager.analysis.discrete``), and what the run did (``stable`` of the summary); the point's verdict is
+  the first when there is one, else the second. A compensator that cannot be designed for the point
+  (``SceneError`` at build time) is an unstable point that did not run;
+* cost in process: wall and CPU time per simulated second of a run as ``manager.run.execute`` does it
+  (building the subsystems, the compensator's design, the stepping loop) and of its stepping loop alone,
+  medians over repeats;
+* cost over Zenoh: wall time per simulated second of ``execute`` (subsystem processes started) and of its
+  stepping loop, CPU time of the manager and its child processes over the whole run (start-up included),
+  the digest (it must equal the in-process one), and the number of exchanges: commands the scheme sent to
+  subsystems, each answered by one reply (the same on both buses).
+"""
+from __future__ import annotations
+
+import resource
+import statistics
+import time
+
+import numpy as np
+
+from zencosim.manager.analysis.compensator import scene_compensator
+from zencosim.manager.analysis.discrete import scene_scheme
+from zencosim.manager.analysis.monolithic import linear_unavailable
+from zencosim.manager.assembly import build_subsystems, make_scheme, plan_scene
+from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.zenoh_session import ZenohOptions
+from zencosim.manager.results.summary import digest
+from zencosim.manager.run import execute, summarize_run
+from zencosim.manager.scene.load import Scene, SceneError, load_scene
+from zencosim.manager.scheme.base import SubsystemFailure
+
+
+def predicted_stability(scene: Scene) -> tuple[bool | None, float | None]:
+    """``zencosim analyze``'s verdict and spectral radius for the scene as it runs (compensated when it asks
+    for the compensator); ``(None, None)`` where there is none (not linear, energy correction);
+    ``(False, None)`` when the compensator cannot be designed."""
+    if linear_unavailable(scene) or scene.manager.corrects:
+        return None, None
+    try:
+        if scene.manager.compensation == "eigenstructure":
+            scheme = scene_compensator(scene).scheme
+        else:
+            scheme = scene_scheme(scene, build_subsystems(scene))
+    except SceneError:
+        return False, None
+    return scheme.stable, scheme.spectral_radius
+
+
+def _energy_error(summary: dict) -> float | None:
+    energy = summary["energy"]
+    if energy is None or "reference_final" not in energy or energy["initial"] == 0.0 or not summary["signals"]:
+        return None
+    return (energy["final"] - energy["reference_final"]) / abs(energy["initial"])
+
+
+def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> dict:
+    """Accuracy, stability and in-process cost of one point (module docstring)."""
+    scene = load_scene(scene_ref, list(overrides))
+    predicted, radius = predicted_stability(scene)
+    row = {"steps": scene.manager.duration_ns // scene.manager.macro_step_ns, "duration": scene.manager.duration,
+           "stable_predicted": predicted, "spectral_radius": radius}
+    walls, cpus, loop_walls, loop_cpus = [], [], [], []
+    try:
+        with np.errstate(all="ignore"):  # an unstable point overflows
+            for _ in range(repeats):
+                wall, cpu = time.perf_counter(), time.process_time()
+                plan, subsystems = plan_scene(scene)  # as manager.run.execute runs a scene in process
+                scheme = make_scheme(scene, plan)
+                loop_wall, loop_cpu = time.perf_counter(), time.process_time()
+                record = run_in_process(scheme, plan, subsystems)
+                loop_cpus.append(time.process_time() - loop_cpu)
+                cpus.append(time.process_time() - cpu)
+                loop_walls.append(time.perf_counter() - loop_wall)
+                walls.append(time.perf_counter() - wall)
+            summary = summarize_run(scene, record, "inproc", loop_walls[-1])
+    except (SceneError, SubsystemFailure) as error:  # the compensator cannot be designed at this step, a model fails
+        reason = str(error.problems[0]) if isinstance(error, SceneError) else str(error)
+        return {**row, "stable": False, "stable_run": None, "failed": reason, "reference": None,
+                "nrms": {}, "energy_error": None, "digest": None, "inproc": None}
+    return {**row,
+            "stable": summary["stable"] if predicted is None else predicted,
+            "stable_run": summary["stable"],
+            "failed": None,
+            "reference": summary["reference"],
+            "nrms": {name: entry.get("nrms") for name, entry in summary["signals"].items()},
+            "energy_error": _energy_error(summary),
+            "digest": summary["digest"],
+            "inproc": {**_per_simulated_second(scene, walls, cpus, loop_walls, loop_cpus), "repeats": repeats}}
+
+
+def _per_simulated_second(scene: Scene, walls: list, cpus: list, loop_walls: list, loop_cpus: list) -> dict:
+    """Medians of the measured times [s] divided by the simulated duration [s]."""
+    per_s = 1.0 / scene.manager.duration
+    return {"wall_per_s": statistics.median(walls) * per_s, "cpu_per_s": statistics.median(cpus) * per_s,
+            "loop_wall_per_s": statistics.median(loop_walls) * per_s,
+            "loop_cpu_per_s": None if loop_cpus is None else statistics.median(loop_cpus) * per_s}
+
+
+class _CountingTap:
+    """A run recorder (``manager.run.RunRecorder``) that only counts the commands sent to subsystems."""
+
+    result = None
+
+    def __init__(self) -> None:
+        self.commands = 0
+
+    def start(self, *_args) -> None:
+        pass
+
+    def tap(self, source: str, channel: str, message: bytes) -> None:
+        self.commands += channel == "commands"
+
+    def finish(self, outcome: str) -> dict:
+        self.result = {"outcome": outcome}
+        return self.result
+
+    def close(self) -> None:
+        pass
+
+
+def count_exchanges(scene: Scene) -> int:
+    """Commands the scheme sends to subsystems over the run (an in-process run; the scheme is the same on both
+    buses)."""
+    counter = _CountingTap()
+    with np.errstate(all="ignore"):
+        execute(scene, "inproc", recorder=counter)
+    return counter.commands
+
+
+def measure_zenoh(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> dict:
+    """Cost of one point over Zenoh (module docstring); run in the study's own process, one point at a time."""
+    scene = load_scene(scene_ref, list(overrides))
+    walls, loops, cpus, digests = [], [], [], set()
+    with np.errstate(all="ignore"):
+        for _ in range(repeats):
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            wall, cpu = time.perf_counter(), time.process_time()
+            record, loop_s = execute(scene, "zenoh", zenoh_options=ZenohOptions())
+            walls.append(time.perf_counter() - wall)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpus.append(time.process_time() - cpu + (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime))
+            loops.append(loop_s)
+            digests.add(digest(record))
+    exchanges = count_exchanges(scene)
+    return {**_per_simulated_second(scene, walls, cpus, loops, None), "repeats": repeats,
+            "digest": digests.pop() if len(digests) == 1 else None, "exchanges": exchanges,
+            "exchanges_per_s": exchanges / scene.manager.duration}

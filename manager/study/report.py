@@ -1,0 +1,218 @@
+"""The report of a study: its table as JSON and CSV, three plots, and ``study.md`` with the plots and the answer.
+
+Files in the report folder (docs/study.md): ``study.json`` (every key documented there; values that are not
+finite are written as null), ``study.csv`` (one row per point), ``error_cost.png`` (error against cost, log–log,
+the Pareto front of each method), ``error_step.png`` (error against macro-step, log–log, with each method's
+fitted order), ``stability.png`` (the largest stable macro-step of each method) and ``study.md``.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+from zencosim.manager.results.output_files import OutputFileError
+
+FILES = ("study.json", "study.csv", "study.md", "error_cost.png", "error_step.png", "stability.png")
+
+
+def check_report_folder(folder: str | Path) -> Path:
+    """``folder`` once the report can be written there (created when its parent exists); checked before a study
+    starts."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise OutputFileError(f"study report {folder}: is a file; expected a folder")
+    if not folder.parent.is_dir():
+        raise OutputFileError(f"study report {folder}: the directory {folder.parent} does not exist")
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
+def _finite(value):
+    """``value`` with every float that is not finite replaced by None (JSON has no NaN or infinity)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
+def write_report(study: dict, folder: Path) -> list[Path]:
+    """Write every file of the report into ``folder``; returns them."""
+    study = _finite(study)
+    (folder / "study.json").write_text(json.dumps(study, indent=1, ensure_ascii=False) + "\n")
+    _write_csv(study, folder / "study.csv")
+    _plot_error_cost(study, folder / "error_cost.png")
+    _plot_error_step(study, folder / "error_step.png")
+    _plot_stability(study, folder / "stability.png")
+    (folder / "study.md").write_text(markdown(study))
+    return [folder / name for name in FILES]
+
+
+def _flat(prefix: str, value) -> dict:
+    if isinstance(value, dict):
+        return {k: v for key, item in value.items() for k, v in _flat(f"{prefix}.{key}" if prefix else key, item).items()}
+    if isinstance(value, list):
+        return {prefix: " ".join(map(str, value))}
+    return {prefix: value}
+
+
+def _write_csv(study: dict, path: Path) -> None:
+    rows = [_flat("", {k: v for k, v in row.items() if k not in ("values", "overrides")}) for row in study["points"]]
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    with path.open("w", newline="") as file:
+        writer = csv.DictWriter(file, columns)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _by_method(study: dict) -> dict[str, list[dict]]:
+    methods = {m["method"]: [] for m in study["methods"]}
+    for row in study["points"]:
+        methods[row["method"]].append(row)
+    return methods
+
+
+def _figure():
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib import pyplot
+    return pyplot, *pyplot.subplots(figsize=(7.5, 5.0))
+
+
+def _save(pyplot, figure, axes, path: Path) -> None:
+    axes.grid(True, which="both", linewidth=0.3)
+    axes.legend(fontsize=7)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    pyplot.close(figure)
+
+
+def _cost_ms(row: dict) -> float | None:
+    return None if row["inproc"] is None else row["inproc"]["loop_cpu_per_s"] * 1e3
+
+
+def _plot_error_cost(study: dict, path: Path) -> None:
+    pyplot, figure, axes = _figure()
+    for color, (method, rows) in enumerate(_by_method(study).items()):
+        shown = [r for r in rows if r["error"] is not None and _cost_ms(r)]
+        if not shown:
+            continue
+        axes.scatter([_cost_ms(r) for r in shown], [r["error"] for r in shown], s=14, color=f"C{color % 10}")
+        front = sorted((r for r in shown if r["pareto_in_method"]), key=_cost_ms)
+        axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], color=f"C{color % 10}", label=method)
+    front = sorted((r for r in study["points"] if r["pareto"]), key=_cost_ms)
+    axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], "k--", linewidth=0.8, label="Pareto front of all")
+    axes.axhline(study["target"], color="grey", linewidth=0.8)
+    _log_log(axes, study, "CPU time of the in-process stepping loop per simulated second [ms]",
+             "error against cost (stable points; lines: Pareto front per method)")
+    _save(pyplot, figure, axes, path)
+
+
+def _plot_error_step(study: dict, path: Path) -> None:
+    pyplot, figure, axes = _figure()
+    orders = {m["method"]: m["order"] for m in study["methods"]}
+    for color, (method, rows) in enumerate(_by_method(study).items()):
+        shown = sorted((r for r in rows if r["error"] is not None), key=lambda r: r["macro_step"])
+        if not shown:
+            continue
+        order = orders[method]
+        label = f"{method} (order {order:.2f})" if order is not None else method
+        axes.plot([r["macro_step"] * 1e3 for r in shown], [r["error"] for r in shown], "o-", markersize=3,
+                  color=f"C{color % 10}", label=label)
+    _log_log(axes, study, "macro-step [ms]", "error against macro-step (stable points), fitted order")
+    _save(pyplot, figure, axes, path)
+
+
+def _log_log(axes, study: dict, xlabel: str, title: str) -> None:
+    """Logarithmic axes with the study's error on y."""
+    axes.set_xscale("log")
+    axes.set_yscale("log")
+    axes.set_xlabel(xlabel)
+    axes.set_ylabel(f"NRMS of {study['signal']}")
+    axes.set_title(f"{study['scene']}: {title}")
+
+
+def _plot_stability(study: dict, path: Path) -> None:
+    pyplot, figure, axes = _figure()
+    methods = study["methods"]
+    largest = [(m["largest_stable_macro_step"] or 0.0) * 1e3 for m in methods]
+    axes.barh(range(len(methods)), largest, color="C0", label="largest stable macro-step of the grid")
+    limits = [(i, m["stability_limit"] * 1e3) for i, m in enumerate(methods) if m["stability_limit"] is not None]
+    if limits:
+        axes.scatter([x for _, x in limits], [i for i, _ in limits], marker="|", s=300, color="C3",
+                     label="stability limit (exact discrete analysis)")
+    axes.set_yticks(range(len(methods)), [m["method"] for m in methods], fontsize=7)
+    axes.set_xlabel("macro-step [ms]")
+    axes.set_title(f"{study['scene']}: largest stable macro-step per method")
+    _save(pyplot, figure, axes, path)
+
+
+def _ms(value: float | None) -> str:
+    return "–" if value is None else f"{value * 1e3:.3g}"
+
+
+def _number(value: float | None, digits: int = 3) -> str:
+    return "–" if value is None else f"{value:.{digits}g}"
+
+
+def methods_table(study: dict) -> list[str]:
+    """The methods of a study as Markdown table lines: order, stability, the macro-step for each target and its
+    cost."""
+    targets = list(study["methods"][0]["targets"]) if study["methods"] else []
+    head = ["method", "fitted order", "largest stable step [ms]", "stability limit [ms]"]
+    for target in targets:
+        head += [f"step for NRMS ≤ {float(target) * 100:g} % [ms]", "its CPU cost [ms/s]"]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    for m in study["methods"]:
+        cells = [m["method"], _number(m["order"]), _ms(m["largest_stable_macro_step"]), _ms(m["stability_limit"])]
+        for target in targets:
+            cells += [_ms(m["targets"][target]["macro_step"]), _ms(m["targets"][target]["cost_per_s"])]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def points_table(study: dict) -> list[str]:
+    """Every point of a study as Markdown table lines."""
+    head = ["method", "step [ms]", f"NRMS {study['signal']}", "energy error", "stable (analysis / run)",
+            "CPU [ms/s]", "wall [ms/s]", "Zenoh wall [ms/s]", "exchanges", "Pareto"]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    verdict = {True: "yes", False: "no", None: "–"}
+    for r in sorted(study["points"], key=lambda r: (r["method"], r["macro_step"])):
+        inproc, zenoh = r["inproc"] or {}, r["zenoh"] or {}
+        nrms = r["nrms"].get(study["signal"])
+        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms), _number(r["energy_error"]),
+                 f"{verdict[r['stable_predicted']]} / {verdict[r['stable_run']]}" + (" (failed)" if r["failed"] else ""),
+                 _ms(inproc.get("loop_cpu_per_s")), _ms(inproc.get("loop_wall_per_s")), _ms(zenoh.get("loop_wall_per_s")),
+                 str(zenoh.get("exchanges", "–")), "yes" if r["pareto"] else ""]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def markdown(study: dict, images: str = "") -> str:
+    """``study.md``: the answer, the plots (``images``: their folder relative to the Markdown file), the methods and
+    every point."""
+    machine, run = study["machine"], study["run"]
+    load = ", ".join(f"{x:.2f}" for x in machine["load_average"])
+    lines = [f"# Study of {study['scene']}", "",
+             f"**Answer:** {study['answer']['text']}.", "",
+             f"Reference of the NRMS: {study['reference']}. Grid: "
+             + "; ".join(f"`{a['key']}` = {', '.join(map(str, a['values']))}" for a in study["grid"]["axes"])
+             + f" ({run['points']} points, {len(study['grid']['skipped'])} combinations that do not run skipped). "
+             f"In process: {run['repeats']} runs per point (medians), {machine['workers']} workers on "
+             f"{machine['cpus']} cores; over Zenoh: {run['zenoh_points']} points, {run['zenoh_repeats']} run(s) each. "
+             f"Load average at the end: {load}. Cost: CPU time of the stepping loop per simulated second.", "",
+             f"![error against cost]({images}error_cost.png)", "",
+             f"![error against macro-step]({images}error_step.png)", "",
+             f"![largest stable macro-step]({images}stability.png)", "",
+             "## Methods", "", *methods_table(study), "",
+             "## Points", "", *points_table(study), ""]
+    if study["grid"]["skipped"]:
+        lines += ["Skipped combinations:", ""]
+        lines += [f"* {', '.join(f'{k}={v}' for k, v in s['values'].items())}: {s['reason']}"
+                  for s in study["grid"]["skipped"]]
+        lines.append("")
+    return "\n".join(lines)

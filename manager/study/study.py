@@ -1,0 +1,183 @@
+"""A study: measure every point of a grid (``manager.study.grid``) in process, in parallel, one worker per core,
+then the chosen points over Zenoh one at a time, and derive what the table says (``manager.study.tradeoffs``).
+
+Every point is cached as soon as it is measured (``manager.study.cache``): a study that is run again runs only
+the points it has not measured yet. The result is one dictionary, the study's JSON (docs/study.md).
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from importlib.metadata import version
+from typing import Callable
+
+from zencosim.manager.scene.load import Scene, load_scene
+from zencosim.manager.study import tradeoffs
+from zencosim.manager.study.cache import StudyCache
+from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
+from zencosim.manager.study.measure import measure_zenoh, predicted_stability
+from zencosim.manager.study.workers import measure_tasks
+
+ZENOH_CHOICES = ("pareto", "all", "none")
+BISECTION_TOLERANCE = 1e-3  # relative width at which the stability limit's bisection stops
+TARGETS = (0.01, 0.001)  # the NRMS targets the method table answers for
+
+
+@dataclass(frozen=True)
+class StudyOptions:
+    signal: str | None = None  # the output signal whose NRMS is the error (default: the scene's first)
+    target: float = 0.01  # the NRMS the answer asks for
+    repeats: int = 3  # in-process runs per point (the cost is their median)
+    zenoh: str = "pareto"  # which points also run over Zenoh: the Pareto front, all, none
+    zenoh_repeats: int = 1
+    workers: int = 0  # in-process points run in parallel (0: one per core)
+
+
+def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptions(), cache_root: str = ".zencosim-study",
+              progress: Callable[[str, int, int], None] | None = None) -> dict:
+    """Measure the grid ``axes`` of ``scene`` and return the study (docs/study.md); ``progress(phase, done,
+    total)`` after every point (phases ``inproc`` and ``zenoh``)."""
+    started = time.perf_counter()
+    signal_name = options.signal or scene.outputs.signals[0]
+    points, skipped = expand(scene, axes)
+    cache = StudyCache(cache_root, scene.digest, options.repeats)
+    entries = {p.key: cache.read(p.key) for p in points}
+    todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats}
+            for p in points if entries[p.key] is None]
+    workers = options.workers or os.cpu_count() or 1
+    _measure_in_process(todo, workers, cache, entries, progress, len(points))
+
+    rows = [_row(p, entries[p.key], signal_name) for p in points]
+    _mark_pareto(rows)
+    chosen = [r for r in rows
+              if r["failed"] is None and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]))]
+    for done, row in enumerate(chosen, 1):
+        entry = entries[row["key"]]
+        if entry.get("zenoh") is None or entry["zenoh"]["repeats"] != options.zenoh_repeats:
+            entry["zenoh"] = measure_zenoh(scene.path, tuple(row["overrides"]), options.zenoh_repeats)
+            cache.write(row["key"], entry)
+        row["zenoh"] = entry["zenoh"]
+        if progress is not None:
+            progress("zenoh", done, len(chosen))
+    methods = _methods(scene, rows)
+    return {
+        "scene": scene.name, "scene_path": scene.path, "scene_digest": scene.digest, "overrides": list(scene.overrides),
+        "reference": next((r["reference"] for r in rows if r["reference"] is not None), None),
+        "signal": signal_name, "signals": list(scene.outputs.signals), "target": options.target,
+        "grid": {"axes": [{"key": a.key, "values": list(a.values)} for a in axes],
+                 "skipped": [{"values": v, "reason": reason} for v, reason in skipped]},
+        "machine": {"cpus": os.cpu_count(), "workers": workers, "load_average": list(os.getloadavg()),
+                    "zencosim": version("zencosim")},
+        "points": rows,
+        "methods": methods,
+        "answer": _answer(rows, signal_name, options.target),
+        "run": {"points": len(points), "ran": len(todo), "cached": len(points) - len(todo),
+                "zenoh_points": len(chosen), "repeats": options.repeats, "zenoh_repeats": options.zenoh_repeats,
+                "wall_s": time.perf_counter() - started},
+    }
+
+
+def _measure_in_process(todo: list[dict], workers: int, cache: StudyCache, entries: dict, progress, total: int) -> None:
+    done = total - len(todo)
+    if progress is not None:
+        progress("inproc", done, total)
+    for key, measured in measure_tasks(todo, workers) if todo else ():
+        entries[key] = {"inproc_point": measured}
+        cache.write(key, entries[key])
+        done += 1
+        if progress is not None:
+            progress("inproc", done, total)
+
+
+def _row(point: Point, entry: dict, signal_name: str) -> dict:
+    measured = entry["inproc_point"]
+    return {"key": point.key, "method": point.method, "macro_step": point.macro_step, "values": point.values,
+            "overrides": list(point.overrides), "derived": list(point.derived), **measured,
+            "error": measured["nrms"].get(signal_name) if measured["stable"] else None,
+            "zenoh": None, "pareto": False}
+
+
+def _cost(row: dict) -> float | None:
+    """In-process CPU time of the stepping loop per simulated second: what the run needs of a core, whatever else
+    the machine runs (the wall time also counts the waits for a core)."""
+    return None if row["inproc"] is None else row["inproc"]["loop_cpu_per_s"]
+
+
+def _mark_pareto(rows: list[dict]) -> None:
+    """``pareto``: on the front of every stable point with an error; ``pareto_in_method``: on its method's front."""
+    for row in rows:
+        row["pareto_in_method"] = False
+    candidates = [r for r in rows if r["error"] is not None and _cost(r) is not None]
+    for i in tradeoffs.pareto_front([_cost(r) for r in candidates], [r["error"] for r in candidates]):
+        candidates[i]["pareto"] = True
+    for method in {r["method"] for r in candidates}:
+        members = [r for r in candidates if r["method"] == method]
+        for i in tradeoffs.pareto_front([_cost(r) for r in members], [r["error"] for r in members]):
+            members[i]["pareto_in_method"] = True
+
+
+def _methods(scene: Scene, rows: list[dict]) -> list[dict]:
+    """Per method: fitted order, largest stable macro-step (bisected on the exact discrete analysis where there
+    is one), and the largest macro-step (with its cost) meeting each of ``TARGETS``."""
+    summaries = []
+    for method in dict.fromkeys(r["method"] for r in rows):
+        members = sorted((r for r in rows if r["method"] == method), key=lambda r: r["macro_step"])
+        steps = [r["macro_step"] for r in members]
+        stable = [r["stable"] for r in members]
+        fitted = [(r["macro_step"], r["error"]) for r in members if r["error"] is not None]
+        summary = {"method": method, "values": {k: v for k, v in members[0]["values"].items() if k != MACRO_STEP},
+                   "order": tradeoffs.fitted_order(*zip(*fitted)) if len(fitted) >= 2 else None,
+                   "order_points": len(fitted),
+                   "largest_stable_macro_step": tradeoffs.largest_stable_step(steps, stable),
+                   "stability_limit": _stability_limit(scene, members, steps, stable),
+                   "targets": {}}
+        for target in TARGETS:
+            h = tradeoffs.step_for_target(steps, [r["error"] for r in members], stable, target)
+            at = next((r for r in members if r["macro_step"] == h), None)
+            summary["targets"][f"{target:g}"] = {"macro_step": h, "cost_per_s": None if at is None else _cost(at)}
+        summaries.append(summary)
+    return summaries
+
+
+def _stability_limit(scene: Scene, members: list[dict], steps: list[float], stable: list[bool]) -> float | None:
+    """The macro-step [s] at which the exact discrete analysis turns unstable, bisected between the grid's last
+    stable and first unstable step (None: no prediction for the method, or no change of verdict in the grid)."""
+    bracket = tradeoffs.stability_bracket(steps, stable)
+    if bracket is None or any(r["stable_predicted"] is None for r in members):
+        return None
+    values = {k: v for k, v in members[0]["values"].items() if k != MACRO_STEP}
+    low, high = bracket
+    while high - low > BISECTION_TOLERANCE * low:
+        middle = round((low + high) / 2 * 1e9) * 1e-9
+        if middle in (low, high):
+            break
+        point = {MACRO_STEP: middle, **values}
+        probe = load_scene(scene.path, [*scene.overrides, *as_overrides(point), *derived_overrides(scene, point)])
+        if predicted_stability(probe)[0]:
+            low = middle
+        else:
+            high = middle
+    return high
+
+
+def _answer(rows: list[dict], signal_name: str, target: float) -> dict:
+    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers."""
+    candidates = [r for r in rows if _cost(r) is not None]
+    best = tradeoffs.cheapest([_cost(r) for r in candidates], [r["error"] for r in candidates],
+                              [r["stable"] for r in candidates], target)
+    if best is None:
+        return {**dict.fromkeys(("point", "method", "macro_step", "error", "inproc_loop_cpu_per_s",
+                                 "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s")),
+                "text": f"no point of the grid reaches {signal_name} NRMS ≤ {target * 100:g} % with a stable run"}
+    row = candidates[best]
+    zenoh = row["zenoh"]
+    over_zenoh = ("not measured over Zenoh" if zenoh is None
+                  else f"{zenoh['loop_wall_per_s'] * 1e3:.3g} ms of wall time over Zenoh")
+    text = (f"for {signal_name} NRMS ≤ {target * 100:g} % the cheapest setting is {method_label(row['values'])} "
+            f"(NRMS {row['error']:.3g}), costing {_cost(row) * 1e3:.3g} ms of CPU time "
+            f"({row['inproc']['loop_wall_per_s'] * 1e3:.3g} ms of wall time) per simulated second in process "
+            f"and {over_zenoh}")
+    return {"point": row["key"], "method": row["method"], "macro_step": row["macro_step"], "error": row["error"],
+            "inproc_loop_cpu_per_s": _cost(row), "inproc_loop_wall_per_s": row["inproc"]["loop_wall_per_s"],
+            "zenoh_loop_wall_per_s": None if zenoh is None else zenoh["loop_wall_per_s"], "text": text}

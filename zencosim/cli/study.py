@@ -1,0 +1,83 @@
+"""``zencosim study``: what accuracy costs in time — sweep a grid of settings, measure every point, write the report."""
+from __future__ import annotations
+
+import argparse
+
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, say
+from zencosim.extras import require
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.study.grid import GridError, default_axes, merge_axes, parse_axis
+from zencosim.manager.study.report import check_report_folder, write_report
+from zencosim.manager.study.study import ZENOH_CHOICES, StudyOptions, run_study
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene, args.overrides)
+    try:
+        axes = merge_axes([parse_axis(text) for text in args.vary]) if args.vary else default_axes(scene)
+    except GridError as error:
+        raise UsageError(str(error)) from None
+    signal_name = args.signal or (scene.outputs.signals[0] if scene.outputs.signals else None)
+    if signal_name not in scene.outputs.signals:
+        raise UsageError(f"--signal {signal_name}: expected one of the scene's outputs.signals: "
+                         f"{', '.join(scene.outputs.signals) or '(none)'}")
+    for name, value in (("--repeats", args.repeats), ("--zenoh-repeats", args.zenoh_repeats), ("--workers", args.workers + 1)):
+        if value < 1:
+            raise UsageError(f"{name}: expected a positive number")
+    if not 0 < args.target:
+        raise UsageError(f"--target {args.target}: expected a positive NRMS, e.g. 0.01 for 1 %")
+    folder = check_report_folder(args.out)
+    require("plots", f"the study's plots in {folder}")
+    options = StudyOptions(signal_name, args.target, args.repeats, args.zenoh, args.zenoh_repeats, args.workers)
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                  console=err, disable=args.quiet or not err.is_terminal) as bar:
+        tasks = {}
+
+        def progress(phase: str, done: int, total: int) -> None:
+            if phase not in tasks:
+                tasks[phase] = bar.add_task(f"{scene.name}: points {'in process' if phase == 'inproc' else 'over Zenoh'}",
+                                            total=total)
+            bar.update(tasks[phase], completed=done, total=total)
+
+        study = run_study(scene, axes, options, args.cache, progress)
+    written = write_report(study, folder)
+    if not args.quiet:
+        run = study["run"]
+        say(f"{run['points']} points ({run['ran']} measured, {run['cached']} from the cache {args.cache}), "
+            f"{run['zenoh_points']} over Zenoh, in {run['wall_s']:.1f} s")
+        say(study["answer"]["text"])
+        say(f"wrote {', '.join(map(str, written))}")
+    return 0
+
+
+def add_parsers(commands) -> None:
+    study = commands.add_parser(
+        "study", help="what accuracy costs in time: sweep macro-steps and methods, measure error, stability and cost",
+        description="Measure every point of a grid of scene settings: NRMS of the output signals against the "
+                    "scene's reference, energy error, stability (exact discrete analysis of linear scenes and "
+                    "the run), wall and CPU time per simulated second in process and, for the Pareto points, "
+                    "over Zenoh. Points are cached: a study run again measures only new points. Report: "
+                    "study.json, study.csv, study.md and plots in --out (docs/study.md).",
+        **examples("zencosim study two_mass_damped                     # the default grid of the scene",
+                   "zencosim study two_mass_damped --vary manager.macro_step=0.5e-3,1e-3,2e-3,4e-3 "
+                   "--vary manager.extrapolation=0,1,2 --vary manager.compensation=none,eigenstructure "
+                   "--vary manager.correction.enabled=false,true --out study/",
+                   "zencosim study four_mass --set manager.duration=5.001 --signal x3 --target 0.001 --zenoh none"))
+    add_scene_arguments(study)
+    study.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
+                       help="a scene key and its values (repeatable; manager.macro_step must be one); default: "
+                            "the scene's macro-step x 0.5, 1, 2, 4 and the methods its kind admits")
+    study.add_argument("--signal", help="the output signal whose NRMS is the error (default: the scene's first)")
+    study.add_argument("--target", type=float, default=0.01, help="the NRMS the answer asks for (default 0.01)")
+    study.add_argument("--repeats", type=int, default=3, help="in-process runs per point; costs are medians (default 3)")
+    study.add_argument("--zenoh", choices=ZENOH_CHOICES, default="pareto",
+                       help="points also measured over Zenoh (default: the Pareto front)")
+    study.add_argument("--zenoh-repeats", type=int, default=1, help="runs per point over Zenoh (default 1)")
+    study.add_argument("--workers", type=int, default=0, help="points measured in parallel (default: one per core)")
+    study.add_argument("--cache", default=".zencosim-study", metavar="DIR",
+                       help="measured points are kept here (default .zencosim-study)")
+    study.add_argument("--out", default="study", metavar="DIR", help="the report's folder (default ./study)")
+    study.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    study.set_defaults(handler=cmd_study)
