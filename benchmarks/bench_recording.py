@@ -8,18 +8,15 @@
    messages lost. On a shared machine these depend on what else runs; so, also, the cost on the
    stepping loop alone: CPU time per step of the in-process run with the status and the tap, whose
    batches go nowhere (no recorder process competing for a core).
-2. Recorder ceiling: messages per second the recorder's writer takes (encode and write MCAP), alone
-   on one core.
-3. Encoding: the real messages of a recorded run, encoded as our protobuf and as JSON with a JSON
-   schema (NaN and infinities as strings): bytes per message raw and in a ZSTD-chunked MCAP, encode
-   and decode time, and whether every float64 round-trips bit for bit.
+2. Recorder ceiling: messages per second the recorder's writer takes (validate, encode and write
+   MCAP, in batches as the tap sends them), alone on one core.
+   Also the file's bytes per message, the time to read a recording back per message, and whether
+   every float64 round-trips bit for bit.
 """
 from __future__ import annotations
 
 import argparse
-import io
 import json
-import math
 import os
 import statistics
 import tempfile
@@ -27,7 +24,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from mcap.writer import CompressionType, Writer
 from rich.console import Console
 from rich.table import Table
 
@@ -36,13 +32,12 @@ from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.run import execute
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.replica import Replica
-from zencosim.manager.wire.protocol import HEADER, encode
+from zencosim.manager.wire.protocol import encode
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.reader import read_recording
-from zencosim.recordings.recorder import Recorder
-from zencosim.recordings.schema import decode_stored, encode_wire
-from zencosim.recordings.writer import CHUNK_BYTES, RecordingWriter
+from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
+from zencosim.recordings.writer import RecordingWriter
 
 SCENE = "two_mass_damped"
 
@@ -100,78 +95,41 @@ def stepping_loop_cost(repeats: int) -> dict:
 
 
 def wire_messages(path: Path) -> list[tuple[int, bytes]]:
-    """The wire messages of a recording, rebuilt from its stored messages (channel index, bytes)."""
+    """The wire messages of a recording in recorded order per step, rebuilt from its stored messages
+    (channel index, bytes)."""
     recording = read_recording(path)
     messages = []
     for index, channel in enumerate(recording.channels.values()):
         for m in channel.messages:
-            messages.append((index, encode(m.kind, m.step, m.time_ns, m.values, rows=m.rows, ref=m.ref)))
-    return messages
+            messages.append((m.step, index, encode(m.kind, m.step, m.time_ns, m.values, rows=m.rows, ref=m.ref)))
+    messages.sort(key=lambda item: item[0])
+    return [(index, wire) for _, index, wire in messages]
 
 
-def writer_ceiling(messages: list[tuple[int, bytes]], path: Path) -> float:
-    """Messages per second through the recorder's writer (validation, encoding, MCAP, compression)."""
+def writer_ceiling(messages: list[tuple[int, bytes]], path: Path) -> dict:
+    """Messages per CPU-second through the recorder's writer (validation, typed protobuf, MCAP, ZSTD) in
+    batches of the tap's size, the file's bytes per message, and our decoder's time per message."""
     recording = read_recording(path)
-    writer = RecordingWriter(path.with_suffix(".ceiling.mcap"), recording.info, recording.scene_toml,
-                             [c.spec for c in recording.channels.values()])
+    specs = [c.spec for c in recording.channels.values()]
+    out = path.with_suffix(".ceiling.mcap")
+    writer = RecordingWriter(out, recording.info, recording.scene_toml, specs)
+    status = next(i for i, spec in enumerate(specs) if spec.role == "status")
     started = time.process_time()
-    for index, wire in messages:
-        writer.write(index, wire, 0)
+    for at in range(0, len(messages), BATCH_MESSAGES):
+        batch = messages[at:at + BATCH_MESSAGES]
+        channels = np.array([index for index, _ in batch], dtype=np.uint8)
+        writer.write(channels, np.array([len(wire) for _, wire in batch]),
+                     np.full(int(np.count_nonzero(channels == status)), time.time_ns()),
+                     b"".join(wire for _, wire in batch))
     writer.finish("completed", None)
-    return len(messages) / (time.process_time() - started)
-
-
-def _json_float(x: float) -> float | str:
-    return x if math.isfinite(x) else ("NaN" if math.isnan(x) else ("Infinity" if x > 0 else "-Infinity"))
-
-
-def _from_json_float(x: float | str) -> float:
-    return float(x) if isinstance(x, (int, float)) else float({"NaN": "nan", "Infinity": "inf", "-Infinity": "-inf"}[x])
-
-
-def encode_json(wire: bytes) -> bytes:
-    _version, kind, rows, count, step, time_ns, ref = HEADER.unpack_from(wire)
-    values = np.frombuffer(wire, "<f8", count, HEADER.size).tolist()
-    return json.dumps({"step": step, "time_ns": time_ns, "kind": kind, "rows": rows, "ref": ref,
-                       "values": [_json_float(v) for v in values]}, separators=(",", ":")).encode()
-
-
-def decode_json(data: bytes) -> np.ndarray:
-    return np.array([_from_json_float(v) for v in json.loads(data)["values"]], dtype=np.float64)
-
-
-def _mcap_bytes(encoded: list[tuple[int, bytes]], encoding: str) -> int:
-    stream = io.BytesIO()
-    writer = Writer(stream, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
-    writer.start()
-    schema = writer.register_schema("m", encoding, b"")
-    channels = [writer.register_channel(f"c{i}", encoding, schema) for i in range(8)]
-    for t, (index, data) in enumerate(encoded):
-        writer.add_message(channels[index], t, data, t)
-    writer.finish()
-    return len(stream.getvalue())
-
-
-def encodings(messages: list[tuple[int, bytes]]) -> dict:
-    """Size and speed of protobuf (ours) and JSON on the same messages; exact round trip of each."""
-    wires = [w for _, w in messages if HEADER.unpack_from(w)[1] != 18]  # values only (no ERROR text)
-    payloads = [np.frombuffer(w, "<f8", offset=HEADER.size) for w in wires]
-    figures = {}
-    for name, encoder, decoder, mcap_encoding in (
-            ("protobuf", lambda w: encode_wire(w, "bench")[1], lambda d: decode_stored(d).values, "protobuf"),
-            ("json", encode_json, decode_json, "json")):
-        started = time.process_time()
-        encoded = [encoder(w) for w in wires]
-        encode_us = (time.process_time() - started) / len(wires) * 1e6
-        started = time.process_time()
-        decoded = [decoder(d) for d in encoded]
-        decode_us = (time.process_time() - started) / len(wires) * 1e6
-        exact = all(a.tobytes() == b.tobytes() for a, b in zip(payloads, decoded))
-        figures[name] = {"bytes_per_message": sum(map(len, encoded)) / len(encoded),
-                         "mcap_zstd_bytes_per_message": _mcap_bytes(list(zip((i for i, _ in messages), encoded)),
-                                                                    mcap_encoding) / len(encoded),
-                         "encode_us": encode_us, "decode_us": decode_us, "exact_round_trip": exact}
-    return figures
+    per_s = len(messages) / (time.process_time() - started)
+    started = time.process_time()
+    decoded = read_recording(out)
+    decode_us = (time.process_time() - started) / len(messages) * 1e6
+    exact = all(a.values.tobytes() == b.values.tobytes() for topic, channel in recording.channels.items()
+                for a, b in zip(channel.messages, decoded.channels[topic].messages))
+    return {"messages_per_s": per_s, "file_bytes_per_message": out.stat().st_size / len(messages),
+            "read_us_per_message": decode_us, "exact_round_trip": exact}
 
 
 def main() -> None:
@@ -187,8 +145,7 @@ def main() -> None:
                    "inproc": overhead("inproc", args.repeats, workdir),
                    "zenoh": overhead("zenoh", args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
-        figures["recorder_messages_per_s"] = writer_ceiling(messages, workdir / "inproc-0.mcap")
-        figures["encodings"] = encodings(messages)
+        figures["recorder"] = writer_ceiling(messages, workdir / "inproc-0.mcap")
 
     table = Table(title=f"recording {SCENE}: medians ({args.repeats} in-process, {args.zenoh_repeats} Zenoh runs "
                         f"of each kind), load average {figures['load_average'][0]:.1f} on {figures['cpus']} cores")
@@ -206,12 +163,11 @@ def main() -> None:
         table.add_row(f"{bus}: run to complete recording [s]", f"{f['recording_complete_s']:.2f}")
         table.add_row(f"{bus}: messages lost per run", ", ".join(map(str, f["lost"])))
         table.add_row(f"{bus}: file size [bytes]", f"{f['file_bytes']}")
-    table.add_row("recorder writer alone [messages/s of CPU]", f"{figures['recorder_messages_per_s']:.0f}")
-    for name, f in figures["encodings"].items():
-        table.add_row(f"{name}: bytes/message raw / in ZSTD MCAP",
-                      f"{f['bytes_per_message']:.1f} / {f['mcap_zstd_bytes_per_message']:.1f}")
-        table.add_row(f"{name}: encode / decode [µs/message]", f"{f['encode_us']:.2f} / {f['decode_us']:.2f}")
-        table.add_row(f"{name}: every float64 round-trips exactly", str(f["exact_round_trip"]))
+    recorder = figures["recorder"]
+    table.add_row("recorder writer alone [messages/s of CPU]", f"{recorder['messages_per_s']:.0f}")
+    table.add_row("file [bytes/message]", f"{recorder['file_bytes_per_message']:.1f}")
+    table.add_row("reading a recording [µs/message]", f"{recorder['read_us_per_message']:.2f}")
+    table.add_row("every float64 round-trips exactly", str(recorder["exact_round_trip"]))
     Console().print(table)
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")

@@ -69,8 +69,9 @@ def _interrupts_deferred():
 class Recorder:
     """Records one run to ``path``: create it, pass it to ``manager.run.execute``, read ``result``."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, host_info: bool = False) -> None:
         self.path = check_output_file(path, "recording")
+        self.host_info = host_info  # record the host's name and the scene's path (layout.run_metadata)
         self.result: dict | None = None
         self._process: subprocess.Popen | None = None
         self._log = tempfile.TemporaryFile()
@@ -87,7 +88,7 @@ class Recorder:
         """Start the recorder process and wait until it is ready."""
         specs = channel_specs(plan, status)
         self._declare(specs, realtime)
-        start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime),
+        start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime, self.host_info),
                  "scene_toml": tomli_w.dumps(scene.resolved),
                  "channels": [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]}
         self._process = start_child("zencosim.recordings.recorder_process", [], stdin=subprocess.PIPE,

@@ -23,8 +23,8 @@ import select
 import signal
 import struct
 import sys
-import time
-from array import array
+
+import numpy as np
 
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
@@ -77,35 +77,24 @@ class FrameReader:
                 return None
 
 
-def record_batch(writer: RecordingWriter, batch: bytes, publish_ns: int, status: int) -> int:
-    """Write the messages of one BATCH frame (``status``: the status channel's index); return the wall
-    clock of its last stamp, which also stamps the first messages of the next batch."""
+def split_batch(batch: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, bytes]:
+    """(channel indices, message sizes, stamps, the messages one after the other) of a BATCH frame."""
     n, m = BATCH_HEAD.unpack_from(batch)
     at = BATCH_HEAD.size
-    channels = batch[at:at + n]
-    sizes = array("I", batch[at + n:at + 5 * n])
-    stamps = array("q", batch[at + 5 * n:at + 5 * n + 8 * m])
-    at += 5 * n + 8 * m
-    stamped = 0
-    for channel, size in zip(channels, sizes):
-        if channel == status:
-            publish_ns = stamps[stamped]
-            stamped += 1
-        writer.write(channel, batch[at:at + size], publish_ns)
-        at += size
-    return publish_ns
+    channels = np.frombuffer(batch, dtype=np.uint8, count=n, offset=at)
+    sizes = np.frombuffer(batch, dtype="<u4", count=n, offset=at + n).astype(np.int64)
+    stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at + 5 * n)
+    return channels, sizes, stamps, batch[at + 5 * n + 8 * m:]
 
 
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:
     """Record the wire messages of a run until END; return (outcome, published)."""
-    status = next(i for i, spec in enumerate(writer.channels) if spec.role == "status")
-    stamp = time.time_ns()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             end = json.loads(data)
             return end["outcome"], end["published"]
-        stamp = record_batch(writer, data, stamp, status)
+        writer.write(*split_batch(data))
     return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 

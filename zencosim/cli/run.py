@@ -91,7 +91,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     recorder = None
     if record_path:
         from zencosim.recordings.recorder import Recorder
-        recorder = Recorder(check_output_file(record_path, "recording"))
+        recorder = Recorder(check_output_file(record_path, "recording"), args.record_host_info)
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
@@ -142,4 +142,6 @@ def add_parsers(commands) -> None:
     run.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
     run.add_argument("--record", metavar="FILE", help="record every message of the run to an MCAP file "
                                                       "(default: the scene's manager.record)")
+    run.add_argument("--record-host-info", action="store_true",
+                     help="also record the host's name and the scene file's absolute path (left out by default)")
     run.set_defaults(handler=cmd_run)
