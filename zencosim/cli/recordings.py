@@ -27,7 +27,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     status = 0
     if rrd or args.spawn:
         from zencosim.recordings.rerun_replay import replay_in_rerun
-        replay_in_rerun(recording, rrd, args.spawn)
+        replay_in_rerun(recording, rrd, args.spawn, warn)
         if rrd:
             say(f"wrote {rrd}")
     if args.verify:
