@@ -64,12 +64,14 @@ class Mechanism:
                 self._couplings.append((name, (sub_a, point_a), (sub_b, point_b), force))
         self._force_sides = {force[0] for *_, force in self._couplings if force is not None}
         self._pending: dict[int, Frame] = {}
+        self._latest: dict[str, int] = {}  # the last step each drawn subsystem reported
         self._outputs: dict[tuple[str, int], np.ndarray] = {}
         self._largest_force = 0.0
 
     def command(self, name: str, wire: bytes) -> list[Frame]:
         """Execute a command of subsystem ``name`` (ignored when it is not drawn); return the frames that this
-        completes: those of the communication points before the one it reports (commands come step by step)."""
+        completes: those before the last point every drawn subsystem has reported (so the frames do not depend
+        on how the commands of different subsystems interleave)."""
         endpoint = self._endpoints.get(name)
         if endpoint is None:
             return []
@@ -81,7 +83,11 @@ class Mechanism:
         sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
         _translate(sketch, self._offsets[name])
         self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
-        return [self._complete(done) for done in sorted(s for s in self._pending if s < step)]
+        self._latest[name] = step
+        if len(self._latest) < len(self._endpoints):
+            return []
+        reported = min(self._latest.values())  # every drawn subsystem has gone past the frames before this
+        return [self._complete(done) for done in sorted(s for s in self._pending if s < reported)]
 
     def output(self, name: str, step: int, values: np.ndarray) -> None:
         """A recorded OUTPUT of subsystem ``name`` (drawn or not): the force of its couplings at ``step``."""

@@ -98,7 +98,7 @@ def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict
     return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 
-def _announce(event: dict) -> None:
+def announce(event: dict) -> None:
     sys.stdout.write(json.dumps(event) + "\n")
     sys.stdout.flush()
 
@@ -116,12 +116,12 @@ def main() -> int:
         writer = RecordingWriter(start["path"], start["metadata"], start["scene_toml"],
                                  [ChannelSpec.from_metadata(c["topic"], c["metadata"]) for c in start["channels"]])
     except RecordingError as error:
-        _announce({"event": "error", "reason": str(error)})
+        announce({"event": "error", "reason": str(error)})
         return 2
     frames.idle = writer.flush_if_due
-    _announce({"event": "ready"})
+    announce({"event": "ready"})
     outcome, published = record_pipe(frames, writer)
-    _announce({"event": "finished", **writer.finish(outcome, published)})
+    announce({"event": "finished", **writer.finish(outcome, published)})
     return 0
 
 
