@@ -3,7 +3,9 @@
     python benchmarks/bench_recording.py [--repeats 5] [--zenoh-repeats 3] [--json out.json]
 
 1. Overhead: macro-steps per second of two_mass_damped (10 000 steps of 1 ms) without and with
-   ``--record``, on the in-process bus and over Zenoh; runs alternate, medians over repeats. Also
+   ``--record``, on the in-process bus and over Zenoh, and over Zenoh without and with the live view
+   (``--rerun connect=`` to a headless ``rerun --serve-grpc`` started here); runs alternate, medians
+   over repeats. Also
    the time until the recording is complete (the recorder finishing after the last step) and the
    messages lost. On a shared machine these depend on what else runs; so, also, the cost on the
    stepping loop alone: CPU time per step of the in-process run with the status and the tap, whose
@@ -19,6 +21,8 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -29,6 +33,7 @@ from rich.table import Table
 
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.bus.zenoh_session import free_tcp_port
 from zencosim.manager.run import execute
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.replica import Replica
@@ -42,23 +47,38 @@ from zencosim.recordings.writer import RecordingWriter
 SCENE = "two_mass_damped"
 
 
-def overhead(bus: str, repeats: int, workdir: Path) -> dict:
-    """Steps/s without and with recording (alternating), time to a complete file, losses."""
+def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> dict:
+    """Steps/s without and with recording (alternating), time to a complete file, losses; with ``live`` (a
+    ``--rerun`` target) the cost of the live view alone instead of the recording."""
     scene = load_scene(SCENE)
     plain, recorded, complete, lost = [], [], [], []
     for i in range(repeats):
         record, wall = execute(scene, bus)
         plain.append(record.plan.n_ticks / wall)
-        recorder = Recorder(workdir / f"{bus}-{i}.mcap")
+        recorder = Recorder(None, rerun=live) if live else Recorder(workdir / f"{bus}-{i}.mcap")
         started = time.perf_counter()
         record, wall = execute(scene, bus, recorder=recorder)
         complete.append(time.perf_counter() - started)
         recorded.append(record.plan.n_ticks / wall)
-        lost.append(recorder.result["lost"])
+        lost.append(None if live else recorder.result["lost"])
     without, with_ = statistics.median(plain), statistics.median(recorded)
     return {"steps": record.plan.n_ticks, "steps_per_s_without": without, "steps_per_s_with": with_,
             "overhead": without / with_ - 1.0, "recording_complete_s": statistics.median(complete),
-            "lost": lost, "file_bytes": (workdir / f"{bus}-0.mcap").stat().st_size}
+            "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
+
+
+def live_overhead(repeats: int, workdir: Path) -> dict:
+    """The live view's cost over Zenoh: runs without and with ``--rerun connect=`` to a headless Rerun
+    gRPC server started here (``rerun --serve-grpc``), alternating."""
+    port = free_tcp_port()
+    sink = subprocess.Popen([str(Path(sys.executable).with_name("rerun")), "--serve-grpc", "--port", str(port)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        time.sleep(2.0)  # the server listens
+        return overhead("zenoh", repeats, workdir, live=f"connect=127.0.0.1:{port}")
+    finally:
+        sink.terminate()
+        sink.wait()
 
 
 class _NullRecorder(Recorder):
@@ -73,7 +93,9 @@ class _NullRecorder(Recorder):
 
 
 def stepping_loop_cost(repeats: int) -> dict:
-    """CPU µs per macro-step of the in-process run: plain, with the status, with status and tap."""
+    """CPU µs per macro-step of the in-process run: plain, with the status, with status and tap. The three
+    run one after the other in each repeat (in turn first), and the overhead is the median over repeats of
+    each repeat's ratio: a machine whose load drifts between repeats affects the three alike."""
     scene = load_scene(SCENE)
     plan, _ = plan_scene(scene)
     names = [s.name for s in plan.subsystems]
@@ -84,14 +106,22 @@ def stepping_loop_cost(repeats: int) -> dict:
         replica.run()
         return (time.process_time() - started) / plan.n_ticks * 1e6
 
-    plain, with_status, with_tap = [], [], []
-    for _ in range(repeats):
-        plain.append(cpu_per_step(None, None))
-        with_status.append(cpu_per_step(StatusReport(plan, False), None))
+    def with_status() -> float:
+        return cpu_per_step(StatusReport(plan, False), None)
+
+    def with_tap() -> float:
         status = StatusReport(plan, False)
-        with_tap.append(cpu_per_step(status, _NullRecorder(plan, status).tap))
-    return {"plain_us": min(plain), "status_us": min(with_status), "status_and_tap_us": min(with_tap),
-            "overhead": min(with_tap) / min(plain) - 1.0}
+        return cpu_per_step(status, _NullRecorder(plan, status))
+
+    variants = [("plain", lambda: cpu_per_step(None, None)), ("status", with_status), ("status_and_tap", with_tap)]
+    found: dict[str, list[float]] = {name: [] for name, _ in variants}
+    for repeat in range(repeats):
+        for name, run in variants[repeat % 3:] + variants[:repeat % 3]:
+            found[name].append(run())
+    ratios = [tap / plain for tap, plain in zip(found["status_and_tap"], found["plain"])]
+    return {**{f"{name}_us": statistics.median(values) for name, values in found.items()},
+            "overhead": statistics.median(ratios) - 1.0,
+            "overhead_range": (min(ratios) - 1.0, max(ratios) - 1.0)}
 
 
 def wire_messages(path: Path) -> list[tuple[int, bytes]]:
@@ -135,15 +165,17 @@ def writer_ceiling(messages: list[tuple[int, bytes]], path: Path) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5, help="in-process runs of each kind")
+    parser.add_argument("--loop-repeats", type=int, default=15, help="stepping-loop measurements of each kind")
     parser.add_argument("--zenoh-repeats", type=int, default=3, help="Zenoh runs of each kind")
     parser.add_argument("--json", help="write the figures as JSON")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="zencosim-bench-") as tmp:
         workdir = Path(tmp)
         figures = {"scene": SCENE, "cpus": os.cpu_count(), "load_average": os.getloadavg(),
-                   "stepping_loop": stepping_loop_cost(args.repeats),
+                   "stepping_loop": stepping_loop_cost(args.loop_repeats),
                    "inproc": overhead("inproc", args.repeats, workdir),
-                   "zenoh": overhead("zenoh", args.zenoh_repeats, workdir)}
+                   "zenoh": overhead("zenoh", args.zenoh_repeats, workdir),
+                   "live": live_overhead(args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
         figures["recorder"] = writer_ceiling(messages, workdir / "inproc-0.mcap")
 
@@ -152,9 +184,15 @@ def main() -> None:
     table.add_column("measure")
     table.add_column("value", justify="right")
     loop = figures["stepping_loop"]
-    table.add_row("stepping loop: CPU per step plain / +status / +status+tap [µs]",
+    table.add_row("stepping loop: CPU per step plain / +status / +status+tap [µs] (medians)",
                   f"{loop['plain_us']:.1f} / {loop['status_us']:.1f} / {loop['status_and_tap_us']:.1f}")
-    table.add_row("stepping loop: cost of recording on it (min over repeats)", f"{loop['overhead'] * 100:.1f} %")
+    table.add_row("stepping loop: cost of recording on it (median of ratios; range)",
+                  f"{loop['overhead'] * 100:.1f} % ({loop['overhead_range'][0] * 100:.1f} … "
+                  f"{loop['overhead_range'][1] * 100:.1f} %)")
+    live = figures["live"]
+    table.add_row("zenoh: macro-steps/s without / with --rerun (live view)",
+                  f"{live['steps_per_s_without']:.0f} / {live['steps_per_s_with']:.0f}")
+    table.add_row("zenoh: overhead of the live view (target <= 5 %)", f"{live['overhead'] * 100:.1f} %")
     for bus in ("inproc", "zenoh"):
         f = figures[bus]
         table.add_row(f"{bus}: macro-steps/s without / with --record",

@@ -55,7 +55,7 @@ class McapFile:
     def __init__(self, stream: BinaryIO, library: str, chunk_bytes: int) -> None:
         self._stream = stream
         self._chunk_bytes = chunk_bytes
-        self._compress = zstandard.ZstdCompressor().compress
+        self._compress = zstandard.ZstdCompressor(level=1).compress
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
         self._chunk = bytearray()

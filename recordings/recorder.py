@@ -129,6 +129,7 @@ class Recorder:
         self._observers: list[_Observer] = []
         self._recorder: _Observer | None = None
         self._index: dict[tuple[str, str], int] = {}  # (source, channel) → channel index
+        self._indices: dict[tuple[tuple[str, ...], str], bytes] = {}  # (sources, channel) → their channel indices
         self._topics: list[str] = []
         self._status = -1  # index of the status channel
         self._channels = bytearray()  # the batch being tapped: channel index of each message
@@ -172,16 +173,35 @@ class Recorder:
         self._topics = [spec.topic for spec in specs]
         self._status = self._topics.index(STATUS_TOPIC)
 
+    # the Tap of a replica (manager.scheme.replica): one call per exchange, a few list operations each
+    def status(self, message: bytes) -> None:
+        """The status after a macro-step: it opens a step, so a batch handed over here holds whole steps."""
+        if self._paced or len(self._messages) >= BATCH_MESSAGES:
+            self.flush()
+        self._stamps.append(time_ns())
+        self._channels.append(self._status)
+        self._messages.append(message)
+
+    def commands(self, sends: dict[str, bytes]) -> None:
+        self._add(sends, "commands")
+
+    def replies(self, replies: dict[str, bytes]) -> None:
+        self._add(replies, "y")
+
+    def _add(self, messages: dict[str, bytes], channel: str) -> None:
+        names = tuple(messages)
+        indices = self._indices.get((names, channel))
+        if indices is None:
+            indices = self._indices[names, channel] = bytes(self._index[name, channel] for name in names)
+        self._channels += indices
+        self._messages += messages.values()
+
     def tap(self, source: str, channel: str, data: bytes) -> None:
-        """A message of the in-process replica (``manager.scheme.replica``)."""
-        index = self._index[source, channel]
-        status = index == self._status
-        if status:
-            self._stamps.append(time_ns())
-        self._channels.append(index)
-        self._messages.append(data)
-        if status and (self._paced or len(self._messages) >= BATCH_MESSAGES):
-            self.flush()  # the status opens a step: the batch holds whole steps
+        """One message of channel ``<source>/<channel>`` (the tap of ``manager.scheme.replica.PerMessage``)."""
+        if (source, channel) == ("manager", "status"):
+            self.status(data)
+        else:
+            self._add({source: data}, channel)
 
     def flush(self) -> None:
         """Hand what the tap holds to the recorder process now.
@@ -199,7 +219,8 @@ class Recorder:
             self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
                                                array("I", map(len, self._messages[:n])).tobytes(),
                                                array("q", stamps).tobytes(), *self._messages[:n])))
-            self._tapped.update(channels)
+            for index in range(len(self._topics)):
+                self._tapped[index] += channels.count(index)
             self._channels.clear()
             self._messages.clear()
             self._stamps.clear()

@@ -158,7 +158,7 @@ def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_pat
     try:
         recorder.start(scene, plan, status, "inproc", "killed", realtime=False)
         record = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                         endpoints(plan, subsystems), tap=recorder.tap).run()
+                         endpoints(plan, subsystems), tap=recorder).run()
         recorder.flush()
         time.sleep(FLUSH_INTERVAL_S + 2 * IDLE_S + 0.5)  # the idle recorder writes its open chunk out
         recorder_pid = next(pid for pid in children_of(os.getpid()) if "zencosim.recordings.recorder_process" in cmdline(pid))
