@@ -5,11 +5,17 @@
 Records each scene in process, replays the recording into a Rerun file (``zencosim replay --rrd``),
 serves the file with the web viewer (``rerun --serve-web``) and photographs it with headless Chromium
 (Debian's ``chromium``: ``apt-get install chromium``; not needed by the tests). Chromium runs without a
-GPU, sandbox or network (WebGL through its software renderer) in a new, empty profile.
+GPU, sandbox or network (WebGL through its software renderer) in a new, empty profile, and is driven
+over the DevTools protocol on a pipe (``--remote-debugging-pipe``: JSON messages ended by a NUL byte),
+so no websocket library is needed: the picture is taken once the viewer has had ``SETTLE_S`` to load
+the recording.
 """
 from __future__ import annotations
 
 import argparse
+import base64
+import json
+import os
 import shutil
 import socket
 import subprocess
@@ -23,10 +29,10 @@ SCENES = {  # picture → scene and overrides
     "hydraulic_crane": ("hydraulic_crane", []),
 }
 WINDOW = (1600, 1000)  # [px]
-LOAD_BUDGET_MS = 40_000  # virtual time Chromium gives the viewer to load the recording before the picture
+SETTLE_S = 45.0  # [s] the viewer loads its WebAssembly and the recording within this time
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--enable-unsafe-swiftshader", "--hide-scrollbars")
+                  "--enable-unsafe-swiftshader", "--hide-scrollbars")  # WebGL in software: the viewer needs it
 
 
 def _free_port() -> int:
@@ -50,6 +56,55 @@ def _wait_listening(port: int, timeout_s: float = 30.0) -> None:
     raise RuntimeError(f"nothing listens on port {port} after {timeout_s} s")
 
 
+def _pipes_at_3_and_4(commands: int, results: int) -> None:
+    """In the child: the DevTools pipe's ends where Chromium expects them (it reads 3, writes 4)."""
+    commands, results = os.dup(commands), os.dup(results)  # above 4, so that the first dup2 cannot close the other
+    os.dup2(commands, 3)
+    os.dup2(results, 4)
+
+
+class DevTools:
+    """Chromium driven over ``--remote-debugging-pipe``: ``call`` sends a command and returns its result."""
+
+    def __init__(self, chromium: str, profile: str) -> None:
+        commands_read, self._commands = os.pipe()
+        self._results, results_write = os.pipe()
+        self.process = subprocess.Popen(
+            [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={WINDOW[0]},{WINDOW[1]}",
+             "--remote-debugging-pipe", "about:blank"],
+            pass_fds=(3, 4), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            preexec_fn=lambda: _pipes_at_3_and_4(commands_read, results_write))
+        os.close(commands_read)
+        os.close(results_write)
+        self._next = 0
+        self._buffer = b""
+
+    def call(self, method: str, session: str | None = None, **params) -> dict:
+        self._next += 1
+        message = {"id": self._next, "method": method, "params": params}
+        if session:
+            message["sessionId"] = session
+        os.write(self._commands, json.dumps(message).encode() + b"\0")
+        while True:
+            while b"\0" not in self._buffer:
+                chunk = os.read(self._results, 1 << 20)
+                if not chunk:
+                    raise RuntimeError(f"chromium closed the pipe during {method}")
+                self._buffer += chunk
+            text, self._buffer = self._buffer.split(b"\0", 1)
+            answer = json.loads(text)
+            if answer.get("id") == self._next:
+                if "error" in answer:
+                    raise RuntimeError(f"{method}: {answer['error']}")
+                return answer["result"]
+
+    def close(self) -> None:
+        self.process.terminate()
+        self.process.wait()
+        os.close(self._commands)
+        os.close(self._results)
+
+
 def photograph(rrd: Path, png: Path, chromium: str) -> None:
     """Serve ``rrd`` with the web viewer and save Chromium's picture of it as ``png``."""
     rerun = Path(sys.executable).with_name("rerun")
@@ -59,12 +114,21 @@ def photograph(rrd: Path, png: Path, chromium: str) -> None:
     try:
         _wait_listening(web)
         _wait_listening(grpc)
-        url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy"
+        # as rerun prints it: "localhost" in both, which its gRPC server allows as an origin (CORS)
+        url = f"http://localhost:{web}?url=rerun%2Bhttp%3A%2F%2Flocalhost%3A{grpc}%2Fproxy"
         with tempfile.TemporaryDirectory(prefix="zencosim-chromium-") as profile:
-            subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
-                            f"--window-size={WINDOW[0]},{WINDOW[1]}", f"--virtual-time-budget={LOAD_BUDGET_MS}",
-                            f"--screenshot={png.resolve()}", url], check=True, timeout=300,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            browser = DevTools(chromium, profile)
+            try:
+                target = browser.call("Target.createTarget", url="about:blank")["targetId"]
+                session = browser.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+                browser.call("Emulation.setDeviceMetricsOverride", session, width=WINDOW[0], height=WINDOW[1],
+                             deviceScaleFactor=1, mobile=False)
+                browser.call("Page.navigate", session, url=url)
+                time.sleep(SETTLE_S)
+                shot = browser.call("Page.captureScreenshot", session, format="png")
+                png.write_bytes(base64.b64decode(shot["data"]))
+            finally:
+                browser.close()
     finally:
         server.terminate()
         server.wait()
