@@ -104,6 +104,22 @@ class _GroupLayout:
         return table[:, self.gather]
 
 
+def wire_headers(sizes: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(start, header and validity of each message) of wire messages one after the other in ``data`` (uint8),
+    of ``sizes``; a message is valid as ``manager.wire.protocol.decode_header`` would accept it."""
+    starts = np.cumsum(sizes, dtype=np.int64) - sizes
+    whole = sizes >= HEADER.size
+    heads = np.zeros(sizes.size, dtype=WIRE_HEADER)
+    if whole.any():
+        heads[whole] = data[starts[whole, None] + np.arange(HEADER.size)].view(WIRE_HEADER).ravel()
+    kinds = heads["kind"]
+    item = np.where(kinds == Kind.ERROR, 1, 8)
+    valid = (whole & (heads["version"] == VERSION) & _KINDS[kinds]
+             & (sizes == HEADER.size + item * heads["count"].astype(np.int64))
+             & (heads["count"] % np.maximum(heads["rows"], 1) == 0))
+    return starts, heads, valid
+
+
 def _fault(wire: bytes, sender: str) -> str:
     """What ``decode_header`` finds wrong with a message that the vectorised checks rejected."""
     try:
@@ -129,17 +145,8 @@ class BatchEncoder:
         status message takes the next of ``stamps``; ``describe(i)`` names message ``i`` in an error."""
         data = np.frombuffer(blob, dtype=np.uint8)
         n = channels.size
-        starts = np.cumsum(sizes, dtype=np.int64) - sizes
-        whole = sizes >= HEADER.size
-        heads = np.zeros(n, dtype=WIRE_HEADER)
-        if whole.any():
-            picked = data[starts[whole, None] + np.arange(HEADER.size)]
-            heads[whole] = picked.view(WIRE_HEADER).ravel()
+        starts, heads, valid = wire_headers(sizes, data)
         kinds = heads["kind"]
-        item = np.where(kinds == Kind.ERROR, 1, 8)
-        valid = (whole & (heads["version"] == VERSION) & _KINDS[kinds]
-                 & (sizes == HEADER.size + item * heads["count"].astype(np.int64))
-                 & (heads["count"] % np.maximum(heads["rows"], 1) == 0))
         malformed = [_fault(blob[starts[i]:starts[i] + sizes[i]], describe(i)) for i in np.flatnonzero(~valid).tolist()]
         status_rank = np.cumsum(channels == self.status)
         stamped = np.concatenate(([carry], stamps)).astype(np.int64)

@@ -21,18 +21,19 @@ import json
 import signal
 import sys
 import time
-from collections import defaultdict
 
+import numpy as np
 import rerun as rr
 
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.scene.load import SceneError, scene_from_text
-from zencosim.manager.wire.protocol import decode
+from zencosim.manager.wire.protocol import HEADER
 from zencosim.recordings import RecordingError
+from zencosim.recordings.encoding import wire_headers
 from zencosim.recordings.layout import SCENE_ATTACHMENT, ChannelSpec
 from zencosim.recordings.recorder_process import CONTROL, NO_END, FrameReader, announce, split_batch
 from zencosim.recordings.rerun_sinks import serve_web, spawn_viewer, viewer_url
-from zencosim.recordings.rerun_view import APPLICATION, RunView, blueprint
+from zencosim.recordings.rerun_view import APPLICATION, PLOTTED, RunView, blueprint
 
 FRAME_RATE = 30.0  # [1/s] sends to the viewer at most this often
 
@@ -89,26 +90,29 @@ def main() -> int:
 
 
 def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec]) -> tuple[str, int]:
-    """Feed the view every batch until END; return the run's outcome and its last reported step."""
-    status = next(i for i, spec in enumerate(specs) if spec.role == "status")
+    """Feed the view every batch until END; return the run's outcome and its last reported step. A batch
+    is read with numpy (``recordings.encoding.wire_headers``): each channel's plotted messages become
+    arrays at once; only the commands of drawn subsystems are taken one by one, for the mechanism."""
+    drawn = set(view.mechanism.drawn) if view.mechanism is not None else set()
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             return json.loads(data)["outcome"], last_step
         channels, sizes, _, messages = split_batch(data)
-        by_channel, commands, at = defaultdict(list), [], 0
-        for index, size in zip(channels.tolist(), sizes.tolist()):
-            wire = messages[at:at + size]
-            at += size
-            spec = specs[index]
-            by_channel[index].append(decode(wire, spec.topic))
-            if spec.role == "inputs":
-                commands.append((spec.source, wire))
-            elif index == status:
-                last_step = by_channel[index][-1].step
-        for index, decoded in by_channel.items():
-            view.feed(specs[index].topic, decoded)
+        raw = np.frombuffer(messages, dtype=np.uint8)
+        starts, heads, valid = wire_headers(sizes, raw)
+        for index, spec in enumerate(specs):
+            width = len(spec.names)
+            chosen = np.flatnonzero(valid & (channels == index) & (heads["kind"] == PLOTTED[spec.role])
+                                    & (heads["count"] >= width))
+            values = raw[starts[chosen, None] + HEADER.size + np.arange(8 * width)].view("<f8").reshape(-1, width)
+            view.feed(spec.topic, heads["step"][chosen], heads["time_ns"][chosen], values)
+            if spec.role == "status" and chosen.size:
+                last_step = int(heads["step"][chosen[-1]])
+        commands = [(specs[i].source, messages[starts[k]:starts[k] + sizes[k]])
+                    for k, i in enumerate(channels.tolist()) if specs[i].source in drawn and specs[i].role == "inputs"
+                    and valid[k]]
         view.commands(commands)
         if time.monotonic() - sent >= 1.0 / FRAME_RATE:
             view.flush()

@@ -14,7 +14,7 @@ from zencosim.manager.wire.protocol import encode
 from zencosim.recordings import RecordingError
 from zencosim.recordings.reader import Recording
 from zencosim.recordings.rerun_sinks import spawn_viewer
-from zencosim.recordings.rerun_view import APPLICATION, RunView, blueprint, ordered_commands
+from zencosim.recordings.rerun_view import APPLICATION, PLOTTED, RunView, blueprint, ordered_commands
 
 
 def replay_in_rerun(recording: Recording, rrd: str | Path | None = None, spawn: bool = False,
@@ -30,7 +30,7 @@ def replay_in_rerun(recording: Recording, rrd: str | Path | None = None, spawn: 
         scene = None
     view = RunView(stream, [c.spec for c in recording.channels.values()], scene)
     for topic, channel in recording.channels.items():
-        view.feed(topic, channel.messages)
+        view.feed(topic, *channel.table(PLOTTED[channel.spec.role]))
     info = recording.info
     events, flagged = view.events(recording.end["outcome"] if recording.end else "ended (the recorder did not finish)",
                                   recording.last_step(), int(info["steps"]), int(info["macro_step_ns"]))

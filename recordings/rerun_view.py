@@ -41,6 +41,7 @@ STEP_TIMING = ("step_timing", "step timing")  # the measured per-step durations,
 WALL_TIME = ("wall_time", "wall time")
 PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
            (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
+PLOTTED = {"outputs": Kind.OUTPUT, "inputs": Kind.STEP, "status": Kind.STATUS}  # the messages a channel plots
 EVENTS = "/events"
 MECHANISM = "/mechanism"
 
@@ -125,20 +126,16 @@ class RunView:
                                                                                                      WALL_TIME[0]]
         return dict(sorted(found.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order)))
 
-    def feed(self, topic: str, messages: list) -> None:
-        """Messages of channel ``topic`` (anything with ``kind``, ``step``, ``time_ns``, ``values``), in order."""
+    def feed(self, topic: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:
+        """The next messages of channel ``topic`` of its kind (:data:`PLOTTED`): their steps, times [ns] and
+        values (a row each; of a command, its polynomial's first row first)."""
         spec = self.specs[topic]
-        kind = {"outputs": Kind.OUTPUT, "inputs": Kind.STEP, "status": Kind.STATUS}[spec.role]
-        chosen = [m for m in messages if m.kind == kind]
-        if spec.role == "outputs" and self.mechanism is not None:
-            for m in chosen:
-                self.mechanism.output(spec.source, m.step, m.values)
-        if not chosen:
+        if not steps.size:
             return
-        width = len(spec.names)
-        steps = np.array([m.step for m in chosen], dtype=np.int64)
-        times = np.array([m.time_ns for m in chosen], dtype=np.int64)
-        values = np.array([m.values[:width] for m in chosen], dtype=np.float64).reshape(len(chosen), width)
+        values = values[:, :len(spec.names)]
+        if spec.role == "outputs" and self.mechanism is not None:
+            for step, row in zip(steps.tolist(), values):
+                self.mechanism.output(spec.source, step, row)
         self._columns.setdefault(topic, []).append((steps, times, values))
         if spec.role == "status":
             for j, name in enumerate(spec.names):
