@@ -226,6 +226,11 @@ class Recorder:
             self._stamps.clear()
 
     @property
+    def pids(self) -> list[int]:
+        """The process ids of the recorder and the live view, as started."""
+        return [observer.process.pid for observer in self._observers]
+
+    @property
     def published(self) -> dict[str, int]:
         """The messages the tap handed over, per channel."""
         return {topic: self._tapped[index] for index, topic in enumerate(self._topics)}

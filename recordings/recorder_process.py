@@ -103,15 +103,23 @@ def announce(event: dict) -> None:
     sys.stdout.flush()
 
 
-def main() -> int:
+def observe() -> tuple[FrameReader, dict | None]:
+    """An observer process's start (the recorder's, the live view's): SIGINT ignored (a Ctrl-C reaches the
+    whole process group; the manager then sends END), SIGTERM noted; the frames of standard input and
+    the START frame's JSON (None, said on standard error, when the first frame is not one)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    stop = SignalNote(signal.SIGTERM)
-    frames = FrameReader(sys.stdin.fileno(), stop)
+    frames = FrameReader(sys.stdin.fileno(), SignalNote(signal.SIGTERM))
     first = frames.next()
     if first is None or first[0] != CONTROL:
-        print("recorder: expected a START frame on standard input", file=sys.stderr)
+        print(f"{sys.argv[0]}: expected a START frame on standard input", file=sys.stderr)
+        return frames, None
+    return frames, json.loads(first[1])
+
+
+def main() -> int:
+    frames, start = observe()
+    if start is None:
         return 2
-    start = json.loads(first[1])
     try:
         writer = RecordingWriter(start["path"], start["metadata"], start["scene_toml"],
                                  [ChannelSpec.from_metadata(c["topic"], c["metadata"]) for c in start["channels"]])

@@ -18,20 +18,18 @@ viewer's address for ``serve``) and one when finished.
 from __future__ import annotations
 
 import json
-import signal
 import sys
 import time
 
 import numpy as np
 import rerun as rr
 
-from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.scene.load import SceneError, scene_from_text
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.recordings import RecordingError
 from zencosim.recordings.encoding import wire_headers
 from zencosim.recordings.layout import SCENE_ATTACHMENT, ChannelSpec
-from zencosim.recordings.recorder_process import CONTROL, NO_END, FrameReader, announce, split_batch
+from zencosim.recordings.recorder_process import CONTROL, NO_END, FrameReader, announce, observe, split_batch
 from zencosim.recordings.rerun_sinks import serve_web, spawn_viewer, viewer_url
 from zencosim.recordings.rerun_view import APPLICATION, PLOTTED, RunView, blueprint
 
@@ -52,14 +50,9 @@ def open_stream(target: str, run_id: str) -> tuple[rr.RecordingStream, list, str
 
 
 def main() -> int:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    stop = SignalNote(signal.SIGTERM)
-    frames = FrameReader(sys.stdin.fileno(), stop)
-    first = frames.next()
-    if first is None or first[0] != CONTROL:
-        print("live view: expected a START frame on standard input", file=sys.stderr)
+    frames, start = observe()
+    if start is None:
         return 2
-    start = json.loads(first[1])
     info = start["metadata"]
     specs = [ChannelSpec.from_metadata(c["topic"], c["metadata"]) for c in start["channels"]]
     try:
@@ -83,7 +76,7 @@ def main() -> int:
     stream.flush()
     announce({"event": "finished", "where": where})
     if start["target"] == "serve":
-        while stop.received is None:  # serving until ended
+        while frames.stop.received is None:  # serving until ended
             time.sleep(0.2)
     stream.disconnect()
     return 0
