@@ -219,3 +219,55 @@ def test_the_host_and_scene_path_are_recorded_when_asked(tmp_path):
     assert result.returncode == 0, result.stderr
     info = read_recording(path).info
     assert info["host"] == socket.gethostname() and info["scene_source"] == str(load_scene(*SCENE).path)
+
+
+def _format_1_message_class():
+    """The one generic ``zencosim.Message`` of format 1 recordings, built with the protobuf runtime."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    F = descriptor_pb2.FieldDescriptorProto
+    file = descriptor_pb2.FileDescriptorProto(name="zencosim/message.proto", package="zencosim", syntax="proto3")
+    message = file.message_type.add(name="Message")
+    for name, number, kind, label in (("step", 1, F.TYPE_SFIXED64, F.LABEL_OPTIONAL),
+                                      ("time_ns", 2, F.TYPE_SFIXED64, F.LABEL_OPTIONAL),
+                                      ("kind", 3, F.TYPE_FIXED32, F.LABEL_OPTIONAL),
+                                      ("rows", 4, F.TYPE_FIXED32, F.LABEL_OPTIONAL),
+                                      ("values", 5, F.TYPE_DOUBLE, F.LABEL_REPEATED),
+                                      ("text", 6, F.TYPE_STRING, F.LABEL_OPTIONAL),
+                                      ("ref", 7, F.TYPE_FIXED32, F.LABEL_OPTIONAL)):
+        message.field.add(name=name, number=number, type=kind, label=label)
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(file)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName("zencosim.Message")), \
+        descriptor_pb2.FileDescriptorSet(file=[file]).SerializeToString()
+
+
+def test_a_format_1_recording_is_still_read_and_verified(recorded, tmp_path):
+    from mcap.writer import Writer
+    path, _, _, _ = recorded
+    recording = read_recording(path)
+    message_class, schema = _format_1_message_class()
+    old = tmp_path / "format1.mcap"
+    with open(old, "wb") as handle:  # as format 1 wrote it: one generic message, log time = simulated time
+        writer = Writer(handle)
+        writer.start()
+        schema_id = writer.register_schema("zencosim.Message", "protobuf", schema)
+        for topic, channel in recording.channels.items():
+            channel_id = writer.register_channel(topic, "protobuf", schema_id, channel.spec.metadata())
+            for m in channel.messages:
+                data = message_class(step=m.step, time_ns=m.time_ns, kind=m.kind, rows=m.rows, values=m.values.tolist(),
+                                     text=m.text, ref=m.ref).SerializeToString()
+                writer.add_message(channel_id, max(m.time_ns, 0), data, 0)
+        writer.add_metadata("zencosim", {**recording.info, "format": "zencosim-recording/1"})
+        writer.add_attachment(0, 0, SCENE_ATTACHMENT, "application/toml", recording.scene_toml.encode())
+        writer.finish()
+    again = read_recording(old)
+    for topic, channel in recording.channels.items():
+        assert [(m.step, m.kind, m.values.tobytes()) for m in again.channels[topic].messages] == \
+            [(m.step, m.kind, m.values.tobytes()) for m in channel.messages], topic
+    assert verify(again).divergence is None
+
+    newer = tmp_path / "format9.mcap"
+    RecordingWriter(newer, {**recording.info, "format": "zencosim-recording/9"}, recording.scene_toml,
+                    [c.spec for c in recording.channels.values()]).finish("completed", {})
+    result = _zencosim("inspect", str(newer))
+    assert result.returncode == 2 and "recording format 'zencosim-recording/9'" in result.stderr, result.stderr
