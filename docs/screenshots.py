@@ -29,7 +29,7 @@ SCENES = {  # picture → scene and overrides
     "hydraulic_crane": ("hydraulic_crane", []),
 }
 WINDOW = (1600, 1000)  # [px]
-SETTLE_S = 45.0  # [s] the viewer loads its WebAssembly and the recording within this time
+SETTLE_S = 90.0  # [s] the viewer loads its WebAssembly and the recording within this time (software rendering)
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--enable-unsafe-swiftshader", "--hide-scrollbars")  # WebGL in software: the viewer needs it

@@ -25,7 +25,7 @@ from zencosim.manager.scene.load import Scene
 from zencosim.manager.wire.protocol import HEADER, Kind
 from zencosim.subsystems.sketch import LANE, Sketch
 
-ARROW = 0.8 * LANE  # [m] length of the largest coupling-force arrow
+ARROW = 0.5 * LANE  # [m] length of the largest coupling-force arrow
 
 
 @dataclass

@@ -71,6 +71,7 @@ def main() -> int:
     announce({"event": "ready", "where": where})
     outcome, last_step = follow(frames, view, specs)
     events, flagged = view.events(outcome, last_step, int(info["steps"]), int(info["macro_step_ns"]))
+    view.last_frames()
     view.finish(events)
     stream.send_blueprint(blueprint(view, flagged[0] if flagged else None))
     stream.flush()

@@ -34,15 +34,15 @@ def replay_in_rerun(recording: Recording, rrd: str | Path | None = None, spawn: 
     info = recording.info
     events, flagged = view.events(recording.end["outcome"] if recording.end else "ended (the recorder did not finish)",
                                   recording.last_step(), int(info["steps"]), int(info["macro_step_ns"]))
+    view.commands(ordered_commands({c.spec.source: [encode(m.kind, m.step, m.time_ns, m.values, m.rows, m.ref)
+                                                    for m in c.messages]
+                                    for c in recording.channels.values() if c.spec.role == "inputs"}))
+    view.last_frames()
     if rrd:
         sinks.append(rr.FileSink(str(rrd)))
     stream.set_sinks(*sinks, default_blueprint=blueprint(view, flagged[0] if flagged else None))
     stream.send_recording_name(f"{info['scene']} run {info['run_id']}")
     view.start()
-    view.flush()
-    view.commands(ordered_commands({c.spec.source: [encode(m.kind, m.step, m.time_ns, m.values, m.rows, m.ref)
-                                                    for m in c.messages]
-                                    for c in recording.channels.values() if c.spec.role == "inputs"}))
     view.finish(events)
     stream.flush()
     stream.disconnect()

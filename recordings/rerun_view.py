@@ -10,7 +10,8 @@ polynomial at the start of each step), e.g. ``/positions/S2/x2``, ``/forces/S2/f
 ``/residual_power/<bond>`` and ``/residual_energy/<bond>`` (and any other per-bond status field,
 ``/<field>/<bond>``); ``/step_timing/<field>`` [µs] and ``/wall_time`` [s]. Each series is named
 with its unit (``S2 x2 [m]``), has a colour per subsystem (lighter for what it receives) and a
-static ``unit``. The mechanism is under ``/mechanism`` (``recordings.mechanism``), the flagged
+static ``unit``; a value that is NaN (a multi-rate bond where it is not evaluated) is left out, so the
+line has no gaps. The mechanism is under ``/mechanism`` (``recordings.mechanism``), the flagged
 residual-power spikes and how the run ended under ``/events``. Timelines: ``sim_time`` (simulated
 time, the default) and ``step``.
 """
@@ -111,7 +112,10 @@ class RunView:
         self._columns: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._residual: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}  # bond → (times [ns], δP) of the status
         self._colors = {source: PALETTE[i % len(PALETTE)] for i, source in enumerate(sources)}
-        self._shapes: dict[str, tuple[str, list, list, list]] = {}  # mechanism entity → (kind, steps, times, shapes)
+        # mechanism entity → (kind, labels, colour, steps, times, shapes per step); its labels sent yet
+        self._shapes: dict[str, tuple[str, list, tuple, list, list, list]] = {}
+        self._labelled: set[str] = set()
+        self.extent: np.ndarray | None = None  # [x min, x max, y min, y max] of the mechanism so far [m]
 
     def start(self) -> None:
         """Log each series' name, colour and unit (static); call once the stream's sinks are set."""
@@ -154,8 +158,10 @@ class RunView:
         for topic, parts in self._columns.items():
             steps, times, values = (np.concatenate(column) for column in zip(*parts))
             for series in self.series[topic]:
-                self.stream.send_columns(series.entity, indexes=self._indexes(steps, times),
-                                         columns=rr.Scalars.columns(scalars=values[:, series.column] * series.scale))
+                column = values[:, series.column]
+                kept = ~np.isnan(column)  # a multi-rate bond is not evaluated at every step: no gap in its line
+                self.stream.send_columns(series.entity, indexes=self._indexes(steps[kept], times[kept]),
+                                         columns=rr.Scalars.columns(scalars=column[kept] * series.scale))
         self._columns = {}
         self._send_shapes()
 
@@ -183,28 +189,43 @@ class RunView:
             if arrow is not None:
                 shapes.append((_path("mechanism", "forces", name), "arrows", [arrow], [f"{name} force"],
                                (214, 39, 40)))
+        corners = [np.array([c, (c[0] - h[0], c[1] - h[1]), (c[0] + h[0], c[1] + h[1])])
+                   for sketch in frame.sketches.values() for c, h in sketch.boxes.values()]
+        points = np.concatenate(corners + [p for sketch in frame.sketches.values() for p in sketch.paths.values()]
+                                or [np.zeros((0, 2))])
+        if points.size:
+            low, high = points.min(axis=0), points.max(axis=0)
+            if self.extent is not None:
+                low, high = np.minimum(low, self.extent[::2]), np.maximum(high, self.extent[1::2])
+            self.extent = np.array([low[0], high[0], low[1], high[1]])
         for entity, kind, items, labels, color in shapes:
             if entity not in self._shapes:
-                self._shapes[entity] = (kind, [], [], [])
-                archetype = {"boxes": rr.Boxes2D, "strips": rr.LineStrips2D, "arrows": rr.Arrows2D}[kind]
-                self.stream.log(entity, archetype.from_fields(labels=labels, colors=[color]), static=True)
-            _, steps, times, kept = self._shapes[entity]
+                self._shapes[entity] = (kind, labels, color, [], [], [])
+            _, _, _, steps, times, kept = self._shapes[entity]
             steps.append(frame.step)
             times.append(frame.time_ns)
             kept.append(items)
 
     def _send_shapes(self) -> None:
-        for entity, (kind, steps, times, kept) in self._shapes.items():
+        """Send the kept shapes, y turned to point down as Rerun's 2-D views draw it (so up is up)."""
+        flip = np.array([1.0, -1.0])
+        for entity, (kind, labels, color, steps, times, kept) in self._shapes.items():
             if not steps:
                 continue
+            archetype = {"boxes": rr.Boxes2D, "strips": rr.LineStrips2D, "arrows": rr.Arrows2D}[kind]
+            if entity not in self._labelled:
+                self.stream.log(entity, archetype.from_fields(labels=labels, colors=[color]), static=True)
+                self._labelled.add(entity)
             lengths = [len(items) for items in kept]
             items = [item for frame_items in kept for item in frame_items]
             if kind == "boxes":
-                columns = rr.Boxes2D.columns(centers=[c for c, _ in items], half_sizes=[h for _, h in items])
+                columns = rr.Boxes2D.columns(centers=np.array([c for c, _ in items]) * flip,
+                                             half_sizes=[h for _, h in items])
             elif kind == "strips":
-                columns = rr.LineStrips2D.columns(strips=items)
+                columns = rr.LineStrips2D.columns(strips=[strip * flip for strip in items])
             else:
-                columns = rr.Arrows2D.columns(origins=[o for o, _ in items], vectors=[v for _, v in items])
+                columns = rr.Arrows2D.columns(origins=np.array([o for o, _ in items]) * flip,
+                                              vectors=np.array([v for _, v in items]) * flip)
             self.stream.send_columns(entity, indexes=self._indexes(np.array(steps), np.array(times)),
                                      columns=columns.partition(lengths))
             steps.clear()
@@ -236,11 +257,14 @@ class RunView:
             found.append((end_ns, "INFO", f"run {outcome}"))
         return found, flagged
 
-    def finish(self, events: list[tuple[int, str, str]]) -> None:
-        """Send the rest, the last frames of the mechanism and ``events`` (see :meth:`events`)."""
+    def last_frames(self) -> None:
+        """Draw the frames the mechanism still holds: no more commands come."""
         if self.mechanism is not None:
             for frame in self.mechanism.finish():
                 self._draw(frame)
+
+    def finish(self, events: list[tuple[int, str, str]]) -> None:
+        """Send the rest and ``events`` (see :meth:`events`)."""
         self.flush()
         for time_ns, level, text in events:
             self.stream.set_time("sim_time", duration=np.timedelta64(time_ns, "ns"))
@@ -265,7 +289,12 @@ def blueprint(view: RunView, highlight: tuple[float, float] | None = None) -> rr
              for root, title in view.panels().items()]
     left = [rrb.TextLogView(origin=EVENTS, name="events")]
     if view.mechanism is not None and view.mechanism.drawn:
-        left.insert(0, rrb.Spatial2DView(origin=MECHANISM, name="mechanism [m]"))
+        bounds = None
+        if view.extent is not None:  # what the mechanism covered, with a margin; y down as Rerun draws it
+            x0, x1, y0, y1 = view.extent
+            margin = 0.1 * max(x1 - x0, y1 - y0, 1.0)
+            bounds = rrb.VisualBounds2D(x_range=[x0 - margin, x1 + margin], y_range=[-y1 - margin, -y0 + margin])
+        left.insert(0, rrb.Spatial2DView(origin=MECHANISM, name="mechanism [m]", visual_bounds=bounds))
     selection = None if highlight is None else rr.AbsoluteTimeRange(
         start=np.timedelta64(round(highlight[0] * 1e9), "ns"), end=np.timedelta64(round(highlight[1] * 1e9), "ns"))
     return rrb.Blueprint(

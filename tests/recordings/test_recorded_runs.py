@@ -101,7 +101,8 @@ def _series(recording) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         kind = {"outputs": Kind.OUTPUT, "inputs": Kind.STEP, "status": Kind.STATUS}[channel.spec.role]
         steps, times, values = channel.table(kind)
         for series in series_of(channel.spec, (0, 0, 0)):
-            found[series.entity] = (steps, times, values[:, series.column] * series.scale)
+            kept = ~np.isnan(values[:, series.column])  # the replay leaves NaN out
+            found[series.entity] = (steps[kept], times[kept], values[kept, series.column] * series.scale)
     return found
 
 

@@ -121,9 +121,9 @@ def test_the_mechanism_moves_as_the_recorded_outputs_say(replayed):
     assert bodies["sim_time"].cast(pa.int64()).to_pylist() == times.tolist()
     centers = np.array([row[0] for row in bodies["Boxes2D:centers"].to_pylist()])
     # m2's box is where the re-executed S2 says, which is what S2 reported (x2), to the bit of Rerun's float32
-    # positions; S2 is the second lane, y = -1 m
+    # positions; S2 is the second lane, 1 m below the first (y = -1 m, drawn as +1: Rerun's y points down)
     assert centers[:, 0].astype(np.float32).tobytes() == outputs[:, 0].astype(np.float32).tobytes()
-    assert set(centers[:, 1].tolist()) == {-1.0}
+    assert set(centers[:, 1].tolist()) == {1.0}
     # the coupling force on m2 is the reaction to S1's fc: the arrow points against it
     _, _, s1 = recording.channels["S1/y"].table(Kind.OUTPUT)
     arrows = data["/mechanism/forces/c"].filter(pc.is_valid(data["/mechanism/forces/c"]["sim_time"]))
