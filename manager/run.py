@@ -33,8 +33,14 @@ class RunRecorder(Protocol):
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start recording."""
 
-    def tap(self, source: str, channel: str, message: bytes) -> None:
-        """A message of the in-process replica (see ``manager.scheme.replica``)."""
+    def status(self, message: bytes) -> None:
+        """The status after a macro-step; with ``commands`` and ``replies``, the replica's ``Tap``."""
+
+    def commands(self, sends: dict[str, bytes]) -> None:
+        """The commands of an exchange."""
+
+    def replies(self, replies: dict[str, bytes]) -> None:
+        """The replies of an exchange."""
 
     def finish(self, outcome: str) -> dict:
         """Close the recording (what the tap handed over is what was published)."""
@@ -69,7 +75,7 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
         if recorder is not None:
             recorder.start(scene, plan, status, bus, run_id, realtime)
             started = True
-        tap = None if recorder is None else recorder.tap
+        tap = recorder
         if bus == "inproc":
             scheme = make_scheme(scene, plan, realtime, None, progress, status)
             start = time.perf_counter()

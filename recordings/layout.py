@@ -8,7 +8,7 @@ macro-step, manager.wire.status). A channel's metadata names its values and thei
 is read without the scene.
 
 The ``zencosim`` metadata record describes the run (scene, digest, overrides, software versions,
-bus, run id, host); the attachment ``scene.toml`` is the scene after overrides, enough to re-run it;
+bus, run id; the host and the scene's path only when asked); the attachment ``scene.toml`` is the scene after overrides, enough to re-run it;
 the ``zencosim.end`` metadata record, written when the recorder finishes, holds the outcome and, per
 channel, what the manager published, what the recorder received and what was lost.
 """
@@ -20,6 +20,7 @@ import socket
 import time
 from dataclasses import dataclass
 from importlib.metadata import version
+from pathlib import Path
 
 import numpy as np
 
@@ -27,7 +28,8 @@ from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.wire.status import StatusReport
 
-FORMAT = "zencosim-recording/1"
+FORMAT = "zencosim-recording/2"  # a typed message per channel (recordings.schema); log time = wall clock
+FORMAT_1 = "zencosim-recording/1"  # one generic message for every channel, log time = simulated time
 RUN_METADATA = "zencosim"
 END_METADATA = "zencosim.end"
 SCENE_ATTACHMENT = "scene.toml"
@@ -70,8 +72,11 @@ def channel_specs(plan: Plan, status: StatusReport) -> list[ChannelSpec]:
     return specs
 
 
-def run_metadata(scene: Scene, plan: Plan, bus: str, run_id: str, realtime: bool) -> dict[str, str]:
-    """The ``zencosim`` metadata record of a run."""
+def run_metadata(scene: Scene, plan: Plan, bus: str, run_id: str, realtime: bool,
+                 host_info: bool = False) -> dict[str, str]:
+    """The ``zencosim`` metadata record of a run; ``host_info`` adds the host's name and the scene file's
+    absolute path (left out unless asked: a recording is shared)."""
+    host = {"host": socket.gethostname(), "scene_source": str(scene.path)} if host_info else {}
     return {
         "format": FORMAT,
         "zencosim": version("zencosim"),
@@ -79,13 +84,13 @@ def run_metadata(scene: Scene, plan: Plan, bus: str, run_id: str, realtime: bool
         "numpy": np.__version__,
         "scene": scene.name,
         "scene_digest": scene.digest,
-        "scene_source": scene.path,
+        "scene_file": Path(scene.path).name,
         "overrides": json.dumps(list(scene.overrides)),
         "bus": bus,
         "run_id": run_id,
-        "host": socket.gethostname(),
         "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "macro_step_ns": str(plan.base_step_ns),
         "steps": str(plan.n_ticks),
         "realtime": json.dumps(realtime),
+        **host,
     }

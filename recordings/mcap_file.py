@@ -2,11 +2,12 @@
 
 The mcap library's ``Writer.add_message`` costs about 5 µs of Python per message (a record object,
 statistics, an index entry, seven stream calls): an in-process run produces 80 000 messages per
-second, so that alone would take 40 % of the recorder's core. Here a message is one ``struct.pack``
-into the open chunk and one index entry (0.5–1 µs, ``benchmarks/bench_recording.py``); every other
-record — header, schemas, channels, metadata, attachments, chunks, message indexes, the summary with
-its statistics and indexes, the footer — is written with the library's record classes, and the
-library's readers read the file (the tests read every recording with CRCs checked and with
+second, so that alone would take 40 % of the recorder's core. Here message records arrive as whole
+blocks, built for a batch of messages at once (``recordings.encoding``), with their channels, log
+times and offsets as arrays, and the message indexes are written from those arrays; every other
+record — header, schemas, channels, metadata, attachments, chunks, the summary with its statistics
+and indexes, the footer — is written with the library's record classes, and the library's readers
+read the file (the tests read every recording with CRCs checked and with
 ``mcap.reader.make_reader``). Schemas and channels are written before the first chunk, outside
 chunks, so that a file cut short still declares them.
 """
@@ -17,6 +18,7 @@ import zlib
 from collections import defaultdict
 from typing import BinaryIO
 
+import numpy as np
 import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
@@ -30,7 +32,6 @@ from mcap.records import (
     Footer,
     Header,
     McapRecord,
-    MessageIndex,
     Metadata,
     MetadataIndex,
     Schema,
@@ -39,8 +40,7 @@ from mcap.records import (
 )
 from mcap.writer import MCAP0_MAGIC
 
-_MESSAGE = struct.Struct("<BQHIQQ")  # opcode, record length, channel id, sequence, log time, publish time
-_MESSAGE_FIELDS = _MESSAGE.size - 9  # the record's content before the message data
+_MESSAGE_INDEX = struct.Struct("<BQHI")  # opcode, record length, channel id, byte length of its (time, offset) pairs
 
 
 def _record(record: McapRecord) -> bytes:
@@ -55,11 +55,11 @@ class McapFile:
     def __init__(self, stream: BinaryIO, library: str, chunk_bytes: int) -> None:
         self._stream = stream
         self._chunk_bytes = chunk_bytes
-        self._compress = zstandard.ZstdCompressor().compress
+        self._compress = zstandard.ZstdCompressor(level=1).compress
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
         self._chunk = bytearray()
-        self._indexes: dict[int, list[tuple[int, int]]] = defaultdict(list)  # channel → (log time, offset in chunk)
+        self._indexes: dict[int, list[np.ndarray]] = defaultdict(list)  # channel → (log time, offset in chunk) pairs
         self._chunk_indexes: list[ChunkIndex] = []
         self._attachment_indexes: list[AttachmentIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
@@ -95,13 +95,19 @@ class McapFile:
                                                         create_time=time_ns, data_size=len(data), name=name,
                                                         media_type=media_type))
 
-    def message(self, channel_id: int, log_time: int, publish_time: int, data: bytes) -> None:
-        """Add a message to the open chunk (written out once it holds ``chunk_bytes``)."""
-        chunk = self._chunk
-        self._indexes[channel_id].append((log_time, len(chunk)))
-        chunk += _MESSAGE.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id, 0, log_time, publish_time)
-        chunk += data
-        if len(chunk) >= self._chunk_bytes:
+    def messages(self, records: bytes, channel_ids: np.ndarray, log_times: np.ndarray, offsets: np.ndarray) -> None:
+        """Add message records (``recordings.encoding``) to the open chunk: ``records`` holds them one after the
+        other, at ``offsets``, of ``channel_ids`` at ``log_times``; the chunk is written out once it holds
+        ``chunk_bytes``."""
+        if not offsets.size:
+            return
+        pairs = np.column_stack((log_times, offsets + len(self._chunk))).astype("<u8")
+        order = np.argsort(channel_ids, kind="stable")
+        ids, starts = np.unique(channel_ids[order], return_index=True)
+        for channel_id, part in zip(ids.tolist(), np.split(pairs[order], starts[1:])):
+            self._indexes[channel_id].append(part)
+        self._chunk += records
+        if len(self._chunk) >= self._chunk_bytes:
             self._write_chunk()
 
     def flush(self) -> None:
@@ -143,8 +149,9 @@ class McapFile:
     def _write_chunk(self) -> None:
         if not self._chunk:
             return
-        times = [t for index in self._indexes.values() for t, _ in index]
-        first, last = min(times), max(times)
+        indexes = {channel_id: np.concatenate(parts) for channel_id, parts in self._indexes.items()}
+        times = np.concatenate([pairs[:, 0] for pairs in indexes.values()])
+        first, last = int(times.min()), int(times.max())
         self._times = (min(first, self._times[0]), max(last, self._times[1])) if self._times else (first, last)
         data = bytes(self._chunk)
         compressed = self._compress(data)
@@ -154,10 +161,12 @@ class McapFile:
                                          uncompressed_size=len(data))))
         index_start = self._stream.tell()
         offsets = {}
-        for channel_id, records in self._indexes.items():
+        for channel_id, pairs in indexes.items():
             offsets[channel_id] = self._stream.tell()
-            self._stream.write(_record(MessageIndex(channel_id=channel_id, records=records)))
-            self._counts[channel_id] += len(records)
+            data = pairs.tobytes()
+            self._stream.write(_MESSAGE_INDEX.pack(Opcode.MESSAGE_INDEX, 2 + 4 + len(data), channel_id, len(data)))
+            self._stream.write(data)
+            self._counts[channel_id] += len(pairs)
         self._chunk_indexes.append(ChunkIndex(
             message_start_time=first, message_end_time=last, chunk_start_offset=start,
             chunk_length=index_start - start, message_index_offsets=offsets,

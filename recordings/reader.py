@@ -19,10 +19,19 @@ from mcap.stream_reader import StreamReader
 from zencosim.manager.scene.load import Scene, SceneError, scene_from_text
 from zencosim.manager.wire.protocol import Kind
 from zencosim.recordings import RecordingError
-from zencosim.recordings.layout import END_METADATA, FORMAT, RUN_METADATA, SCENE_ATTACHMENT, STATUS_TOPIC, ChannelSpec
-from zencosim.recordings.schema import SCHEMA_NAME, StoredMessage, decode_stored
+from zencosim.recordings.layout import (
+    END_METADATA,
+    FORMAT,
+    FORMAT_1,
+    RUN_METADATA,
+    SCENE_ATTACHMENT,
+    STATUS_TOPIC,
+    ChannelSpec,
+)
+from zencosim.recordings.schema import ChannelSchema, StoredMessage, decode
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+FORMAT_1_SCHEMA = "zencosim.Message"  # the one generic message of every channel of a format 1 recording
 
 
 @dataclass
@@ -30,8 +39,9 @@ class ChannelRecord:
     """The messages of one channel in the order they were recorded."""
 
     spec: ChannelSpec
+    schema: ChannelSchema | None = None  # None: the generic message of format 1
     messages: list[StoredMessage] = field(default_factory=list)
-    publish_ns: list[int] = field(default_factory=list)  # wall clock when each message was recorded
+    log_ns: list[int] = field(default_factory=list)  # the log time of each message: wall clock [ns] of recording
 
     def table(self, kind: Kind) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Steps, times [ns] and values (one row per message) of the messages of ``kind``."""
@@ -96,6 +106,7 @@ def _read(path: Path, handle) -> Recording:
     end = None
     scene_toml = None
     channels: dict[int, ChannelRecord] = {}
+    schemas: dict[int, str] = {}
     truncated = "the file ends without an MCAP footer"
     records = StreamReader(handle, validate_crcs=True).records
     while True:
@@ -111,19 +122,24 @@ def _read(path: Path, handle) -> Recording:
             if channel is None:
                 raise RecordingError(f"{path}: a message on channel id {record.channel_id}, which is not declared")
             try:
-                channel.messages.append(decode_stored(record.data))
+                channel.messages.append(decode(record.data, channel.schema))
             except ValueError as error:
                 raise RecordingError(f"{path}: channel {channel.spec.topic}, message {len(channel.messages) + 1}: "
                                      f"{error}") from None
-            channel.publish_ns.append(record.publish_time)
+            channel.log_ns.append(record.log_time)
         elif isinstance(record, Channel) and record.id not in channels:
             try:
-                channels[record.id] = ChannelRecord(ChannelSpec.from_metadata(record.topic, record.metadata))
+                spec = ChannelSpec.from_metadata(record.topic, record.metadata)
             except (KeyError, ValueError):
                 raise RecordingError(f"{path}: channel {record.topic} is not a zencosim channel "
                                      "(its metadata does not name its values)") from None
-        elif isinstance(record, Schema) and record.name != SCHEMA_NAME:
-            raise RecordingError(f"{path}: schema {record.name!r}, expected {SCHEMA_NAME}: not a zencosim recording")
+            schema = None if schemas.get(record.schema_id) == FORMAT_1_SCHEMA else ChannelSchema(spec)
+            if schema is not None and schemas.get(record.schema_id) != schema.name:
+                raise RecordingError(f"{path}: channel {record.topic} has schema {schemas.get(record.schema_id)!r}, "
+                                     f"expected {schema.name}: not a zencosim recording")
+            channels[record.id] = ChannelRecord(spec, schema)
+        elif isinstance(record, Schema):
+            schemas[record.id] = record.name
         elif isinstance(record, Metadata) and record.name == RUN_METADATA:
             info = dict(record.metadata)
         elif isinstance(record, Metadata) and record.name == END_METADATA:
@@ -134,8 +150,9 @@ def _read(path: Path, handle) -> Recording:
             truncated = None
     if info is None:
         raise RecordingError(f"{path} is an MCAP file but not a zencosim recording (no '{RUN_METADATA}' metadata)")
-    if info.get("format") != FORMAT:
-        raise RecordingError(f"{path}: recording format {info.get('format')!r}, this zencosim reads {FORMAT}")
+    if info.get("format") not in (FORMAT, FORMAT_1):
+        raise RecordingError(f"{path}: recording format {info.get('format')!r}; this zencosim reads {FORMAT} "
+                             f"and {FORMAT_1} (wire protocol 2)")
     if scene_toml is None:
         raise RecordingError(f"{path}: the scene attachment '{SCENE_ATTACHMENT}' is missing")
     return Recording(path, info, end, scene_toml, {c.spec.topic: c for c in channels.values()}, truncated)
@@ -147,7 +164,7 @@ def describe(recording: Recording) -> dict:
     last = recording.last_step()
     return {
         "file": str(recording.path),
-        "scene": info["scene"], "run_id": info["run_id"], "bus": info["bus"], "host": info["host"],
+        "scene": info["scene"], "run_id": info["run_id"], "bus": info["bus"], "host": info.get("host"),
         "zencosim": info["zencosim"], "started": info["started"],
         "steps": f"{last} of {info['steps']}",
         "duration_s": last * int(info["macro_step_ns"]) * 1e-9,

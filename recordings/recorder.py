@@ -1,11 +1,12 @@
-"""The manager's handle on a recorder process (recordings.recorder_process).
+"""The manager's handle on a recorder process (recordings.recorder_process) and a live view
+(recordings.rerun_live): the observers of a run.
 
-``start`` spawns the process (it dies with the manager), sends it the run's description and waits
+``start`` spawns each process (it dies with the manager), sends it the run's description and waits
 until it is ready; ``tap`` (on the manager's replica, in process or following a Zenoh run) hands it
 every message through a pipe — the tap only appends the message and its channel to two lists, and
 every ``BATCH_MESSAGES`` messages (after every step of a real-time run) they go down the pipe as one
-frame, so validation, encoding and compression run in the other process, on the other core. A full
-pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
+frame, to every observer, so validation, encoding and compression (and the live view) run in the other
+processes, on the other core. A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
 handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
 """
 from __future__ import annotations
@@ -22,6 +23,7 @@ from array import array
 from collections import Counter
 from pathlib import Path
 from time import time_ns
+from typing import Callable
 
 import tomli_w
 
@@ -66,15 +68,68 @@ def _interrupts_deferred():
                 signal.raise_signal(arrived.signum)
 
 
-class Recorder:
-    """Records one run to ``path``: create it, pass it to ``manager.run.execute``, read ``result``."""
+class _Observer:
+    """One child process fed the tap's frames on its standard input: the recorder, or the live view."""
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = check_output_file(path, "recording")
+    def __init__(self, module: str, what: str) -> None:
+        self.what = what
+        self.log = tempfile.TemporaryFile()
+        self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log)
+        try:
+            fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
+        except OSError:
+            pass  # the default capacity only means the tap blocks sooner
+
+    def write(self, header: bytes, payload: bytes) -> None:
+        self.process.stdin.write(header)
+        self.process.stdin.write(payload)
+        self.process.stdin.flush()
+
+    def event(self, timeout_s: float, doing: str) -> dict:
+        """The process's next JSON line on standard output."""
+        stdout = self.process.stdout
+        if not select.select([stdout], [], [], timeout_s)[0]:
+            raise RecordingError(f"{self.what} did not {doing} within {timeout_s:g} s{self.log_tail()}")
+        line = stdout.readline()
+        if not line:
+            self.process.wait()
+            raise RecordingError(f"{self.what} exited with code {self.process.returncode}{self.log_tail()}")
+        return json.loads(line)
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(5.0)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        self.log.close()
+
+    def log_tail(self) -> str:
+        self.log.seek(0)
+        text = self.log.read().decode(errors="replace").strip()
+        return ":\n" + "\n".join(text.splitlines()[-15:]) if text else ""
+
+
+class Recorder:
+    """Records one run to ``path`` and/or shows it live in Rerun (``rerun``: ``spawn``, ``connect=ADDR`` or
+    ``serve``, ``recordings.rerun_live``): create it, pass it to ``manager.run.execute``, read ``result``
+    (the recording's end record; None without a recording)."""
+
+    def __init__(self, path: str | Path | None, host_info: bool = False, rerun: str | None = None,
+                 linger: Callable[[dict], None] | None = None) -> None:
+        self.path = check_output_file(path, "recording") if path is not None else None
+        self.host_info = host_info  # record the host's name and the scene's path (layout.run_metadata)
+        self.rerun = rerun
+        self.linger = linger  # called with what the live view said, once it has shown the whole run, before close
         self.result: dict | None = None
-        self._process: subprocess.Popen | None = None
-        self._log = tempfile.TemporaryFile()
+        self.live: dict | None = None  # what the live view said when it was ready (e.g. the web viewer's address)
+        self.finished = False
+        self._observers: list[_Observer] = []
+        self._recorder: _Observer | None = None
         self._index: dict[tuple[str, str], int] = {}  # (source, channel) → channel index
+        self._indices: dict[tuple[tuple[str, ...], str], bytes] = {}  # (sources, channel) → their channel indices
         self._topics: list[str] = []
         self._status = -1  # index of the status channel
         self._channels = bytearray()  # the batch being tapped: channel index of each message
@@ -84,23 +139,31 @@ class Recorder:
         self._paced = False  # a real-time run: the tap hands each step over at once
 
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
-        """Start the recorder process and wait until it is ready."""
+        """Start the recorder process and the live view, and wait until they are ready."""
         specs = channel_specs(plan, status)
         self._declare(specs, realtime)
-        start = {"path": str(self.path.resolve()), "metadata": run_metadata(scene, plan, bus, run_id, realtime),
-                 "scene_toml": tomli_w.dumps(scene.resolved),
-                 "channels": [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]}
-        self._process = start_child("zencosim.recordings.recorder_process", [], stdin=subprocess.PIPE,
-                                    stdout=subprocess.PIPE, stderr=self._log)
-        try:
-            fcntl.fcntl(self._process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
-        except OSError:
-            pass  # the default capacity only means the tap blocks sooner
-        self._send_control(start)
-        ready = self._event(READY_TIMEOUT_S, "start")
-        if ready["event"] != "ready":
-            raise RecordingError(ready.get("reason", f"recorder of {self.path} failed to start"))
+        channels = [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]
+        metadata = run_metadata(scene, plan, bus, run_id, realtime, self.host_info)
+        scene_toml = tomli_w.dumps(scene.resolved)
+        if self.path is not None:
+            self._recorder, _ = self._start(
+                "zencosim.recordings.recorder_process", f"recorder of {self.path}",
+                {"path": str(self.path.resolve()), "metadata": metadata, "scene_toml": scene_toml, "channels": channels})
+        if self.rerun is not None:
+            _, self.live = self._start("zencosim.recordings.rerun_live", f"live view ({self.rerun})",
+                                       {"target": self.rerun, "metadata": metadata, "scene_toml": scene_toml,
+                                        "channels": channels})
 
+    def _start(self, module: str, what: str, start: dict) -> tuple[_Observer, dict]:
+        """An observer process given its START frame, once it is ready; and what it said then."""
+        observer = _Observer(module, what)
+        self._observers.append(observer)
+        payload = json.dumps(start).encode()
+        observer.write(FRAME.pack(CONTROL, len(payload), time_ns()), payload)
+        ready = observer.event(READY_TIMEOUT_S, "start")
+        if ready["event"] != "ready":
+            raise RecordingError(ready.get("reason", f"{what} failed to start"))
+        return observer, ready
     def _declare(self, specs: list[ChannelSpec], realtime: bool) -> None:
         """What the tap needs to know of the channels."""
         if len(specs) > 255:
@@ -110,16 +173,35 @@ class Recorder:
         self._topics = [spec.topic for spec in specs]
         self._status = self._topics.index(STATUS_TOPIC)
 
+    # the Tap of a replica (manager.scheme.replica): one call per exchange, a few list operations each
+    def status(self, message: bytes) -> None:
+        """The status after a macro-step: it opens a step, so a batch handed over here holds whole steps."""
+        if self._paced or len(self._messages) >= BATCH_MESSAGES:
+            self.flush()
+        self._stamps.append(time_ns())
+        self._channels.append(self._status)
+        self._messages.append(message)
+
+    def commands(self, sends: dict[str, bytes]) -> None:
+        self._add(sends, "commands")
+
+    def replies(self, replies: dict[str, bytes]) -> None:
+        self._add(replies, "y")
+
+    def _add(self, messages: dict[str, bytes], channel: str) -> None:
+        names = tuple(messages)
+        indices = self._indices.get((names, channel))
+        if indices is None:
+            indices = self._indices[names, channel] = bytes(self._index[name, channel] for name in names)
+        self._channels += indices
+        self._messages += messages.values()
+
     def tap(self, source: str, channel: str, data: bytes) -> None:
-        """A message of the in-process replica (``manager.scheme.replica``)."""
-        index = self._index[source, channel]
-        status = index == self._status
-        if status:
-            self._stamps.append(time_ns())
-        self._channels.append(index)
-        self._messages.append(data)
-        if status and (self._paced or len(self._messages) >= BATCH_MESSAGES):
-            self.flush()  # the status opens a step: the batch holds whole steps
+        """One message of channel ``<source>/<channel>`` (the tap of ``manager.scheme.replica.PerMessage``)."""
+        if (source, channel) == ("manager", "status"):
+            self.status(data)
+        else:
+            self._add({source: data}, channel)
 
     def flush(self) -> None:
         """Hand what the tap holds to the recorder process now.
@@ -137,67 +219,59 @@ class Recorder:
             self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
                                                array("I", map(len, self._messages[:n])).tobytes(),
                                                array("q", stamps).tobytes(), *self._messages[:n])))
-            self._tapped.update(channels)
+            for index in range(len(self._topics)):
+                self._tapped[index] += channels.count(index)
             self._channels.clear()
             self._messages.clear()
             self._stamps.clear()
+
+    @property
+    def pids(self) -> list[int]:
+        """The process ids of the recorder and the live view, as started."""
+        return [observer.process.pid for observer in self._observers]
 
     @property
     def published(self) -> dict[str, int]:
         """The messages the tap handed over, per channel."""
         return {topic: self._tapped[index] for index, topic in enumerate(self._topics)}
 
-    def finish(self, outcome: str) -> dict:
-        """Tell the recorder how the run ended and what the tap handed over; wait for the file to be
-        complete and return its end record."""
-        if self.result is not None:
+    def finish(self, outcome: str) -> dict | None:
+        """Tell the recorder and the live view how the run ended and what the tap handed over; wait for the
+        file to be complete and return its end record (None without a recording)."""
+        if self.finished:
             return self.result
-        if self._process is None:
-            raise RecordingError(f"recorder of {self.path} was never started")
-        if not self._process.stdin.closed:
-            try:
-                self.flush()
-                self._send_control({"outcome": outcome, "published": self.published})
-                self._process.stdin.close()
-            except BrokenPipeError:
-                pass  # the recorder is gone; its exit is reported below
-        end = self._event(FINISH_TIMEOUT_S, "finish")
-        self._process.wait()
-        self.result = {key: value for key, value in end.items() if key != "event"}
+        if not self._observers:
+            raise RecordingError("the recorder was never started")
+        self.finished = True
+        try:
+            self.flush()
+            self._write_frame(CONTROL, json.dumps({"outcome": outcome, "published": self.published}).encode())
+        except BrokenPipeError:
+            pass  # an observer is gone; its exit is reported below
+        for observer in self._observers:
+            if not observer.process.stdin.closed:
+                try:
+                    observer.process.stdin.close()
+                except BrokenPipeError:
+                    pass
+        for observer in self._observers:
+            end = observer.event(FINISH_TIMEOUT_S, "finish")
+            if observer is self._recorder:
+                observer.process.wait()
+                self.result = {key: value for key, value in end.items() if key != "event"}
         return self.result
 
     def close(self) -> None:
-        """End the recorder process if it is still there (after a failure to start or finish)."""
-        if self._process is not None and self._process.poll() is None:
-            self._process.terminate()
-            try:
-                self._process.wait(5.0)
-            except subprocess.TimeoutExpired:
-                self._process.kill()
-                self._process.wait()
-        self._log.close()
-
-    def _send_control(self, message: dict) -> None:
-        self._write_frame(CONTROL, json.dumps(message).encode())
+        """End the observer processes that are still there (after a failure to start or finish; a live view
+        serving the web viewer lasts until then: ``linger`` waits)."""
+        try:
+            if self.linger is not None and self.finished and self.live is not None:
+                self.linger(self.live)
+        finally:
+            for observer in self._observers:
+                observer.close()
 
     def _write_frame(self, kind: int, payload: bytes) -> None:
-        self._process.stdin.write(FRAME.pack(kind, len(payload), time_ns()))
-        self._process.stdin.write(payload)
-        self._process.stdin.flush()
-
-    def _event(self, timeout_s: float, what: str) -> dict:
-        """The recorder's next JSON line on standard output."""
-        stdout = self._process.stdout
-        if not select.select([stdout], [], [], timeout_s)[0]:
-            raise RecordingError(f"recorder of {self.path} did not {what} within {timeout_s:g} s{self._log_tail()}")
-        line = stdout.readline()
-        if not line:
-            self._process.wait()
-            raise RecordingError(f"recorder of {self.path} exited with code {self._process.returncode}"
-                                 f"{self._log_tail()}")
-        return json.loads(line)
-
-    def _log_tail(self) -> str:
-        self._log.seek(0)
-        text = self._log.read().decode(errors="replace").strip()
-        return ":\n" + "\n".join(text.splitlines()[-15:]) if text else ""
+        header = FRAME.pack(kind, len(payload), time_ns())
+        for observer in self._observers:
+            observer.write(header, payload)

@@ -23,8 +23,8 @@ import select
 import signal
 import struct
 import sys
-import time
-from array import array
+
+import numpy as np
 
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
@@ -77,62 +77,59 @@ class FrameReader:
                 return None
 
 
-def record_batch(writer: RecordingWriter, batch: bytes, publish_ns: int, status: int) -> int:
-    """Write the messages of one BATCH frame (``status``: the status channel's index); return the wall
-    clock of its last stamp, which also stamps the first messages of the next batch."""
+def split_batch(batch: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, bytes]:
+    """(channel indices, message sizes, stamps, the messages one after the other) of a BATCH frame."""
     n, m = BATCH_HEAD.unpack_from(batch)
     at = BATCH_HEAD.size
-    channels = batch[at:at + n]
-    sizes = array("I", batch[at + n:at + 5 * n])
-    stamps = array("q", batch[at + 5 * n:at + 5 * n + 8 * m])
-    at += 5 * n + 8 * m
-    stamped = 0
-    for channel, size in zip(channels, sizes):
-        if channel == status:
-            publish_ns = stamps[stamped]
-            stamped += 1
-        writer.write(channel, batch[at:at + size], publish_ns)
-        at += size
-    return publish_ns
+    channels = np.frombuffer(batch, dtype=np.uint8, count=n, offset=at)
+    sizes = np.frombuffer(batch, dtype="<u4", count=n, offset=at + n).astype(np.int64)
+    stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at + 5 * n)
+    return channels, sizes, stamps, batch[at + 5 * n + 8 * m:]
 
 
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:
     """Record the wire messages of a run until END; return (outcome, published)."""
-    status = next(i for i, spec in enumerate(writer.channels) if spec.role == "status")
-    stamp = time.time_ns()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             end = json.loads(data)
             return end["outcome"], end["published"]
-        stamp = record_batch(writer, data, stamp, status)
+        writer.write(*split_batch(data))
     return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 
-def _announce(event: dict) -> None:
+def announce(event: dict) -> None:
     sys.stdout.write(json.dumps(event) + "\n")
     sys.stdout.flush()
 
 
-def main() -> int:
+def observe() -> tuple[FrameReader, dict | None]:
+    """An observer process's start (the recorder's, the live view's): SIGINT ignored (a Ctrl-C reaches the
+    whole process group; the manager then sends END), SIGTERM noted; the frames of standard input and
+    the START frame's JSON (None, said on standard error, when the first frame is not one)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    stop = SignalNote(signal.SIGTERM)
-    frames = FrameReader(sys.stdin.fileno(), stop)
+    frames = FrameReader(sys.stdin.fileno(), SignalNote(signal.SIGTERM))
     first = frames.next()
     if first is None or first[0] != CONTROL:
-        print("recorder: expected a START frame on standard input", file=sys.stderr)
+        print(f"{sys.argv[0]}: expected a START frame on standard input", file=sys.stderr)
+        return frames, None
+    return frames, json.loads(first[1])
+
+
+def main() -> int:
+    frames, start = observe()
+    if start is None:
         return 2
-    start = json.loads(first[1])
     try:
         writer = RecordingWriter(start["path"], start["metadata"], start["scene_toml"],
                                  [ChannelSpec.from_metadata(c["topic"], c["metadata"]) for c in start["channels"]])
     except RecordingError as error:
-        _announce({"event": "error", "reason": str(error)})
+        announce({"event": "error", "reason": str(error)})
         return 2
     frames.idle = writer.flush_if_due
-    _announce({"event": "ready"})
+    announce({"event": "ready"})
     outcome, published = record_pipe(frames, writer)
-    _announce({"event": "finished", **writer.finish(outcome, published)})
+    announce({"event": "finished", **writer.finish(outcome, published)})
     return 0
 
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.wire.protocol import Kind, decode
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecordingError
@@ -131,7 +132,7 @@ def verify(recording: Recording) -> Verification:
                                  f"this zencosim has {', '.join(spec.names)}")
     comparer = _Comparer(recording, tuple(f.name for f in status.fields))
     try:
-        run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, comparer.tap)
+        run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, PerMessage(comparer.tap))
     except _Stop:
         pass
     note = comparer.exhausted or ""

@@ -1,4 +1,4 @@
-"""Write one run to an MCAP file: header, schema, channels, metadata, scene, then every wire message.
+"""Write one run to an MCAP file: header, schemas, channels, metadata, scene, then every wire message.
 
 Messages go into ZSTD-compressed chunks of about ``CHUNK_BYTES`` (``recordings.mcap_file``); a chunk
 is also closed and handed to the operating system once it is ``FLUSH_INTERVAL_S`` old (at the next
@@ -13,18 +13,20 @@ import json
 import time
 from pathlib import Path
 
-from zencosim.manager.wire.protocol import ProtocolError
+import numpy as np
+
 from zencosim.recordings import RecordingError
+from zencosim.recordings.encoding import BatchEncoder
 from zencosim.recordings.layout import END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
 from zencosim.recordings.mcap_file import McapFile
-from zencosim.recordings.schema import FILE_DESCRIPTOR_SET, MESSAGE_ENCODING, SCHEMA_ENCODING, SCHEMA_NAME, encode_wire
+from zencosim.recordings.schema import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSchema
 
 CHUNK_BYTES = 256 * 1024  # uncompressed bytes of messages per chunk
 FLUSH_INTERVAL_S = 0.5  # a chunk older than this is written out at the next message
 
 
 class RecordingWriter:
-    """An MCAP file being written; ``write`` takes wire messages (manager.wire.protocol) of channel ``index``."""
+    """An MCAP file being written; ``write`` takes batches of wire messages (manager.wire.protocol)."""
 
     def __init__(self, path: str | Path, metadata: dict[str, str], scene_toml: str,
                  channels: list[ChannelSpec]) -> None:
@@ -35,8 +37,13 @@ class RecordingWriter:
         except OSError as error:
             raise RecordingError(f"cannot write recording {self.path}: {error.strerror}") from None
         self._mcap = McapFile(self._file, f"zencosim {metadata['zencosim']}", CHUNK_BYTES)
-        schema = self._mcap.schema(SCHEMA_NAME, SCHEMA_ENCODING, FILE_DESCRIPTOR_SET)
-        self._ids = [self._mcap.channel(c.topic, MESSAGE_ENCODING, schema, c.metadata()) for c in channels]
+        schemas = [ChannelSchema(c) for c in channels]
+        ids = [self._mcap.channel(c.topic, MESSAGE_ENCODING, self._mcap.schema(schema.name, SCHEMA_ENCODING,
+                                                                                schema.descriptor_set), c.metadata())
+               for c, schema in zip(channels, schemas)]
+        self._ids = np.array(ids)
+        self._encoder = BatchEncoder(schemas, ids, next(i for i, c in enumerate(channels) if c.role == "status"))
+        self._stamp = time.time_ns()  # stamps the messages before the first status
         self._mcap.metadata(RUN_METADATA, metadata)
         self._mcap.attachment(SCENE_ATTACHMENT, "application/toml", scene_toml.encode(), time.time_ns())
         self._mcap.flush()
@@ -44,15 +51,17 @@ class RecordingWriter:
         self.malformed: list[str] = []  # why each rejected message was rejected
         self._last_flush = time.monotonic()
 
-    def write(self, index: int, wire: bytes, publish_ns: int) -> None:
-        """Record one wire message; a malformed one is counted and described, not recorded."""
-        self.received[index] += 1
-        try:
-            time_ns, data = encode_wire(wire, self.channels[index].topic)
-        except ProtocolError as error:
-            self.malformed.append(str(error))
-            return
-        self._mcap.message(self._ids[index], max(time_ns, 0), publish_ns, data)
+    def write(self, channels: np.ndarray, sizes: np.ndarray, stamps: np.ndarray, messages: bytes) -> None:
+        """Record a batch: ``messages`` one after the other (``sizes``), of channel indices ``channels``; each
+        status message takes the next wall-clock stamp [ns] of ``stamps``, which is the log time of it and
+        the messages after it. A malformed message is counted and described, not recorded."""
+        for index, count in enumerate(np.bincount(channels, minlength=len(self.channels)).tolist()):
+            self.received[index] += count
+        batch = self._encoder.encode(channels, sizes, stamps, messages, self._stamp,
+                                     lambda i: self.channels[int(channels[i])].topic)
+        self._stamp = batch.carry
+        self.malformed += batch.malformed
+        self._mcap.messages(batch.records, self._ids[batch.channels], batch.log_times, batch.offsets)
         self.flush_if_due()
 
     def flush_if_due(self) -> None:
@@ -65,8 +74,9 @@ class RecordingWriter:
     def finish(self, outcome: str, published: dict[str, int] | None) -> dict:
         """Close the file with its end record; return what it says (see ``end_record``)."""
         end = self.end_record(outcome, published)
+        stored = {**end, "path": self.path.name}  # the file's own name: no absolute path in the file
         self._mcap.metadata(END_METADATA, {key: value if isinstance(value, str) else json.dumps(value)
-                                           for key, value in end.items()})
+                                           for key, value in stored.items()})
         self._mcap.finish()
         self._file.close()
         return end

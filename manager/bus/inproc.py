@@ -5,11 +5,9 @@ Commands and replies still pass through the wire protocol's ``encode``/``decode`
 """
 from __future__ import annotations
 
-from typing import Callable
-
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import RunRecord
-from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.scheme.replica import Replica, Tap
 from zencosim.subsystems.process.endpoint import SubsystemEndpoint
 
 
@@ -19,7 +17,7 @@ def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> d
             for s in plan.subsystems if names is None or s.name in names}
 
 
-def run_in_process(scheme, plan: Plan, subsystems: dict, tap: Callable[[str, str, bytes], None] | None = None
+def run_in_process(scheme, plan: Plan, subsystems: dict, tap: Tap | None = None
                    ) -> RunRecord:
     """Run ``scheme`` to its end with every subsystem of ``plan`` in this process; ``tap`` sees every
     message (``manager.scheme.replica``)."""

@@ -44,7 +44,7 @@ from zencosim.manager.bus.zenoh_session import (
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
-from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.scheme.replica import Replica, Tap
 from zencosim.manager.wire.protocol import Kind, encode, split_messages
 from zencosim.manager.wire.status import StatusReport
 
@@ -251,7 +251,7 @@ class ZenohBus:
 
     # -- running ---------------------------------------------------------------------------------
     def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None,
-              tap: Callable[[str, str, bytes], None] | None = None) -> tuple[RunRecord, float]:
+              tap: Tap | None = None) -> tuple[RunRecord, float]:
         """Start the run, follow it to the end; return its record and the wall-clock time [s].
 
         The subsystems pace their replicas (``realtime``); the manager's replica follows the batches of

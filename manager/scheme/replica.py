@@ -12,19 +12,51 @@ every command. So every process of a run runs the *same* scheme:
   the reply header). A replica that diverged (different software, different arithmetic) is named at
   the first reply that shows it.
 
-A ``tap(source, channel, message)`` sees what a replica goes through: every command (``<sub>,
-"commands"``), every reply when the scheme takes it (``<sub>, "y"``, in simulation order whether
-the reply was computed here or came from the network) and, when the scheme reports it, the status
-after every macro-step (``"manager", "status"``). A recorded run taps the in-process replica, or the
-manager's replica that follows a Zenoh run.
+A :class:`Tap` sees what a replica goes through: the commands of each exchange (``commands``, subsystem
+→ message), the replies of each exchange when the scheme takes them (``replies``, in simulation order
+whether they were computed here or came from the network) and, when the scheme reports it, the status
+after every macro-step (``status``). One call per exchange, not per message: a recorded run taps the
+in-process replica, on the stepping loop, or the manager's replica that follows a Zenoh run.
+:class:`PerMessage` makes a tap of a function of ``(source, channel, message)``.
 """
 from __future__ import annotations
 
 from collections import deque
-from typing import Callable, Generator
+from typing import Callable, Generator, Protocol
 
 from zencosim.manager.scheme.base import Exchange, RunRecord
 from zencosim.manager.wire.protocol import HEADER, ProtocolError, command_ref
+
+
+class Tap(Protocol):
+    """What sees every message of a replica (see the module text)."""
+
+    def status(self, message: bytes) -> None:
+        """The status after a macro-step (channel ``manager/status``)."""
+
+    def commands(self, sends: dict[str, bytes]) -> None:
+        """The commands of an exchange (channels ``<sub>/commands``)."""
+
+    def replies(self, replies: dict[str, bytes]) -> None:
+        """The replies the scheme takes (channels ``<sub>/y``)."""
+
+
+class PerMessage:
+    """A :class:`Tap` that hands each message to ``tap(source, channel, message)``."""
+
+    def __init__(self, tap: Callable[[str, str, bytes], None]) -> None:
+        self.tap = tap
+
+    def status(self, message: bytes) -> None:
+        self.tap("manager", "status", message)
+
+    def commands(self, sends: dict[str, bytes]) -> None:
+        for name, command in sends.items():
+            self.tap(name, "commands", command)
+
+    def replies(self, replies: dict[str, bytes]) -> None:
+        for name, reply in replies.items():
+            self.tap(name, "y", reply)
 
 
 class Replica:
@@ -32,7 +64,7 @@ class Replica:
 
     def __init__(self, scheme: Generator[Exchange, dict[str, bytes], RunRecord], names: list[str],
                  local: dict | None = None, publish: Callable[[str, bytes], None] | None = None,
-                 verify: bool = False, tap: Callable[[str, str, bytes], None] | None = None) -> None:
+                 verify: bool = False, tap: Tap | None = None) -> None:
         self.scheme = scheme
         self.local = local or {}
         self.publish = publish
@@ -74,13 +106,13 @@ class Replica:
 
     def _execute(self) -> None:
         tap = self.tap
-        if tap is not None and self.request.status is not None:
-            tap("manager", "status", self.request.status)
+        if tap is not None:
+            if self.request.status is not None:
+                tap.status(self.request.status)
+            tap.commands(self.request.sends)
         for name, command in self.request.sends.items():
             if self.verify:
                 self.expected[name].append(command_ref(command))
-            if tap is not None:
-                tap(name, "commands", command)
             endpoint = self.local.get(name)
             if endpoint is not None:
                 reply = endpoint.handle(command)
@@ -92,8 +124,7 @@ class Replica:
         while all(self.replies[name] for name in self.request.awaits):
             replies = {name: self.replies[name].popleft() for name in self.request.awaits}
             if self.tap is not None:
-                for name, reply in replies.items():
-                    self.tap(name, "y", reply)
+                self.tap.replies(replies)
             if self.verify:
                 for name, reply in replies.items():
                     self._check(name, reply)

@@ -28,6 +28,7 @@ import numpy as np
 
 from zencosim.subsystems.params import Problems, quantity, read_table
 from zencosim.subsystems.ports import Attachments, Port, RestState
+from zencosim.subsystems.sketch import Sketch
 
 
 @dataclass(frozen=True)
@@ -122,6 +123,26 @@ class CraneArmModel:
                          + self._M22 * omega2 ** 2)
         potential = self._weight1 * math.sin(theta1) + self._weight2 * math.sin(theta2)
         return np.array([length, J * omega1] * self._motion_outputs + [kinetic + potential])
+
+    def sketch(self, z: np.ndarray, w: np.ndarray) -> Sketch:
+        """Link 1 from A to Q, link 2 from Q to P, the masses at Q and P, and the actuator (the cylinder)
+        from B to C; the actuator point is C, its force along B → C."""
+        theta1, theta2 = float(z[0]), float(z[1])
+        l1, l2, a = self.spec.link1_length, self.spec.link2_length, self.spec.actuator_attachment
+        e1, e2 = np.array([math.cos(theta1), math.sin(theta1)]), np.array([math.cos(theta2), math.sin(theta2)])
+        q, c = l1 * e1, a * e1
+        p = q + l2 * e2
+        sketch = Sketch()
+        sketch.path("link1", (0.0, 0.0), q)
+        sketch.path("link2", q, p)
+        sketch.path("cylinder", self._base, c)
+        size = 0.05 * l1
+        sketch.box("m2", q, (size, size))
+        sketch.box("m3", p, (size, size))
+        along = (c - self._base) / np.hypot(*(c - self._base))
+        for point in self.spec.points:
+            sketch.anchor(point, c, along)
+        return sketch
 
     def rest_state(self, point: str) -> RestState:
         """The actuator length at t = 0 and the coupling force (``-F``: the motion side applies ``-fc*``)

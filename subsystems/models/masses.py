@@ -43,6 +43,7 @@ import numpy as np
 from zencosim.subsystems.effects import PlacedEffect, read_effect
 from zencosim.subsystems.params import Problems, quantity, read_table
 from zencosim.subsystems.ports import Attachments, Port
+from zencosim.subsystems.sketch import BOX, LANE, Sketch
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,11 @@ class MassesModel:
             (e.effect, layout.coordinates(e.endpoints[0]), layout.coordinates(e.endpoints[1]),
              *(layout.point_index[p] if p is not None and layout.point_index[p] < layout.n else None for p in e.endpoints))
             for e in placed if e.effect.kind == "nonlinear")
+        # two-point elements among the bodies and the ground, as drawn: (name, spring?, body a, body b or ground)
+        self._drawn = tuple((e.name, "spring" in type(e.effect).__name__.lower(), *ends)
+                            for e in placed if e.effect.kind in ("linear", "nonlinear")
+                            for ends in [[layout.point_index[p] if p is not None else None for p in e.endpoints]]
+                            if all(i is None or i < layout.n for i in ends))
         forces = self._build_dynamics(spec, attachments, layout, placed)
         rows = self._build_outputs(attachments, layout, placed, forces)
         self._build_energy(layout, rows, forces)
@@ -361,6 +367,23 @@ class MassesModel:
                 for row, body, factor in self._joint_nonlinear:
                     y[row] += factor * f[body]
         return y
+
+    def sketch(self, z: np.ndarray, w: np.ndarray) -> Sketch:
+        """Each body a box on a lane of its own (``subsystems.sketch``), each spring a zigzag and each damper
+        a line beside it, to the other body or to the ground at x = 0 under the lane."""
+        sketch = Sketch(on_line=True)
+        centers = [(float(z[i]), -i * LANE) for i in range(self.n_dof)]
+        for name, center in zip(self.body_names, centers):
+            sketch.box(name, center)
+            sketch.anchor(name, center)
+        for name, spring, a, b in self._drawn:
+            start = centers[a]
+            end = centers[b] if b is not None else (0.0, start[1] - 0.5 * LANE)
+            if spring:
+                sketch.spring(name, start, end)
+            else:
+                sketch.path(name, (start[0], start[1] + BOX / 2), (end[0], end[1] + BOX / 2))
+        return sketch
 
     def project(self, z: np.ndarray, corrections: np.ndarray) -> None:
         """Projection step (paper 003 Eqs. 30, 55, 68), this subsystem's part: the position and velocity

@@ -24,6 +24,7 @@ from zencosim.subsystems.effects import PlacedEffect
 from zencosim.subsystems.effects.planar import planar_force
 from zencosim.subsystems.params import Problems, quantity, read_table
 from zencosim.subsystems.ports import Attachments, Port
+from zencosim.subsystems.sketch import Sketch
 
 
 @dataclass(frozen=True)
@@ -95,6 +96,16 @@ class PendulumModel:
         l = self.spec.length
         jacobian = np.array([l * c, l * s])
         return self.pivot + np.array([l * s, -l * c]), omega * jacobian, jacobian
+
+    def sketch(self, z: np.ndarray, w: np.ndarray) -> Sketch:
+        """The rod from the pivot to the tip, the mass a box at the tip; the tip is the coupling point."""
+        position = self.tip(z)[0]
+        sketch = Sketch()
+        sketch.path("rod", self.pivot, position)
+        size = 0.05 * self.spec.length
+        sketch.box("mass", position, (size, size))
+        sketch.anchor("tip", position)
+        return sketch
 
     def _element_forces(self, r: np.ndarray, v: np.ndarray, w: np.ndarray) -> list[tuple[np.ndarray, float]]:
         return [planar_force(effect, r, v, w[positions], w[velocities])

@@ -27,6 +27,7 @@ import numpy as np
 
 from zencosim.subsystems.params import Problems, quantity, read_table
 from zencosim.subsystems.ports import Attachments, Port
+from zencosim.subsystems.sketch import Sketch
 
 POINT_OFFSETS = {"A": -0.5, "B": 0.5, "S": 0.0}  # position of each point along the link, in lengths from S
 
@@ -139,6 +140,17 @@ class PlanarLinkModel:
             G = np.array([[1.0, 0.0, -offset * sin], [0.0, 1.0, offset * cos]])
             position = np.array([q[0] + offset * cos, q[1] + offset * sin])
         return position, G @ qd, G, np.array([-lever * omega ** 2 * cos, -lever * omega ** 2 * sin])
+
+    def sketch(self, z: np.ndarray, w: np.ndarray) -> Sketch:
+        """The link as a segment from A to B; its joint points are its anchors."""
+        n = self.n_dof
+        q, qd = z[:n], z[n:]
+        half = 0.5 * self.spec.length
+        sketch = Sketch()
+        sketch.path("link", self._point(q, qd, -half)[0], self._point(q, qd, half)[0])
+        for side, offset in zip(self.sides, self._offsets):
+            sketch.anchor(side.point, self._point(q, qd, offset)[0])
+        return sketch
 
     def _centre_height(self, q: np.ndarray) -> float:
         return self.spec.pivot_y + 0.5 * self.spec.length * math.sin(q[0]) if self.pinned else q[1]

@@ -50,7 +50,7 @@ def test_a_burst_of_sigterm_makes_the_recorder_finish_its_file(tmp_path):
     recorder = Recorder(tmp_path / "burst.mcap")
     try:
         recorder.start(scene, plan, StatusReport(plan, False), "inproc", new_run_id(), realtime=False)
-        pid = recorder._process.pid
+        (pid,) = recorder.pids
         _burst(pid)
         wait_for(lambda: not alive(pid), EXIT_S, "the recorder to exit after a burst of SIGTERM")
         end = recorder.finish("unused: the recorder has ended already")

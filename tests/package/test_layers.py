@@ -19,7 +19,7 @@ LAYERS = (
     ("optional parts", ("zencosim.extras", "zencosim.scenes")),
     ("design-time maths", ("zencosim.compensation",)),
     ("models", ("zencosim.subsystems.params", "zencosim.subsystems.ports", "zencosim.subsystems.inputs",
-                "zencosim.subsystems.units",
+                "zencosim.subsystems.units", "zencosim.subsystems.sketch",
                 "zencosim.subsystems.effects", "zencosim.subsystems.integrators", "zencosim.subsystems.models",
                 "zencosim.subsystems.subsystem")),
     ("scene", ("zencosim.manager.scene",)),

@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -37,14 +38,16 @@ SCENE = ("two_mass_damped", ["manager.duration=2.0"])  # 2000 macro-steps
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    """An in-process run of 2000 steps, recorded: (file, run record, recorder's end record)."""
+    """An in-process run of 2000 steps, recorded: (file, run record, recorder's end record, wall clock [ns]
+    before and after the run)."""
     path = tmp_path_factory.mktemp("recorded") / "run.mcap"
+    before = time.time_ns()
     result = zencosim.run(zencosim.load_scene(*SCENE), record=path)
-    return path, result.record, result.summary["recording"]
+    return path, result.record, result.summary["recording"], (before, time.time_ns())
 
 
 def test_the_file_holds_every_message_bit_for_bit(recorded):
-    path, record, result = recorded
+    path, record, result, _ = recorded
     plan = record.plan
     assert result["outcome"] == "completed" and result["lost"] == 0 and result["malformed"] == 0
     assert all(c["published"] == c["received"] == (plan.n_ticks if t == "manager/status" else plan.n_ticks + 1)
@@ -70,30 +73,61 @@ def test_the_file_holds_every_message_bit_for_bit(recorded):
 
 
 def test_the_file_says_what_ran_and_holds_a_scene_that_reruns_it(recorded):
-    path, _, _ = recorded
+    path, _, _, _ = recorded
     recording = read_recording(path)
     info = recording.info
     assert (info["scene"], info["bus"], info["steps"], info["macro_step_ns"]) == ("two_mass_damped", "inproc",
                                                                                   "2000", "1000000")
-    assert info["host"] and info["run_id"] and info["zencosim"] and info["overrides"] == '["manager.duration=2.0"]'
+    assert info["run_id"] and info["zencosim"] and info["overrides"] == '["manager.duration=2.0"]'
+    assert info["scene_file"] == "two_mass_damped.toml"
+    # shared as it is: no host name and no absolute path, unless asked (--record-host-info)
+    assert "host" not in info and "scene_source" not in info and recording.end["path"] == "run.mcap"
+    assert not any(socket.gethostname() in value or str(REPO) in value or str(path.parent) in value
+                   for record in (info, recording.end) for value in map(str, record.values()))
     scene = scene_from_text(recording.scene_toml, SCENE_ATTACHMENT)
     assert scene.digest == info["scene_digest"] == load_scene(*SCENE).digest
 
 
-def test_standard_mcap_tooling_decodes_every_message(recorded):
+def _decoded(path) -> dict[str, list]:
+    """Every message of every channel, decoded by the mcap library's protobuf decoder: topic → (log time, message)."""
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
-    path, record, result = recorded
+    found: dict[str, list] = {}
     with open(path, "rb") as handle:
         reader = make_reader(handle, decoder_factories=[DecoderFactory()])
-        assert reader.get_summary().statistics.message_count == result["messages"]
-        decoded = [proto for _, channel, _, proto in reader.iter_decoded_messages() if channel.topic == "S2/y"]
-    x2 = [proto.values[0] for proto in decoded if proto.kind == Kind.OUTPUT]
-    assert np.array(x2).tobytes() == record.trajectories[1][:, 0].tobytes()
+        for _, channel, message, proto in reader.iter_decoded_messages(log_time_order=False):
+            found.setdefault(channel.topic, []).append((message.log_time, proto))
+    return found
+
+
+def test_standard_mcap_tooling_reads_every_signal_by_its_name_bit_for_bit(recorded):
+    path, record, result, (before, after) = recorded
+    decoded = _decoded(path)
+    assert sum(map(len, decoded.values())) == result["messages"]
+    plan = record.plan
+    for sub in plan.subsystems:
+        outputs = [proto for _, proto in decoded[f"{sub.name}/y"] if proto.kind == Kind.OUTPUT]
+        assert [f.name for f in outputs[0].DESCRIPTOR.fields][8:] == [p.name for p in sub.outputs]
+        for j, port in enumerate(sub.outputs):  # S2's x2, v2, energy; S1's fc, energy: each a double field
+            column = np.array([getattr(proto, port.name) for proto in outputs])
+            assert column.tobytes() == record.trajectories[sub.index][:, j].tobytes(), port.name
+        assert [proto.step for proto in outputs] == list(range(plan.n_ticks + 1))
+        assert [proto.sim_time for proto in outputs] == [proto.time_ns * 1e-9 for proto in outputs]
+        assert [proto.time_ns for proto in outputs] == [k * plan.base_step_ns for k in range(plan.n_ticks + 1)]
+    # what S1 received at step j (ZOH: a constant) is what S2 reported at step j: x2* arrives as field x2
+    steps = [proto for _, proto in decoded["S1/commands"] if proto.kind == Kind.STEP]
+    assert np.array([list(proto.x2) + list(proto.v2) for proto in steps]).tobytes() == \
+        record.trajectories[1][:-1, :2].tobytes()
+    status = [proto for _, proto in decoded["manager/status"]]
+    assert np.array([proto.delta_p.c for proto in status]).tobytes() == record.residual_power[1:, 0].tobytes()
+    assert np.array([proto.delta_e.c for proto in status]).tobytes() == record.residual_energy[1:, 0].tobytes()
+    # the log time is the wall clock when the step was handed to the recorder: within the run
+    log_times = [t for messages in decoded.values() for t, _ in messages]
+    assert before <= min(log_times) <= max(log_times) <= after
 
 
 def test_verification_passes_then_names_the_first_difference(recorded):
-    path, _, _ = recorded
+    path, _, _, _ = recorded
     assert verify(read_recording(path)).passed
 
     recording = read_recording(path)
@@ -124,7 +158,7 @@ def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_pat
     try:
         recorder.start(scene, plan, status, "inproc", "killed", realtime=False)
         record = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                         endpoints(plan, subsystems), tap=recorder.tap).run()
+                         endpoints(plan, subsystems), tap=recorder).run()
         recorder.flush()
         time.sleep(FLUSH_INTERVAL_S + 2 * IDLE_S + 0.5)  # the idle recorder writes its open chunk out
         recorder_pid = next(pid for pid in children_of(os.getpid()) if "zencosim.recordings.recorder_process" in cmdline(pid))
@@ -154,7 +188,7 @@ def test_bad_input_gives_an_error_naming_the_file(recorded, tmp_path):
     assert result.returncode == 2 and f"cannot read recording {missing}" in result.stderr
 
     # a recording made by a zencosim whose model "masses" this one no longer has
-    path, _, _ = recorded
+    path, _, _, _ = recorded
     good = read_recording(path)
     stale = tmp_path / "stale.mcap"
     writer = RecordingWriter(stale, good.info, good.scene_toml.replace('model = "masses"', 'model = "point_masses"'),
@@ -169,9 +203,71 @@ def test_bad_input_gives_an_error_naming_the_file(recorded, tmp_path):
 
 
 def test_inspect_shows_channels_counts_and_losses(recorded):
-    path, _, _ = recorded
+    path, _, _, _ = recorded
     result = _zencosim("inspect", str(path))
     assert result.returncode == 0, result.stderr
     for text in ("two_mass_damped", "S1/commands", "S2/y", "manager/status", "2001", "2000 of 2000", "2 s simulated",
                  "lost: 0", "completed"):
         assert text in result.stdout, text
+    assert "host" not in result.stdout
+
+
+def test_the_host_and_scene_path_are_recorded_when_asked(tmp_path):
+    path = tmp_path / "hosted.mcap"
+    result = _zencosim("run", "two_mass_damped", "--set", "manager.duration=0.01", "--quiet", "--record", str(path),
+                       "--record-host-info")
+    assert result.returncode == 0, result.stderr
+    info = read_recording(path).info
+    assert info["host"] == socket.gethostname() and info["scene_source"] == str(load_scene(*SCENE).path)
+
+
+def _format_1_message_class():
+    """The one generic ``zencosim.Message`` of format 1 recordings, built with the protobuf runtime."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    F = descriptor_pb2.FieldDescriptorProto
+    file = descriptor_pb2.FileDescriptorProto(name="zencosim/message.proto", package="zencosim", syntax="proto3")
+    message = file.message_type.add(name="Message")
+    for name, number, kind, label in (("step", 1, F.TYPE_SFIXED64, F.LABEL_OPTIONAL),
+                                      ("time_ns", 2, F.TYPE_SFIXED64, F.LABEL_OPTIONAL),
+                                      ("kind", 3, F.TYPE_FIXED32, F.LABEL_OPTIONAL),
+                                      ("rows", 4, F.TYPE_FIXED32, F.LABEL_OPTIONAL),
+                                      ("values", 5, F.TYPE_DOUBLE, F.LABEL_REPEATED),
+                                      ("text", 6, F.TYPE_STRING, F.LABEL_OPTIONAL),
+                                      ("ref", 7, F.TYPE_FIXED32, F.LABEL_OPTIONAL)):
+        message.field.add(name=name, number=number, type=kind, label=label)
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(file)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName("zencosim.Message")), \
+        descriptor_pb2.FileDescriptorSet(file=[file]).SerializeToString()
+
+
+def test_a_format_1_recording_is_still_read_and_verified(recorded, tmp_path):
+    from mcap.writer import Writer
+    path, _, _, _ = recorded
+    recording = read_recording(path)
+    message_class, schema = _format_1_message_class()
+    old = tmp_path / "format1.mcap"
+    with open(old, "wb") as handle:  # as format 1 wrote it: one generic message, log time = simulated time
+        writer = Writer(handle)
+        writer.start()
+        schema_id = writer.register_schema("zencosim.Message", "protobuf", schema)
+        for topic, channel in recording.channels.items():
+            channel_id = writer.register_channel(topic, "protobuf", schema_id, channel.spec.metadata())
+            for m in channel.messages:
+                data = message_class(step=m.step, time_ns=m.time_ns, kind=m.kind, rows=m.rows, values=m.values.tolist(),
+                                     text=m.text, ref=m.ref).SerializeToString()
+                writer.add_message(channel_id, max(m.time_ns, 0), data, 0)
+        writer.add_metadata("zencosim", {**recording.info, "format": "zencosim-recording/1"})
+        writer.add_attachment(0, 0, SCENE_ATTACHMENT, "application/toml", recording.scene_toml.encode())
+        writer.finish()
+    again = read_recording(old)
+    for topic, channel in recording.channels.items():
+        assert [(m.step, m.kind, m.values.tobytes()) for m in again.channels[topic].messages] == \
+            [(m.step, m.kind, m.values.tobytes()) for m in channel.messages], topic
+    assert verify(again).divergence is None
+
+    newer = tmp_path / "format9.mcap"
+    RecordingWriter(newer, {**recording.info, "format": "zencosim-recording/9"}, recording.scene_toml,
+                    [c.spec for c in recording.channels.values()]).finish("completed", {})
+    result = _zencosim("inspect", str(newer))
+    assert result.returncode == 2 and "recording format 'zencosim-recording/9'" in result.stderr, result.stderr

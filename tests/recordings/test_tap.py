@@ -45,15 +45,15 @@ def _messages_in(frame: bytes) -> tuple[int, int]:
 
 
 class _InterruptOnce(list):
-    """A list whose first append is interrupted, as by a signal between two statements of ``tap``."""
+    """A list whose first extension is interrupted, as by a signal between two statements of the tap."""
 
     interrupted = False
 
-    def append(self, item) -> None:
+    def __iadd__(self, items):
         if not self.interrupted:
             self.interrupted = True
             raise KeyboardInterrupt
-        super().append(item)
+        return super().__iadd__(items)
 
 
 def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):

@@ -27,7 +27,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     status = 0
     if rrd or args.spawn:
         from zencosim.recordings.rerun_replay import replay_in_rerun
-        replay_in_rerun(recording, rrd, args.spawn)
+        replay_in_rerun(recording, rrd, args.spawn, warn)
         if rrd:
             say(f"wrote {rrd}")
     if args.verify:
@@ -48,8 +48,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def cmd_inspect(args: argparse.Namespace) -> int:
     from zencosim.recordings.reader import describe
     info = describe(read_recording(args.recording))
+    host = f"host {info['host']}, " if info["host"] else ""
     table = Table(title=escape(f"{info['file']}: scene {info['scene']}, run {info['run_id']} ({info['bus']} bus, "
-                               f"host {info['host']}, zencosim {info['zencosim']})"))
+                               f"{host}zencosim {info['zencosim']})"))
     table.add_column("channel")
     table.add_column("messages", justify="right")
     table.add_column("values")

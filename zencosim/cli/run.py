@@ -3,12 +3,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, out, say, warn
+from zencosim.extras import require
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.results.tables import check_table_path, record_signals, tables, write_tables
@@ -78,6 +80,16 @@ def _recording_text(result: dict) -> str:
     return f"recording {result['path']}: {result['messages']} messages, {lost} ({result['outcome']})"
 
 
+def _wait_while_serving(live: dict) -> None:
+    """After a run shown with --rerun serve: keep the web viewer up until Ctrl-C."""
+    say(f"the web viewer shows the run at {live['where']}; Ctrl-C ends it")
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, args.overrides)
     unknown = sorted(set(args.external) - set(scene.subsystems))
@@ -94,9 +106,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     out_path = check_table_path(args.out) if args.out else None
     record_path = args.record or scene.manager.record
     recorder = None
-    if record_path:
+    if args.rerun:
+        require("rerun", "the live view (--rerun)")
+    if record_path or args.rerun:
         from zencosim.recordings.recorder import Recorder
-        recorder = Recorder(check_output_file(record_path, "recording"))
+        recorder = Recorder(check_output_file(record_path, "recording") if record_path else None, args.record_host_info,
+                            args.rerun, _wait_while_serving if args.rerun == "serve" else None)
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
@@ -150,4 +165,9 @@ def add_parsers(commands) -> None:
     run.add_argument("--no-lowlatency", action="store_true", help="use Zenoh's default transport instead of lowlatency")
     run.add_argument("--record", metavar="FILE", help="record every message of the run to an MCAP file "
                                                       "(default: the scene's manager.record)")
+    run.add_argument("--rerun", nargs="?", const="spawn", metavar="TARGET",
+                     help="show the run live in Rerun: spawn (a viewer here, the default), connect=HOST:PORT (a "
+                          "viewer or 'rerun --serve-grpc' there) or serve (the web viewer at http://127.0.0.1:9090)")
+    run.add_argument("--record-host-info", action="store_true",
+                     help="also record the host's name and the scene file's absolute path (left out by default)")
     run.set_defaults(handler=cmd_run)

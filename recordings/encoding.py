@@ -1,0 +1,209 @@
+"""Encode a batch of wire messages into MCAP message records, vectorised with numpy.
+
+The recorder receives the messages of a run in batches of about two thousand (``recordings.recorder``).
+Messages of one channel with the same kind and shape (rows, count) have the same typed protobuf
+layout (``recordings.schema``): their records differ only in the header fields and the values. So a
+batch is validated at once (version, kind, size and rows of every header, as
+``manager.wire.protocol.decode_header`` does), grouped by layout, and each group's records are built
+by one gather from a table of its variable bytes (step, time, simulated time, reference, log time,
+payload) and its constant bytes (MCAP record header, protobuf tags and lengths, kind, rows). The
+records go back into the order of the batch, so every channel keeps its order. An ERROR message
+(a text payload) is encoded on its own; a malformed message is described and left out.
+
+Every value is copied as its eight bytes: NaN payloads, -0.0 and infinities are recorded bit for bit.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode_header
+from zencosim.recordings.schema import HEADER_FIELDS, ChannelSchema, tag, varint
+
+WIRE_HEADER = np.dtype([("version", "u1"), ("kind", "u1"), ("rows", "<u2"), ("count", "<u4"), ("step", "<i8"),
+                        ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4")])
+assert WIRE_HEADER.itemsize == HEADER.size
+_KINDS = np.zeros(256, dtype=bool)
+_KINDS[[kind.value for kind in Kind]] = True
+_MCAP_MESSAGE = struct.Struct("<BQHI")  # opcode, record length, channel id, sequence; then log and publish time
+_OPCODE_MESSAGE = 0x05
+# the variable bytes of one message, in the table a group's records are gathered from
+_STEP, _TIME, _SIM, _REF, _LOG, _PAYLOAD = 0, 8, 16, 24, 28, 36
+
+
+@dataclass
+class EncodedBatch:
+    """The records of a batch in its order, and per record its channel index, log time and offset."""
+
+    records: bytes
+    channels: np.ndarray  # int64 channel index per record
+    log_times: np.ndarray  # int64 [ns]
+    offsets: np.ndarray  # int64 offset of each record in ``records``
+    malformed: list[str]  # why each left-out message was malformed
+    carry: int  # the stamp of the batch's last status: it also stamps the first messages of the next batch
+
+
+def _body_pieces(schema: ChannelSchema, kind: int, rows: int, count: int) -> list[bytes | tuple[int, int]]:
+    """The protobuf body of a message of this layout: constant bytes, or (offset, length) in the variable table."""
+    pieces: list[bytes | tuple[int, int]] = [tag(HEADER_FIELDS["step"], 1), (_STEP, 8), tag(HEADER_FIELDS["time_ns"], 1),
+                                             (_TIME, 8), tag(HEADER_FIELDS["kind"], 0) + varint(kind),
+                                             tag(HEADER_FIELDS["rows"], 5) + struct.pack("<I", rows),
+                                             tag(HEADER_FIELDS["ref"], 5), (_REF, 4),
+                                             tag(HEADER_FIELDS["sim_time"], 1), (_SIM, 8)]
+    n = len(schema.slots)
+    if not (schema.named(kind, rows) and count == max(rows, 1) * n):
+        if count:
+            pieces += [tag(HEADER_FIELDS["values"], 2) + varint(8 * count), (_PAYLOAD, 8 * count)]
+        return pieces
+    def value(j: int) -> tuple[int, int]:
+        return _PAYLOAD + 8 * j, 8
+
+    done: set[int] = set()
+    for j, slot in enumerate(schema.slots):
+        if schema.role == "inputs":
+            pieces.append(tag(slot.number, 2) + varint(8 * rows))
+            pieces += [value(i * n + j) for i in range(rows)]
+        elif slot.outer is None:
+            pieces += [tag(slot.number, 1), value(j)]
+        elif slot.outer not in done:
+            done.add(slot.outer)
+            members = [(k, s.number) for k, s in enumerate(schema.slots) if s.outer == slot.outer]
+            pieces.append(tag(slot.outer, 2) + varint(9 * len(members)))
+            for k, number in members:
+                pieces += [tag(number, 1), value(k)]
+    return pieces
+
+
+class _GroupLayout:
+    """How to build the records of one (channel, kind, rows, count) group: a gather map over a table whose
+    rows are the messages' variable bytes followed by the layout's constant bytes."""
+
+    def __init__(self, schema: ChannelSchema, channel_id: int, kind: int, rows: int, count: int) -> None:
+        self.variable = _PAYLOAD + 8 * count
+        body = _body_pieces(schema, kind, rows, count)
+        body_size = sum(len(p) if isinstance(p, bytes) else p[1] for p in body)
+        prefix = _MCAP_MESSAGE.pack(_OPCODE_MESSAGE, 2 + 4 + 8 + 8 + body_size, channel_id, 0)
+        pieces = [prefix, (_LOG, 8), (_LOG, 8)] + body  # log time and publish time: the wall clock
+        constant = bytearray()
+        gather: list[np.ndarray] = []
+        for piece in pieces:
+            if isinstance(piece, bytes):
+                gather.append(np.arange(len(piece)) + self.variable + len(constant))
+                constant += piece
+            else:
+                gather.append(np.arange(piece[0], piece[0] + piece[1]))
+        self.constant = np.frombuffer(bytes(constant), dtype=np.uint8)
+        self.gather = np.concatenate(gather)
+        self.size = self.gather.size
+
+    def records(self, table: np.ndarray) -> np.ndarray:
+        table[:, self.variable:] = self.constant
+        return table[:, self.gather]
+
+
+def wire_headers(sizes: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(start, header and validity of each message) of wire messages one after the other in ``data`` (uint8),
+    of ``sizes``; a message is valid as ``manager.wire.protocol.decode_header`` would accept it."""
+    starts = np.cumsum(sizes, dtype=np.int64) - sizes
+    whole = sizes >= HEADER.size
+    heads = np.zeros(sizes.size, dtype=WIRE_HEADER)
+    if whole.any():
+        heads[whole] = data[starts[whole, None] + np.arange(HEADER.size)].view(WIRE_HEADER).ravel()
+    kinds = heads["kind"]
+    item = np.where(kinds == Kind.ERROR, 1, 8)
+    valid = (whole & (heads["version"] == VERSION) & _KINDS[kinds]
+             & (sizes == HEADER.size + item * heads["count"].astype(np.int64))
+             & (heads["count"] % np.maximum(heads["rows"], 1) == 0))
+    return starts, heads, valid
+
+
+def _fault(wire: bytes, sender: str) -> str:
+    """What ``decode_header`` finds wrong with a message that the vectorised checks rejected."""
+    try:
+        decode_header(wire, sender)
+    except ProtocolError as error:
+        return str(error)
+    raise AssertionError(f"message from {sender}: rejected, but its header is valid")
+
+
+class BatchEncoder:
+    """Encodes batches of the wire messages of ``schemas``' channels (MCAP channel ids ``channel_ids``);
+    ``status`` is the index of the status channel, whose messages carry the batch's stamps."""
+
+    def __init__(self, schemas: list[ChannelSchema], channel_ids: list[int], status: int) -> None:
+        self.schemas = schemas
+        self.channel_ids = channel_ids
+        self.status = status
+        self._layouts: dict[tuple[int, int, int, int], _GroupLayout] = {}
+
+    def encode(self, channels: np.ndarray, sizes: np.ndarray, stamps: np.ndarray, blob: bytes, carry: int,
+               describe: Callable[[int], str]) -> EncodedBatch:
+        """The records of the messages ``blob`` holds one after the other (``sizes``), of ``channels``; a
+        status message takes the next of ``stamps``; ``describe(i)`` names message ``i`` in an error."""
+        data = np.frombuffer(blob, dtype=np.uint8)
+        n = channels.size
+        starts, heads, valid = wire_headers(sizes, data)
+        kinds = heads["kind"]
+        malformed = [_fault(blob[starts[i]:starts[i] + sizes[i]], describe(i)) for i in np.flatnonzero(~valid).tolist()]
+        status_rank = np.cumsum(channels == self.status)
+        stamped = np.concatenate(([carry], stamps)).astype(np.int64)
+        log_times = stamped[status_rank]
+        carry = int(stamped[-1])
+
+        keys = ((channels.astype(np.uint64) << 56) | (kinds.astype(np.uint64) << 48)
+                | (heads["rows"].astype(np.uint64) << 32) | heads["count"].astype(np.uint64))
+        errors = valid & (kinds == Kind.ERROR)
+        grouped = valid & ~errors
+        record_sizes = np.zeros(n, dtype=np.int64)
+        groups = []
+        unique, inverse = np.unique(keys[grouped], return_inverse=True)
+        members_of = np.flatnonzero(grouped)
+        for g, key in enumerate(unique.tolist()):
+            members = members_of[inverse == g]
+            layout = self._layout(key)
+            record_sizes[members] = layout.size
+            groups.append((members, layout))
+        error_records = {}
+        for i in np.flatnonzero(errors).tolist():
+            error_records[i] = self._error_record(int(channels[i]), heads[i], blob[starts[i] + HEADER.size:
+                                                                                    starts[i] + sizes[i]], int(log_times[i]))
+            record_sizes[i] = len(error_records[i])
+        offsets = np.cumsum(record_sizes) - record_sizes
+        out = np.empty(int(record_sizes.sum()), dtype=np.uint8)
+        for members, layout in groups:
+            table = np.empty((members.size, layout.variable + layout.constant.size), dtype=np.uint8)
+            heads_m = heads[members]
+            for start, column in ((_STEP, heads_m["step"]), (_TIME, heads_m["time_ns"]),
+                                  (_SIM, heads_m["time_ns"] * 1e-9), (_REF, heads_m["ref"]), (_LOG, log_times[members])):
+                column = np.ascontiguousarray(column)
+                table[:, start:start + column.itemsize] = column.view(np.uint8).reshape(-1, column.itemsize)
+            if layout.variable > _PAYLOAD:
+                payload = starts[members, None] + HEADER.size + np.arange(layout.variable - _PAYLOAD)
+                table[:, _PAYLOAD:layout.variable] = data[payload]
+            out[offsets[members, None] + np.arange(layout.size)] = layout.records(table)
+        for i, record in error_records.items():
+            out[offsets[i]:offsets[i] + len(record)] = np.frombuffer(record, dtype=np.uint8)
+        kept = np.flatnonzero(valid)
+        return EncodedBatch(out.tobytes(), channels[kept].astype(np.int64), log_times[kept], offsets[kept], malformed,
+                            carry)
+
+    def _layout(self, key: int) -> _GroupLayout:
+        layout = self._layouts.get(key)
+        if layout is None:
+            channel, kind, rows, count = key >> 56, (key >> 48) & 0xFF, (key >> 32) & 0xFFFF, key & 0xFFFFFFFF
+            layout = _GroupLayout(self.schemas[channel], self.channel_ids[channel], kind, rows, count)
+            self._layouts[key] = layout
+        return layout
+
+    def _error_record(self, channel: int, head, text: bytes, log_time: int) -> bytes:
+        body = (tag(HEADER_FIELDS["step"], 1) + struct.pack("<q", int(head["step"]))
+                + tag(HEADER_FIELDS["time_ns"], 1) + struct.pack("<q", int(head["time_ns"]))
+                + tag(HEADER_FIELDS["kind"], 0) + varint(Kind.ERROR) + tag(HEADER_FIELDS["rows"], 5) + struct.pack("<I", 0)
+                + tag(HEADER_FIELDS["ref"], 5) + struct.pack("<I", int(head["ref"]))
+                + tag(HEADER_FIELDS["sim_time"], 1) + struct.pack("<d", int(head["time_ns"]) * 1e-9)
+                + tag(HEADER_FIELDS["text"], 2) + varint(len(text)) + text)
+        return (_MCAP_MESSAGE.pack(_OPCODE_MESSAGE, 2 + 4 + 8 + 8 + len(body), self.channel_ids[channel], 0)
+                + struct.pack("<QQ", log_time, log_time) + body)

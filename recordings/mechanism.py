@@ -1,0 +1,133 @@
+"""The mechanism of a run, animated: its commands re-executed on copies of its subsystems, sketched.
+
+The subsystems' states are not in a recording, but their commands are, and a subsystem is
+deterministic: executing a subsystem's commands in order on a copy built from the recording's scene
+gives back its replies bit for bit (``zencosim replay --verify`` checks the same of the whole run)
+and its state after each one. After every reply with outputs, the model sketches itself
+(``subsystems.sketch``); the sketches of bodies on a line are moved into lanes of their own; every
+coupling is a line between the anchors of its two points, and a force–displacement coupling's force
+is an arrow at its motion side's point (the force the coupling exerts there: the reaction ``−f`` of
+the force side's output ``f``), scaled so that the largest force seen so far is ``ARROW`` long.
+
+Both the replay and the live view feed the commands step by step (each subsystem's in its order) and
+the recorded outputs of the couplings' force sides; a subsystem whose
+model cannot be built here (an FMU file that is missing) or has no ``sketch`` is not drawn.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.wire.protocol import HEADER, Kind
+from zencosim.subsystems.sketch import LANE, Sketch
+
+ARROW = 0.5 * LANE  # [m] length of the largest coupling-force arrow
+
+
+@dataclass
+class Frame:
+    """What to draw at one communication point: the sketches of the subsystems that reported there, and the
+    couplings whose two sides are both drawn: line (2, 2) and force arrow (origin, vector) or None."""
+
+    step: int
+    time_ns: int
+    sketches: dict[str, Sketch] = field(default_factory=dict)
+    couplings: dict[str, tuple[np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]] = field(default_factory=dict)
+
+
+class Mechanism:
+    """Copies of a run's drawable subsystems; :meth:`command` executes one of their commands."""
+
+    def __init__(self, scene: Scene) -> None:
+        plan, subsystems = plan_scene(scene)
+        drawable = [s.name for s in plan.subsystems if hasattr(subsystems[s.name].model, "sketch")]
+        self._endpoints = endpoints(plan, subsystems, drawable)
+        self._subsystems = subsystems
+        self._offsets: dict[str, np.ndarray] = {}
+        lane = 0.0
+        for name in drawable:  # each subsystem on a line below the ones before it
+            first = subsystems[name].model.sketch(subsystems[name].z, subsystems[name].w)
+            self._offsets[name] = np.array([0.0, -lane if first.on_line else 0.0])
+            lane += max(len(first.boxes), 1) * LANE if first.on_line else 0.0
+        self.drawn = tuple(drawable)
+        bonds = {bond.name: bond for bond in plan.bonds}
+        self._couplings = []  # (name, side a, side b, (force side, its force outputs) or None)
+        for name, coupling in scene.couplings.items():
+            (sub_a, point_a), (sub_b, point_b) = coupling.sides().values()  # force side first
+            if sub_b in self._offsets:
+                bond = bonds.get(name)
+                force = None if bond is None else (plan.subsystems[bond.force_side].name, bond.force_output)
+                self._couplings.append((name, (sub_a, point_a), (sub_b, point_b), force))
+        self._force_sides = {force[0] for *_, force in self._couplings if force is not None}
+        self._pending: dict[int, Frame] = {}
+        self._latest: dict[str, int] = {}  # the last step each drawn subsystem reported
+        self._outputs: dict[tuple[str, int], np.ndarray] = {}
+        self._largest_force = 0.0
+
+    def command(self, name: str, wire: bytes) -> list[Frame]:
+        """Execute a command of subsystem ``name`` (ignored when it is not drawn); return the frames that this
+        completes: those before the last point every drawn subsystem has reported (so the frames do not depend
+        on how the commands of different subsystems interleave)."""
+        endpoint = self._endpoints.get(name)
+        if endpoint is None:
+            return []
+        reply = endpoint.handle(wire)
+        _, kind, _, _, step, time_ns, _ = HEADER.unpack_from(reply)
+        if kind != Kind.OUTPUT:
+            return []
+        subsystem = self._subsystems[name]
+        sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
+        _translate(sketch, self._offsets[name])
+        self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
+        self._latest[name] = step
+        if len(self._latest) < len(self._endpoints):
+            return []
+        reported = min(self._latest.values())  # every drawn subsystem has gone past the frames before this
+        return [self._complete(done) for done in sorted(s for s in self._pending if s < reported)]
+
+    def output(self, name: str, step: int, values: np.ndarray) -> None:
+        """A recorded OUTPUT of subsystem ``name`` (drawn or not): the force of its couplings at ``step``."""
+        if name in self._force_sides:
+            self._outputs[name, step] = values
+
+    def finish(self) -> list[Frame]:
+        """The frames still pending, in order."""
+        return [self._complete(step) for step in sorted(self._pending)]
+
+    def _complete(self, step: int) -> Frame:
+        """The frame at ``step`` with its couplings: a line where both sides are drawn, an arrow where the
+        motion side is drawn and the force side's output is known."""
+        frame = self._pending.pop(step)
+        for name, (sub_a, point_a), (sub_b, point_b), force in self._couplings:
+            if sub_b not in frame.sketches:
+                continue
+            b = frame.sketches[sub_b].anchors[point_b]
+            line = None
+            if sub_a in frame.sketches:
+                line = np.array([frame.sketches[sub_a].anchors[point_a].position, b.position])
+            arrow = None
+            outputs = None if force is None else self._outputs.get((force[0], step))
+            if outputs is not None:
+                f = outputs[list(force[1])]
+                vector = -(f[0] * np.array(b.direction) if f.size == 1 else f[:2])
+                self._largest_force = max(self._largest_force, float(np.hypot(*vector)))
+                scale = ARROW / self._largest_force if self._largest_force > 0 else 0.0
+                arrow = (np.array(b.position), vector * scale)
+            frame.couplings[name] = (line, arrow)
+            if force is not None:
+                self._outputs.pop((force[0], step), None)
+        return frame
+
+
+def _translate(sketch: Sketch, offset: np.ndarray) -> None:
+    if not offset.any():
+        return
+    dx, dy = float(offset[0]), float(offset[1])
+    sketch.boxes = {k: ((c[0] + dx, c[1] + dy), h) for k, (c, h) in sketch.boxes.items()}
+    sketch.paths = {k: p + offset for k, p in sketch.paths.items()}
+    for point, anchor in sketch.anchors.items():
+        sketch.anchor(point, (anchor.position[0] + dx, anchor.position[1] + dy), anchor.direction)

@@ -1,0 +1,304 @@
+"""What a run looks like in Rerun: its signals by physical quantity, its mechanism, its events.
+
+Shared by the replay of a recording (``recordings.rerun_replay``) and the live view of a run
+(``recordings.rerun_live``): both feed :class:`RunView` the messages of each channel in order, so a
+live run and the replay of its recording log the same values.
+
+Entities, one per series, grouped by quantity so that a panel never holds two units:
+``/<quantity>/<subsystem>/<signal>`` for every output (and every received input: the value of its
+polynomial at the start of each step), e.g. ``/positions/S2/x2``, ``/forces/S2/fc*``;
+``/residual_power/<bond>`` and ``/residual_energy/<bond>`` (and any other per-bond status field,
+``/<field>/<bond>``); ``/step_timing/<field>`` [µs] and ``/wall_time`` [s]. Each series is named
+with its unit (``S2 x2 [m]``), has a colour per subsystem (lighter for what it receives) and a
+static ``unit``; a value that is NaN (a multi-rate bond where it is not evaluated) is left out, so the
+line has no gaps. The mechanism is under ``/mechanism`` (``recordings.mechanism``), the flagged
+residual-power spikes and how the run ended under ``/events``. Timelines: ``sim_time`` (simulated
+time, the default) and ``step``.
+"""
+from __future__ import annotations
+
+import heapq
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from zencosim.manager.results.monitor import spike_intervals
+from zencosim.manager.scene.load import Scene
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.layout import ChannelSpec
+from zencosim.recordings.mechanism import Frame, Mechanism
+
+APPLICATION = "zencosim"
+QUANTITIES = {  # unit → entity root, panel title: one panel per quantity and unit
+    "m": ("positions", "positions"), "m/s": ("velocities", "velocities"), "m/s^2": ("accelerations", "accelerations"),
+    "N": ("forces", "forces"), "J": ("energies", "energies"), "1/kg": ("inverse_masses", "inverse masses"),
+}
+STATUS_QUANTITIES = {"delta_p": ("residual_power", "residual power δP"), "delta_e": ("residual_energy",
+                                                                                      "residual energy δE")}
+STEP_TIMING = ("step_timing", "step timing")  # the measured per-step durations, shown in µs
+WALL_TIME = ("wall_time", "wall time")
+PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+           (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
+PLOTTED = {"outputs": Kind.OUTPUT, "inputs": Kind.STEP, "status": Kind.STATUS}  # the messages a channel plots
+EVENTS = "/events"
+MECHANISM = "/mechanism"
+
+
+def _path(*parts: str) -> str:
+    return "/" + "/".join(rr.escape_entity_path_part(part) for part in parts)
+
+
+def _lighter(color: tuple[int, ...]) -> tuple[int, ...]:
+    return tuple(int(c + 0.5 * (255 - c)) for c in color)
+
+
+@dataclass(frozen=True)
+class Series:
+    """One plotted signal: its entity, panel (root, title with unit), name, unit, colour and where its values are."""
+
+    entity: str
+    root: str
+    panel: str  # the panel's title, with the unit
+    label: str  # the series' name, with the unit
+    unit: str
+    color: tuple[int, ...]
+    column: int  # index of the value in the message (inputs: in the polynomial's first row)
+    scale: float = 1.0  # shown value = scale × recorded value (s → µs)
+
+
+def series_of(spec: ChannelSpec, color: tuple[int, ...]) -> list[Series]:
+    """The series a channel gives (see the module text)."""
+    found = []
+    for j, (name, unit) in enumerate(zip(spec.names, spec.units)):
+        if spec.role == "status":
+            prefix, dot, bond = name.partition(".")
+            if dot:
+                root, title = STATUS_QUANTITIES.get(prefix, (re.sub(r"\W", "_", prefix), prefix))
+                found.append(Series(_path(root, bond), root, f"{title} [{unit}]", f"{title} {bond} [{unit}]", unit,
+                                    PALETTE[(j + 3) % len(PALETTE)], j))
+            elif name in spec.measured and unit == "s" and name != "wall_time":
+                found.append(Series(_path(STEP_TIMING[0], name), STEP_TIMING[0], f"{STEP_TIMING[1]} [µs]",
+                                    f"{name.replace('_', ' ')} [µs]", "µs", PALETTE[(j + 5) % len(PALETTE)], j, 1e6))
+            else:
+                root, title = WALL_TIME if name == "wall_time" else (re.sub(r"\W", "_", name), name.replace("_", " "))
+                found.append(Series(_path(root), root, f"{title} [{unit}]", f"{title} [{unit}]", unit, PALETTE[7], j))
+            continue
+        root, title = QUANTITIES.get(unit, ("signals_" + re.sub(r"\W", "_", unit), "signals"))
+        received = spec.role == "inputs"
+        label = f"{spec.source} {name}{' (received)' if received else ''} [{unit}]"
+        found.append(Series(_path(root, spec.source, name), root, f"{title} [{unit}]", label, unit,
+                            _lighter(color) if received else color, j))
+    return found
+
+
+class RunView:
+    """Logs a run to ``stream``: feed each channel's messages in order (:meth:`feed`), then :meth:`finish`.
+
+    ``scene`` (None when the recording's scene no longer loads) gives the mechanism and the spike
+    detector's parameters."""
+
+    def __init__(self, stream: rr.RecordingStream, specs: list[ChannelSpec], scene: Scene | None) -> None:
+        self.stream = stream
+        sources = list(dict.fromkeys(s.source for s in specs if s.source != "manager"))
+        self.series: dict[str, list[Series]] = {
+            spec.topic: series_of(spec, PALETTE[sources.index(spec.source) % len(PALETTE)]
+                                  if spec.source in sources else PALETTE[7]) for spec in specs}
+        self.specs = {spec.topic: spec for spec in specs}
+        self.scene = scene
+        self.mechanism = Mechanism(scene) if scene is not None else None
+        self._columns: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._residual: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}  # bond → (times [ns], δP) of the status
+        self._colors = {source: PALETTE[i % len(PALETTE)] for i, source in enumerate(sources)}
+        # mechanism entity → (kind, labels, colour, steps, times, shapes per step); its labels sent yet
+        self._shapes: dict[str, tuple[str, list, tuple, list, list, list]] = {}
+        self._labelled: set[str] = set()
+        self.extent: np.ndarray | None = None  # [x min, x max, y min, y max] of the mechanism so far [m]
+
+    def start(self) -> None:
+        """Log each series' name, colour and unit (static); call once the stream's sinks are set."""
+        for series in (s for group in self.series.values() for s in group):
+            self.stream.log(series.entity, rr.SeriesLines(colors=[series.color], names=[series.label], widths=[1.5]),
+                            rr.AnyValues(unit=series.unit), static=True)
+
+    def panels(self) -> dict[str, str]:
+        """Entity root → panel title, in the order of :data:`QUANTITIES` then the status's."""
+        found = {s.root: s.panel for group in self.series.values() for s in group}
+        order = [q[0] for q in QUANTITIES.values()] + [q[0] for q in STATUS_QUANTITIES.values()] + [STEP_TIMING[0],
+                                                                                                     WALL_TIME[0]]
+        return dict(sorted(found.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order)))
+
+    def feed(self, topic: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:
+        """The next messages of channel ``topic`` of its kind (:data:`PLOTTED`): their steps, times [ns] and
+        values (a row each; of a command, its polynomial's first row first)."""
+        spec = self.specs[topic]
+        if not steps.size:
+            return
+        values = values[:, :len(spec.names)]
+        if spec.role == "outputs" and self.mechanism is not None:
+            for step, row in zip(steps.tolist(), values):
+                self.mechanism.output(spec.source, step, row)
+        self._columns.setdefault(topic, []).append((steps, times, values))
+        if spec.role == "status":
+            for j, name in enumerate(spec.names):
+                if name.startswith("delta_p."):
+                    self._residual.setdefault(name.split(".", 1)[1], []).append((times, values[:, j]))
+
+    def commands(self, ordered: list[tuple[str, bytes]]) -> None:
+        """Wire commands (subsystem, message) step by step, for the mechanism."""
+        if self.mechanism is not None:
+            for name, wire in ordered:
+                for frame in self.mechanism.command(name, wire):
+                    self._draw(frame)
+
+    def flush(self) -> None:
+        """Send what was fed since the last flush."""
+        for topic, parts in self._columns.items():
+            steps, times, values = (np.concatenate(column) for column in zip(*parts))
+            for series in self.series[topic]:
+                column = values[:, series.column]
+                kept = ~np.isnan(column)  # a multi-rate bond is not evaluated at every step: no gap in its line
+                self.stream.send_columns(series.entity, indexes=self._indexes(steps[kept], times[kept]),
+                                         columns=rr.Scalars.columns(scalars=column[kept] * series.scale))
+        self._columns = {}
+        self._send_shapes()
+
+    @staticmethod
+    def _indexes(steps: np.ndarray, times: np.ndarray) -> list:
+        return [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("sim_time", duration=times.astype("timedelta64[ns]"))]
+
+    def _at(self, step: int, time_ns: int) -> None:
+        self.stream.set_time("step", sequence=step)
+        self.stream.set_time("sim_time", duration=np.timedelta64(time_ns, "ns"))
+
+    def _draw(self, frame: Frame) -> None:
+        """Keep the shapes of a frame of the mechanism, per entity, until the next flush."""
+        shapes = []
+        for name, sketch in frame.sketches.items():
+            if sketch.boxes:
+                shapes.append((_path("mechanism", name, "bodies"), "boxes", list(sketch.boxes.values()),
+                               list(sketch.boxes), self._colors.get(name, PALETTE[7])))
+            if sketch.paths:
+                shapes.append((_path("mechanism", name, "elements"), "strips", list(sketch.paths.values()),
+                               list(sketch.paths), self._colors.get(name, PALETTE[7])))
+        for name, (line, arrow) in frame.couplings.items():
+            if line is not None:
+                shapes.append((_path("mechanism", "couplings", name), "strips", [line], [name], (90, 90, 90)))
+            if arrow is not None:
+                shapes.append((_path("mechanism", "forces", name), "arrows", [arrow], [f"{name} force"],
+                               (214, 39, 40)))
+        corners = [np.array([c, (c[0] - h[0], c[1] - h[1]), (c[0] + h[0], c[1] + h[1])])
+                   for sketch in frame.sketches.values() for c, h in sketch.boxes.values()]
+        points = np.concatenate(corners + [p for sketch in frame.sketches.values() for p in sketch.paths.values()]
+                                or [np.zeros((0, 2))])
+        if points.size:
+            low, high = points.min(axis=0), points.max(axis=0)
+            if self.extent is not None:
+                low, high = np.minimum(low, self.extent[::2]), np.maximum(high, self.extent[1::2])
+            self.extent = np.array([low[0], high[0], low[1], high[1]])
+        for entity, kind, items, labels, color in shapes:
+            if entity not in self._shapes:
+                self._shapes[entity] = (kind, labels, color, [], [], [])
+            _, _, _, steps, times, kept = self._shapes[entity]
+            steps.append(frame.step)
+            times.append(frame.time_ns)
+            kept.append(items)
+
+    def _send_shapes(self) -> None:
+        """Send the kept shapes, y turned to point down as Rerun's 2-D views draw it (so up is up)."""
+        flip = np.array([1.0, -1.0])
+        for entity, (kind, labels, color, steps, times, kept) in self._shapes.items():
+            if not steps:
+                continue
+            archetype = {"boxes": rr.Boxes2D, "strips": rr.LineStrips2D, "arrows": rr.Arrows2D}[kind]
+            if entity not in self._labelled:
+                self.stream.log(entity, archetype.from_fields(labels=labels, colors=[color]), static=True)
+                self._labelled.add(entity)
+            lengths = [len(items) for items in kept]
+            items = [item for frame_items in kept for item in frame_items]
+            if kind == "boxes":
+                columns = rr.Boxes2D.columns(centers=np.array([c for c, _ in items]) * flip,
+                                             half_sizes=[h for _, h in items])
+            elif kind == "strips":
+                columns = rr.LineStrips2D.columns(strips=[strip * flip for strip in items])
+            else:
+                columns = rr.Arrows2D.columns(origins=np.array([o for o, _ in items]) * flip,
+                                              vectors=np.array([v for _, v in items]) * flip)
+            self.stream.send_columns(entity, indexes=self._indexes(np.array(steps), np.array(times)),
+                                     columns=columns.partition(lengths))
+            steps.clear()
+            times.clear()
+            kept.clear()
+
+    def events(self, outcome: str, last_step: int, steps: int, macro_step_ns: int
+               ) -> tuple[list[tuple[int, str, str]], list[tuple[float, float]]]:
+        """The events of what was fed — (time [ns], level, text) of every flagged residual-power spike and of
+        how the run ended — and the intervals to highlight [s]: the spikes, and a run that stopped before its
+        last step from there on."""
+        found, flagged = [], []
+        spikes = self.scene.manager.spikes if self.scene is not None else None
+        for bond, parts in self._residual.items():
+            times, p_res = (np.concatenate(column) for column in zip(*parts))
+            intervals = (spike_intervals(times * 1e-9, p_res, spikes.window, spikes.threshold, spikes.merge_gap)
+                         if spikes is not None and times.size else [])
+            for interval in intervals:
+                found.append((round(interval.start * 1e9), "WARN",
+                              f"bond {bond}: residual-power spike {interval.start:.4g}–{interval.end:.4g} s, peak "
+                              f"δP {interval.peak:.4g} W at {interval.peak_time:.4g} s"))
+                flagged.append((interval.start, interval.end))
+        end_ns = last_step * macro_step_ns
+        if last_step < steps:
+            flagged.append((end_ns * 1e-9, steps * macro_step_ns * 1e-9))
+            found.append((end_ns, "ERROR", f"the run stopped at step {last_step} of {steps} (t = {end_ns * 1e-9:g} s): "
+                                           f"{outcome}"))
+        else:
+            found.append((end_ns, "INFO", f"run {outcome}"))
+        return found, flagged
+
+    def last_frames(self) -> None:
+        """Draw the frames the mechanism still holds: no more commands come."""
+        if self.mechanism is not None:
+            for frame in self.mechanism.finish():
+                self._draw(frame)
+
+    def finish(self, events: list[tuple[int, str, str]]) -> None:
+        """Send the rest and ``events`` (see :meth:`events`)."""
+        self.flush()
+        for time_ns, level, text in events:
+            self.stream.set_time("sim_time", duration=np.timedelta64(time_ns, "ns"))
+            self.stream.log(EVENTS, rr.TextLog(text, level=level))
+
+
+def ordered_commands(channels: dict[str, list[bytes]]) -> list[tuple[str, bytes]]:
+    """Every subsystem's commands (wire messages, each list in order) merged step by step."""
+    def keyed(name: str, wires: list[bytes]):
+        return ((int.from_bytes(wire[8:16], "little", signed=True), name, wire) for wire in wires)
+    return [(name, wire) for _, name, wire in heapq.merge(*(keyed(n, w) for n, w in channels.items()),
+                                                         key=lambda item: item[0])]
+
+
+def blueprint(view: RunView, highlight: tuple[float, float] | None = None) -> rrb.Blueprint:
+    """The mechanism and the events beside one time-series panel per quantity and unit, the whole run in
+    view on the ``sim_time`` timeline; ``highlight`` [s] is selected on the time panel."""
+    whole_run = rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.infinite(),
+                                     end=rrb.TimeRangeBoundary.infinite())
+    plots = [rrb.TimeSeriesView(origin=_path(root), name=title, time_ranges=[whole_run],
+                                plot_legend=rrb.PlotLegend(visible=True))
+             for root, title in view.panels().items()]
+    left = [rrb.TextLogView(origin=EVENTS, name="events")]
+    if view.mechanism is not None and view.mechanism.drawn:
+        bounds = None
+        if view.extent is not None:  # what the mechanism covered, with a margin; y down as Rerun draws it
+            x0, x1, y0, y1 = view.extent
+            margin = 0.1 * max(x1 - x0, y1 - y0, 1.0)
+            bounds = rrb.VisualBounds2D(x_range=[x0 - margin, x1 + margin], y_range=[-y1 - margin, -y0 + margin])
+        left.insert(0, rrb.Spatial2DView(origin=MECHANISM, name="mechanism [m]", visual_bounds=bounds))
+    selection = None if highlight is None else rr.AbsoluteTimeRange(
+        start=np.timedelta64(round(highlight[0] * 1e9), "ns"), end=np.timedelta64(round(highlight[1] * 1e9), "ns"))
+    return rrb.Blueprint(
+        rrb.Horizontal(rrb.Vertical(*left, row_shares=[3, 1][:len(left)]), rrb.Grid(*plots, grid_columns=2),
+                       column_shares=[2, 3]),
+        rrb.TimePanel(timeline="sim_time", time_selection=selection, state="expanded"),
+        collapse_panels=True)

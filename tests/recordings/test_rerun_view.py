@@ -1,0 +1,141 @@
+"""The Rerun replay of a recorded two_mass_damped run, read back from the .rrd with the SDK's chunk reader:
+one panel per quantity and unit, series named with their units, the sim_time timeline, the mechanism
+drawn where the recorded outputs say, and a clear refusal when no viewer can be spawned.
+
+The replay runs as its own process (``zencosim replay``), as a user runs it.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from collections import defaultdict
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pytest
+
+import zencosim
+from tests.conftest import REPO
+from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.reader import read_recording
+
+pytestmark = pytest.mark.multiprocess
+
+UNITS_OF_PANELS = {"positions": "m", "velocities": "m/s", "forces": "N", "energies": "J", "residual_power": "W",
+                   "residual_energy": "J", "step_timing": "µs", "wall_time": "s"}
+
+
+def _zencosim(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "zencosim", *args], capture_output=True, text=True, cwd=REPO,
+                          timeout=180, env=env)
+
+
+def _columns(store_chunks) -> dict[str, pa.Table]:
+    """Entity path → its rows (every chunk of it, columns unified)."""
+    batches = defaultdict(list)
+    for chunk in store_chunks:
+        batches[chunk.entity_path].append(chunk.to_record_batch())
+    return {entity: pa.concat_tables([pa.Table.from_batches([b]) for b in found], promote_options="default")
+            for entity, found in batches.items()}
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory):
+    """(recording, its data by entity, its blueprint by entity) of a 2 s run replayed into a .rrd file."""
+    from rerun.chunk import RrdReader
+    folder = tmp_path_factory.mktemp("replayed")
+    mcap, rrd = folder / "run.mcap", folder / "run.rrd"
+    zencosim.run(zencosim.load_scene("two_mass_damped", ["manager.duration=2.0"]), record=mcap)
+    result = _zencosim("replay", str(mcap), "--rrd", str(rrd))
+    assert result.returncode == 0, result.stderr
+    reader = RrdReader(rrd)
+    (blueprint,) = reader.blueprints()
+    return read_recording(mcap), _columns(reader.stream()), _columns(reader.stream(store=blueprint))
+
+
+def _values(table: pa.Table, column: str) -> list:
+    return [v for v in table[column].to_pylist() if v is not None]
+
+
+def _scalars(table: pa.Table) -> tuple[list[int], list[int], np.ndarray]:
+    rows = table.filter(pc.is_valid(table["step"])).sort_by("step")
+    return (rows["step"].to_pylist(), rows["sim_time"].cast(pa.int64()).to_pylist(),
+            rows["Scalars:scalars"].combine_chunks().flatten().to_numpy(zero_copy_only=False))
+
+
+def test_every_signal_is_a_series_under_its_quantity_named_with_its_unit(replayed):
+    recording, data, _ = replayed
+    expected = {"/positions/S2/x2": ("S2 x2 [m]", "m"), "/velocities/S2/v2": ("S2 v2 [m/s]", "m/s"),
+                "/energies/S2/energy": ("S2 energy [J]", "J"), "/forces/S1/fc": ("S1 fc [N]", "N"),
+                "/energies/S1/energy": ("S1 energy [J]", "J"),
+                "/positions/S1/x2\\*": ("S1 x2* (received) [m]", "m"), "/forces/S2/fc\\*": ("S2 fc* (received) [N]", "N"),
+                "/residual_power/c": ("residual power δP c [W]", "W"),
+                "/residual_energy/c": ("residual energy δE c [J]", "J"),
+                "/step_timing/step_wall_time": ("step wall time [µs]", "µs"), "/wall_time": ("wall time [s]", "s")}
+    for entity, (name, unit) in expected.items():
+        assert _values(data[entity], "SeriesLines:names") == [[name]], entity
+        assert _values(data[entity], "unit") == [[unit]], entity
+    # the values on the sim_time timeline are the recorded ones, bit for bit (timing: converted to µs)
+    steps, times, outputs = recording.channels["S2/y"].table(Kind.OUTPUT)
+    logged_steps, logged_times, x2 = _scalars(data["/positions/S2/x2"])
+    assert logged_steps == steps.tolist() and logged_times == times.tolist()
+    assert x2.tobytes() == outputs[:, 0].tobytes()
+    status = recording.channels["manager/status"]
+    _, _, values = status.table(Kind.STATUS)
+    step_wall_time = values[:, status.spec.names.index("step_wall_time")]
+    assert _scalars(data["/step_timing/step_wall_time"])[2].tobytes() == (step_wall_time * 1e6).tobytes()
+
+
+def test_the_blueprint_has_one_panel_per_quantity_and_unit_over_the_whole_run(replayed):
+    _, data, blueprint = replayed
+    units = {entity: _values(table, "unit")[0][0] for entity, table in data.items() if "unit" in table.column_names}
+    views = {entity: table for entity, table in blueprint.items()
+             if entity.startswith("/view/") and entity.count("/") == 2}
+    panels = {}
+    for entity, table in views.items():
+        (kind,) = _values(table, "ViewBlueprint:class_identifier")[0]
+        if kind != "TimeSeries":
+            continue
+        (origin,) = _values(table, "ViewBlueprint:space_origin")[0]
+        assert _values(blueprint[f"{entity}/ViewContents"], "ViewContents:query") == [["$origin/**"]]
+        inside = {units[e] for e in units if e.startswith(origin + "/") or e == origin}
+        (title,) = _values(table, "ViewBlueprint:display_name")[0]
+        panels[origin.strip("/")] = (inside, title)
+        ranges = _values(blueprint[f"{entity}/VisibleTimeRanges"], "VisibleTimeRanges:ranges")[0]
+        assert [r["timeline"] for r in ranges] == ["sim_time"]
+        assert [r["range"] for r in ranges] == [{"start": None, "end": None}]  # unbounded: the whole run
+    assert set(panels) == set(UNITS_OF_PANELS)
+    for root, (inside, title) in panels.items():
+        assert inside == {UNITS_OF_PANELS[root]}, (root, inside)  # never two units in one panel
+        assert title.endswith(f"[{UNITS_OF_PANELS[root]}]"), title
+    assert _values(blueprint["/time_panel"], "TimePanelBlueprint:timeline") == [["sim_time"]]
+
+
+def test_the_mechanism_moves_as_the_recorded_outputs_say(replayed):
+    recording, data, _ = replayed
+    _, times, outputs = recording.channels["S2/y"].table(Kind.OUTPUT)
+    bodies = data["/mechanism/S2/bodies"].filter(pc.is_valid(data["/mechanism/S2/bodies"]["sim_time"]))
+    bodies = bodies.sort_by("sim_time")
+    assert bodies["sim_time"].cast(pa.int64()).to_pylist() == times.tolist()
+    centers = np.array([row[0] for row in bodies["Boxes2D:centers"].to_pylist()])
+    # m2's box is where the re-executed S2 says, which is what S2 reported (x2), to the bit of Rerun's float32
+    # positions; S2 is the second lane, 1 m below the first (y = -1 m, drawn as +1: Rerun's y points down)
+    assert centers[:, 0].astype(np.float32).tobytes() == outputs[:, 0].astype(np.float32).tobytes()
+    assert set(centers[:, 1].tolist()) == {1.0}
+    # the coupling force on m2 is the reaction to S1's fc: the arrow points against it
+    _, _, s1 = recording.channels["S1/y"].table(Kind.OUTPUT)
+    arrows = data["/mechanism/forces/c"].filter(pc.is_valid(data["/mechanism/forces/c"]["sim_time"]))
+    vectors = np.array([row[0] for row in arrows.sort_by("sim_time")["Arrows2D:vectors"].to_pylist()])
+    assert np.all(np.sign(vectors[:, 0]) == -np.sign(s1[:, 0])) and np.all(vectors[:, 1] == 0.0)
+    assert _values(data["/events"], "TextLog:text") == [["run completed"]]
+
+
+def test_replay_spawn_without_a_viewer_says_why_and_exits_2(replayed, tmp_path):
+    recording, _, _ = replayed
+    env = {key: value for key, value in os.environ.items() if key not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    result = _zencosim("replay", str(recording.path), "--spawn", env=env)
+    assert result.returncode == 2, result.stderr
+    assert "no display for a Rerun viewer" in result.stderr and "--rrd FILE" in result.stderr
+    assert "Traceback" not in result.stderr
