@@ -5,14 +5,20 @@
   from its callback), as peers on loopback with multicast scouting off;
 * ``zenoh_round_trips(n, official=False)``: the same pattern with the bus's transport settings
   (low-latency transport, express, real-time priority);
+* ``jacobi_lockstep_steps(n)``: the transport floor of a Jacobi macro-step: two processes in lock step,
+  each publishing its value for step j from its subscriber callback as soon as it holds the other's
+  value for step j-1, with the bus's session and publisher settings (what two subsystem processes do
+  over Zenoh, with no arithmetic and no manager);
 * ``udp_round_trips(n)``: a raw loopback UDP round trip from Python.
 """
 from __future__ import annotations
 
 import json
 import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 
 import zenoh
@@ -20,6 +26,8 @@ import zenoh
 from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, session_config
 
 PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
+STEP_VALUE = struct.Struct("<q48x")  # a lock-step message: the step index, padded to an OUTPUT's 56 bytes
+WARM_UP = 200  # steps or round trips before timing starts
 
 
 def _config(endpoint: str, listen: bool, official: bool) -> zenoh.Config:
@@ -47,7 +55,7 @@ def _pong(endpoint: str, official: bool) -> None:
 
 
 def zenoh_round_trips(n: int, official: bool = True) -> list[float]:
-    """Round-trip times [s] of ``n`` ping-pongs after 200 of warm-up."""
+    """Round-trip times [s] of ``n`` ping-pongs after ``WARM_UP`` of warm-up."""
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
     with zenoh.open(_config(endpoint, True, official)) as session:
         publisher = _publisher(session, "bench/ping", official)
@@ -60,15 +68,80 @@ def zenoh_round_trips(n: int, official: bool = True) -> list[float]:
                     raise RuntimeError("the pong process did not start")
                 time.sleep(0.05)
             times = []
-            for _ in range(n + 200):
+            for _ in range(n + WARM_UP):
                 start = time.perf_counter()
                 publisher.put(PAYLOAD)
                 replies.recv()
                 times.append(time.perf_counter() - start)
-            return times[200:]
+            return times[WARM_UP:]
         finally:
             child.kill()
             child.wait()
+
+
+class _LockStep:
+    """One side of the lock step: it publishes its value for step j (from the subscriber callback, as a
+    subsystem process steps) once it has published step j-1 and holds the other side's value for step
+    j-1, up to step ``last``; the times [ns] at which it published each step are kept."""
+
+    def __init__(self, session: zenoh.Session, mine: str, theirs: str, last: int) -> None:
+        self.publisher = coupling_publisher(session, mine)
+        self.last = last
+        self.published: list[int] = []
+        self.received = -1  # the other side's newest step (one publisher, one link: in order)
+        self.done = threading.Event()
+        self._lock = threading.Lock()
+        self.subscriber = session.declare_subscriber(theirs, self._on_value)
+
+    def start(self) -> None:
+        """Publish step 0 once the other side subscribes."""
+        deadline = time.monotonic() + 30
+        while not self.publisher.matching_status.matching:
+            if time.monotonic() > deadline:
+                raise RuntimeError("the other side of the lock step did not start")
+            time.sleep(0.01)
+        self._advance()
+
+    def _on_value(self, sample: zenoh.Sample) -> None:
+        self.received = STEP_VALUE.unpack(bytes(sample.payload))[0]
+        self._advance()
+
+    def _advance(self) -> None:
+        with self._lock:
+            step = len(self.published)
+            while step <= self.last and step - 1 <= self.received:
+                self.publisher.put(STEP_VALUE.pack(step))
+                self.published.append(time.perf_counter_ns())
+                step += 1
+            if step > self.last:
+                self.done.set()
+
+
+def _lockstep_side(endpoint: str, last: int) -> None:
+    with zenoh.open(_config(endpoint, False, official=False)) as session:
+        side = _LockStep(session, "bench/b", "bench/a", last)
+        side.start()
+        side.done.wait(600)
+        time.sleep(1.0)  # let the other side take the last value
+
+
+def jacobi_lockstep_steps(n: int) -> list[float]:
+    """Times [s] of ``n`` lock-step Jacobi steps (between consecutive publications of one side) after
+    ``WARM_UP`` steps, both processes peers on loopback with the bus's settings."""
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    last = n + WARM_UP
+    with zenoh.open(_config(endpoint, True, official=False)) as session:
+        side = _LockStep(session, "bench/a", "bench/b", last)
+        child = subprocess.Popen([sys.executable, __file__, "lockstep", endpoint, str(last)])
+        try:
+            side.start()
+            if not side.done.wait(600):
+                raise RuntimeError("the lock step did not finish within 600 s")
+        finally:
+            child.kill()
+            child.wait()
+    published = side.published[WARM_UP:]
+    return [(later - earlier) * 1e-9 for earlier, later in zip(published, published[1:])]
 
 
 def _udp_echo(port: int) -> None:
@@ -80,7 +153,7 @@ def _udp_echo(port: int) -> None:
 
 
 def udp_round_trips(n: int) -> list[float]:
-    """Round-trip times [s] of ``n`` UDP datagrams to an echo process after 200 of warm-up."""
+    """Round-trip times [s] of ``n`` UDP datagrams to an echo process after ``WARM_UP`` of warm-up."""
     port = free_tcp_port()
     child = subprocess.Popen([sys.executable, __file__, "udp", str(port)])
     try:
@@ -94,12 +167,12 @@ def udp_round_trips(n: int) -> list[float]:
                 except OSError:
                     time.sleep(0.05)
             times = []
-            for _ in range(n + 200):
+            for _ in range(n + WARM_UP):
                 start = time.perf_counter()
                 sock.sendto(PAYLOAD, ("127.0.0.1", port))
                 sock.recvfrom(2048)
                 times.append(time.perf_counter() - start)
-            return times[200:]
+            return times[WARM_UP:]
     finally:
         child.kill()
         child.wait()
@@ -108,5 +181,7 @@ def udp_round_trips(n: int) -> list[float]:
 if __name__ == "__main__":
     if sys.argv[1] == "pong":
         _pong(sys.argv[2], bool(int(sys.argv[3])))
+    elif sys.argv[1] == "lockstep":
+        _lockstep_side(sys.argv[2], int(sys.argv[3]))
     else:
         _udp_echo(int(sys.argv[2]))
