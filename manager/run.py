@@ -77,7 +77,7 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             started = True
         tap = recorder
         if bus == "inproc":
-            scheme = make_scheme(scene, plan, realtime, None, progress, status)
+            scheme = make_scheme(scene, plan, realtime, None, progress, status, cpu=0)
             start = time.perf_counter()
             record = run_in_process(scheme, plan, subsystems, tap)
             wall_s = time.perf_counter() - start

@@ -74,6 +74,10 @@ class ManagerSettings:
     extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order (implicit: k)
     timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
     realtime: bool = False
+    # real-time levers (docs/realtime.md): SCHED_FIFO priority of the thread that paces the steps (0: normal
+    # scheduling), and each subsystem process's pacing thread kept to one CPU (its index modulo the CPUs)
+    realtime_priority: int = field(default=0, metadata=quantity("", minimum=0, maximum=99))
+    realtime_affinity: bool = False
     record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
     correction: CorrectionSettings | None = None  # [manager.correction]
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]

@@ -12,6 +12,9 @@ a microsecond, so a step released on time never counts.
 """
 from __future__ import annotations
 
+import os
+import sys
+import threading
 import time
 
 import numpy as np
@@ -24,10 +27,45 @@ SPIN_SHARED_NS = 200_000
 MISSED_SLACK = 0.01  # a step released later than this share of the macro-step after its deadline missed it
 
 
+class ThreadScheduling:
+    """The real-time levers of the thread that releases the steps (docs/realtime.md, levers): the
+    SCHED_FIFO policy at ``priority`` (1-99; 0: normal scheduling) and affinity to ``cpu`` (None: any).
+    Applied once in each thread that paces (over Zenoh the subscriber callback thread steps, so the
+    levers reach the thread that does the work, not Zenoh's other threads). Where the system refuses
+    (no privilege, not Linux) one warning on stderr names the lever and the reason and the run goes on
+    with normal scheduling."""
+
+    def __init__(self, priority: int = 0, cpu: int | None = None, who: str = "zencosim") -> None:
+        self.priority, self.cpu, self.who = priority, cpu, who
+        self._threads: set[int] = set()
+        self.refused: list[str] = []
+
+    def enter(self) -> None:
+        """Apply the levers to the calling thread, once."""
+        thread = threading.get_ident()
+        if thread in self._threads:
+            return
+        self._threads.add(thread)
+        if self.priority:
+            self._try(f"SCHED_FIFO priority {self.priority}",
+                      lambda: os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority)))
+        if self.cpu is not None:
+            self._try(f"affinity to CPU {self.cpu}", lambda: os.sched_setaffinity(0, {self.cpu}))
+
+    def _try(self, lever: str, apply) -> None:
+        try:
+            apply()
+        except (OSError, AttributeError) as error:  # AttributeError: a platform without the call
+            if lever not in self.refused:
+                self.refused.append(lever)
+                print(f"{self.who}: real-time lever refused, {lever}: {error}; stepping without it", file=sys.stderr)
+
+
 class Pacer:
     def __init__(self, macro_step_ns: int, n_steps: int, start_ns: int | None = None,
-                 spin_ns: int = SPIN_ALONE_NS) -> None:
+                 spin_ns: int = SPIN_ALONE_NS, scheduling: ThreadScheduling | None = None) -> None:
         self.macro_step_ns = macro_step_ns
+        self.scheduling = scheduling
         self.spin_ns = spin_ns
         self.start_ns = start_ns  # on time.perf_counter_ns's clock (CLOCK_MONOTONIC)
         self.missed_after_ns = int(macro_step_ns * MISSED_SLACK)
@@ -37,6 +75,8 @@ class Pacer:
     def wait(self, step: int) -> int:
         """Block until step ``step``'s deadline (the first call starts the clock); return the release time
         [ns, time.perf_counter_ns]."""
+        if self.scheduling is not None:
+            self.scheduling.enter()
         now = time.perf_counter_ns()
         if self.start_ns is None:
             self.start_ns = now

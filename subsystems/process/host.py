@@ -164,7 +164,8 @@ class _Host:
         with self.lock:
             self.cpu_s[0] = time.process_time()
             scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS,
-                                 local=self.scope)
+                                 local=self.scope, cpu=self.plan.by_name(self.name).index % (os.cpu_count() or 1),
+                                 who=f"subsystem {self.name}")
             self.replica = Replica(scheme, self.names, self.local, self.publish)
             self._guarded(self.replica.start)
             for sender, data in self.early:

@@ -5,13 +5,15 @@ lateness, and the missed deadlines are exactly the steps released more than 1 % 
 (manager/scheme/pacing.py). A pacer that released early, skipped a step, kept the wrong clock or
 counted misses differently fails these; a busy machine only makes the lateness larger.
 """
+import os
+import threading
 import time
 
 import numpy as np
 import pytest
 
 import zencosim
-from zencosim.manager.scheme.pacing import MISSED_SLACK, Pacer
+from zencosim.manager.scheme.pacing import MISSED_SLACK, Pacer, ThreadScheduling
 
 
 def _check_accounted(send_time_ns: np.ndarray, lateness_ns: np.ndarray, missed: int, step_ns: int) -> None:
@@ -50,3 +52,39 @@ def test_a_step_whose_predecessor_overran_is_released_at_once_and_missed():
     released.append(pacer.wait(2))
     _check_accounted(np.array(released), pacer.lateness_ns, pacer.missed, step_ns)
     assert pacer.lateness_ns[2] >= step_ns // 2 and pacer.missed >= 1
+
+
+def _in_a_thread(action):
+    """Run ``action`` in a new thread (the levers are per thread) and return what it returns."""
+    found = []
+    thread = threading.Thread(target=lambda: found.append(action()))
+    thread.start()
+    thread.join()
+    return found[0]
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setscheduler"), reason="Linux scheduling calls")
+def test_the_levers_reach_the_pacing_thread_or_are_refused_with_a_warning(capsys):
+    def paced():
+        scheduling = ThreadScheduling(priority=10, cpu=0, who="subsystem S1")
+        Pacer(1_000_000, 2, scheduling=scheduling).wait(0)
+        return os.sched_getscheduler(0), os.sched_getaffinity(0), scheduling.refused
+
+    policy, cpus, refused = _in_a_thread(paced)
+    assert cpus == {0}  # affinity needs no privilege
+    if "SCHED_FIFO priority 10" in refused:  # without the privilege: normal scheduling and one warning
+        assert policy == os.SCHED_OTHER
+        assert "subsystem S1: real-time lever refused, SCHED_FIFO priority 10" in capsys.readouterr().err
+    else:
+        assert policy == os.SCHED_FIFO
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the test's own thread is untouched
+
+    def refused_priority():  # a priority the kernel refuses whatever the privilege: the fallback path
+        scheduling = ThreadScheduling(priority=100, who="subsystem S2")
+        scheduling.enter()
+        scheduling.enter()  # once per thread: one warning
+        return os.sched_getscheduler(0), scheduling.refused
+
+    policy, refused = _in_a_thread(refused_priority)
+    assert (policy, refused) == (os.SCHED_OTHER, ["SCHED_FIFO priority 100"])
+    assert capsys.readouterr().err.count("subsystem S2: real-time lever refused, SCHED_FIFO priority 100") == 1
