@@ -49,7 +49,8 @@ from zencosim.manager.wire.protocol import Kind, encode, split_messages
 from zencosim.manager.wire.status import StatusReport
 
 ROUTER_WAIT_S = 10.0  # how long the manager waits for a --connect router to listen
-STARTUP_TIMEOUT_S = 30.0  # start-up fails when no spawned subsystem process has joined or connected for this long
+STARTUP_TIMEOUT_S = 30.0  # start-up fails when no spawned subsystem process has made progress for this long
+STARTUP_CPU_S = 0.1  # [s] CPU time of a starting process that counts as progress (an idle Zenoh peer uses far less)
 STOP_GRACE_S = 2.0  # after STOP, a child has this long to exit before it is terminated
 START_DELAY_NS = 50_000_000  # the first step is released this long after the start signal (real time)
 PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
@@ -213,16 +214,24 @@ class ZenohBus:
 
     def _await(self, name: str, event: threading.Event, wait_s: float, failing: str) -> None:
         """Wait for ``event`` of subsystem ``name``; any spawned process exiting fails (named: a subsystem that
-        waits to connect to it is not the cause), and so does ``wait_s`` passing: for a spawned subsystem since
-        the last one joined or connected (33 processes starting on 2 cores take longer than one, but each
-        makes progress), for one started by hand since the wait began."""
+        waits to connect to it is not the cause), and so does ``wait_s`` passing without progress: for a
+        spawned subsystem, progress is another one joining or connecting, or its own process still working
+        its way up (``STARTUP_CPU_S`` more CPU time: 33 processes starting on 2 cores under load take longer
+        than one, but each uses CPU; one waiting for a link that never comes does not); for one started by
+        hand, the wait since it began."""
         waited_from = time.monotonic()
+        working_from, cpu_mark = waited_from, _cpu_s(self.children.get(name))
         while not event.wait(0.05):
             failure = next(filter(None, map(self._exited, self.names)), None)
             if failure:
                 raise failure
-            since = waited_from if name in self.external else max(waited_from, self._started_at)
-            if time.monotonic() > since + wait_s:
+            now = time.monotonic()
+            if name in self.children and now - working_from >= 1.0:
+                cpu = _cpu_s(self.children[name])
+                if cpu - cpu_mark >= STARTUP_CPU_S:
+                    working_from, cpu_mark = now, cpu
+            since = waited_from if name in self.external else max(waited_from, self._started_at, working_from)
+            if now > since + wait_s:
                 tail = self.log_tail(name) if name in self.children else ""
                 raise SubsystemFailure(name, f"{failing} within {wait_s:g} s" + (f"; its output:\n{tail}" if tail else ""))
 
@@ -415,3 +424,14 @@ class ZenohBus:
             self._session.close()
             self._session = None
         self._logs.cleanup()
+
+
+def _cpu_s(child: subprocess.Popen | None) -> float:
+    """The CPU time [s] ``child`` has used so far (Linux ``/proc``; 0 elsewhere or once it is gone)."""
+    if child is None:
+        return 0.0
+    try:
+        fields = Path(f"/proc/{child.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
