@@ -71,7 +71,7 @@ class ZenohBus:
         self.plan = plan
         self.options = options
         self.run_id = run_id or new_run_id()
-        self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
+        self.endpoint = listen or f"{options.security.protocol}/127.0.0.1:{free_tcp_port()}"
         self.external = tuple(external)
         self.routers = tuple(routers)
         self.wait_external_s = wait_external_s
@@ -164,20 +164,20 @@ class ZenohBus:
             command += ["--set", override]
         if not self.options.lowlatency:
             command.append("--no-lowlatency")
-        return command
+        return command + self.options.security.arguments()  # file paths: no secret on a command line
 
     def _spawn(self) -> None:
         spawned: dict[str, str] = {}  # name -> the endpoint the others reach it at
         for name in self.names:
             if name in self.external:
                 if self.announce is not None:
-                    arguments = self.spawn_arguments(name, None if self.routers else "tcp/<its-address>:<port>",
-                                                     by_hand=True)
+                    listen = None if self.routers else f"{self.options.security.protocol}/<its-address>:<port>"
+                    arguments = self.spawn_arguments(name, listen, by_hand=True)
                     command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
                     self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
                 continue
             host = endpoint_host(self.endpoint)  # where the manager listens: loopback, or every interface
-            listen = f"tcp/{host}:{free_tcp_port(host)}"
+            listen = f"{self.options.security.protocol}/{host}:{free_tcp_port(host)}"
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
             _, partners = process_scope(self.scene, self.plan, name)
             peers = tuple(endpoint for peer, endpoint in spawned.items() if peer in partners)
