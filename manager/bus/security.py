@@ -32,7 +32,7 @@ class SecurityError(ValueError):
 
 def zenoh_reason(error: Exception) -> str:
     """A Zenoh error without its Rust source location: ``line L, column C: what`` where Zenoh says where."""
-    text = re.sub(r"\s+at /\S+\.rs:\d+\.?$", "", str(error).strip())
+    text = re.sub(r"\s+at /\S+\.rs:\d+\.?", "", str(error).strip())  # where in Zenoh's sources
     found = re.search(r'msg: "(.*?)", location: Some\(Location \{ line: (\d+), column: (\d+) \}\)', text)
     if found:
         what, line, column = found.groups()
@@ -44,16 +44,19 @@ def zenoh_reason(error: Exception) -> str:
     return text
 
 
-def _pem(option: str, path: Path, marker: str) -> Path:
-    """``path``, absolute, once it is a readable PEM file holding ``marker``."""
+PEM_MARKERS = {"certificate": "-----BEGIN CERTIFICATE-----", "private key": "PRIVATE KEY-----"}
+
+
+def _pem(option: str, path: Path, holds: str) -> Path:
+    """``path``, absolute, once it is a readable PEM file that holds a ``certificate`` or a ``private key``."""
     try:
         text = path.read_text(errors="replace")
     except FileNotFoundError:
         raise SecurityError(f"{option} {path}: no such file") from None
     except OSError as error:
         raise SecurityError(f"{option} {path}: cannot read it ({error.strerror})") from None
-    if marker not in text:
-        raise SecurityError(f"{option} {path}: not a PEM file with a {marker.strip('-').lower()}")
+    if PEM_MARKERS[holds] not in text:
+        raise SecurityError(f"{option} {path}: expected a {holds} in PEM format (a '{PEM_MARKERS[holds]}' line)")
     return path.resolve()
 
 
@@ -98,9 +101,8 @@ class ZenohSecurity:
             password_file = self.password_file.resolve()
             self.password(password_file)
         return ZenohSecurity(
-            config_file, *(None if path is None else _pem(option, path, marker) for (option, path), marker in
-                           zip(tls.items(), ("-----BEGIN CERTIFICATE-----", "-----BEGIN CERTIFICATE-----",
-                                             "PRIVATE KEY-----"))),
+            config_file, *(None if path is None else _pem(option, path, holds) for (option, path), holds in
+                           zip(tls.items(), ("certificate", "certificate", "private key"))),
             self.user, password_file)
 
     def base_config(self, path: Path | None = None) -> zenoh.Config:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import zenoh
 
-from zencosim.manager.bus.security import ZenohSecurity
+from zencosim.manager.bus.security import ZenohSecurity, zenoh_reason
 
 ROOT = "zencosim"
 
@@ -126,6 +126,20 @@ def session_config(listen: list[str] = (), connect: list[str] = (), options: Zen
         config.insert_json5("transport/unicast/qos/enabled", "false")
     options.security.apply(config)
     return config
+
+
+class SessionError(ValueError):
+    """A Zenoh session that does not open with the settings given (exit status 2)."""
+
+
+def open_session(config: zenoh.Config, listen: list[str] = ()) -> zenoh.Session:
+    """``zenoh.open``, with Zenoh's reason in one line (a certificate file that a configuration names but that
+    is missing, an address that is not this host's, a port in use)."""
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        where = f" listening on {', '.join(listen)}" if listen else ""
+        raise SessionError(f"cannot open the Zenoh session{where}: {zenoh_reason(error)}") from None
 
 
 def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:
