@@ -92,22 +92,19 @@ class ZenohSecurity:
             raise SecurityError("--user and --password-file go together (user/password authentication needs both)")
         if self.user is not None and (not self.user or ":" in self.user or not self.user.isprintable()):
             raise SecurityError(f"--user {self.user!r}: expected a non-empty name without ':' or control characters")
-        config_file = None
-        if self.config_file is not None:
-            config_file = self.config_file.resolve()
-            self.base_config(config_file)  # its errors now, not in a spawned process
-        password_file = None
+        self.base_config()  # its errors now (naming the file as given), not in a spawned process
         if self.password_file is not None:
-            password_file = self.password_file.resolve()
-            self.password(password_file)
+            self.password()
+        config_file, password_file = (None if path is None else path.resolve()
+                                      for path in (self.config_file, self.password_file))
         return ZenohSecurity(
             config_file, *(None if path is None else _pem(option, path, holds) for (option, path), holds in
                            zip(tls.items(), ("certificate", "certificate", "private key"))),
             self.user, password_file)
 
-    def base_config(self, path: Path | None = None) -> zenoh.Config:
+    def base_config(self) -> zenoh.Config:
         """The user's Zenoh configuration file, or an empty configuration."""
-        path = path or self.config_file
+        path = self.config_file
         if path is None:
             return zenoh.Config()
         if not path.is_file():
@@ -117,8 +114,9 @@ class ZenohSecurity:
         except zenoh.ZError as error:
             raise SecurityError(f"--zenoh-config {path}: {zenoh_reason(error)}") from None
 
-    def password(self, path: Path | None = None) -> str:
-        path = path or self.password_file
+    def password(self) -> str:
+        """The first line of the password file."""
+        path = self.password_file
         try:
             lines = path.read_text().splitlines()
         except (OSError, UnicodeDecodeError) as error:

@@ -10,72 +10,17 @@ veth pair and loopback. Needs CAP_NET_ADMIN (root) and ``ip``; skipped otherwise
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 
 import pytest
 
 from tests.conftest import summary_of
+from tests.netns import ip as _ip
 from zencosim.manager.bus.zenoh_session import free_tcp_port, reachable
 
 pytestmark = pytest.mark.multiprocess
 
 HOST_ADDRESS, OTHER_ADDRESS = "10.213.77.1", "10.213.77.2"  # RFC 1918, a /30 of the test's own
-
-
-def _ip(*args: str) -> None:
-    subprocess.run(["ip", *args], check=True, capture_output=True, text=True, timeout=10)
-
-
-class Network:
-    """Network namespaces joined by veth pairs on /30s of the test's own; all removed by :meth:`remove`."""
-
-    def __init__(self) -> None:
-        self.namespaces: list[str] = []
-        self.links: list[str] = []  # veth pairs with an end in this namespace (the others go with theirs)
-        self.made = 0
-
-    def namespace(self, tag: str) -> str:
-        name = f"zc{os.getpid()}{tag}"
-        _ip("netns", "add", name)
-        self.namespaces.append(name)
-        _ip("-n", name, "link", "set", "lo", "up")
-        return name
-
-    def link(self, a: str | None, a_address: str, b: str, b_address: str) -> None:
-        """A veth pair from namespace ``a`` (None: this one) to ``b``, addressed ``a_address`` and ``b_address``."""
-        self.made += 1
-        veth = f"zv{os.getpid() % 10000}n{self.made}"
-        here = () if a is None else ("-n", a)
-        _ip(*here, "link", "add", veth, "type", "veth", "peer", "name", veth + "b", "netns", b)
-        if a is None:
-            self.links.append(veth)
-        _ip(*here, "addr", "add", f"{a_address}/30", "dev", veth)
-        _ip(*here, "link", "set", veth, "up")
-        _ip("-n", b, "addr", "add", f"{b_address}/30", "dev", veth + "b")
-        _ip("-n", b, "link", "set", veth + "b", "up")
-
-    def remove(self) -> None:
-        for veth in self.links:
-            subprocess.run(["ip", "link", "del", veth], capture_output=True, timeout=10)
-        for name in self.namespaces:
-            subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
-
-
-@pytest.fixture
-def network():
-    if shutil.which("ip") is None or os.geteuid() != 0:
-        pytest.skip("needs root and iproute2 to make network namespaces")
-    made = Network()
-    try:
-        try:
-            made.namespace("p")  # can this machine make one?
-        except subprocess.CalledProcessError as error:
-            pytest.skip(f"cannot make a network namespace here: {error.stderr.strip()}")
-        yield made
-    finally:
-        made.remove()
 
 
 @pytest.fixture
