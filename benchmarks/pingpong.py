@@ -4,7 +4,7 @@
   configuration, CongestionControl.BLOCK, no express; ping waits on a FIFO subscriber, pong echoes
   from its callback), as peers on loopback with multicast scouting off;
 * ``zenoh_round_trips(n, official=False)``: the same pattern with the bus's transport settings
-  (low-latency transport, express, real-time priority);
+  (low-latency transport, express, real-time priority); with ``tls=(ca, cert, key)``, over mutual TLS;
 * ``udp_round_trips(n)``: a raw loopback UDP round trip from Python.
 """
 from __future__ import annotations
@@ -14,18 +14,21 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import zenoh
 
+from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, session_config
 
 PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
 
 
-def _config(endpoint: str, listen: bool, official: bool) -> zenoh.Config:
+def _config(endpoint: str, listen: bool, official: bool, tls: tuple[str, str, str] | None = None) -> zenoh.Config:
     if not official:
+        security = ZenohSecurity() if tls is None else ZenohSecurity(None, *map(Path, tls))
         return session_config(listen=[endpoint] if listen else [], connect=[] if listen else [endpoint],
-                           options=ZenohOptions(lowlatency=True))
+                              options=ZenohOptions(True, security))
     config = zenoh.Config()  # the examples' defaults, plus explicit loopback endpoints and no multicast
     config.insert_json5("mode", '"peer"')
     config.insert_json5("scouting/multicast/enabled", "false")
@@ -39,20 +42,21 @@ def _publisher(session: zenoh.Session, key_expr: str, official: bool) -> zenoh.P
     return coupling_publisher(session, key_expr)
 
 
-def _pong(endpoint: str, official: bool) -> None:
-    with zenoh.open(_config(endpoint, False, official)) as session:
+def _pong(endpoint: str, official: bool, tls: tuple[str, str, str] | None) -> None:
+    with zenoh.open(_config(endpoint, False, official, tls)) as session:
         publisher = _publisher(session, "bench/pong", official)
         session.declare_subscriber("bench/ping", lambda sample: publisher.put(sample.payload))
         time.sleep(3600)
 
 
-def zenoh_round_trips(n: int, official: bool = True) -> list[float]:
-    """Round-trip times [s] of ``n`` ping-pongs after 200 of warm-up."""
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    with zenoh.open(_config(endpoint, True, official)) as session:
+def zenoh_round_trips(n: int, official: bool = True, tls: tuple[str, str, str] | None = None) -> list[float]:
+    """Round-trip times [s] of ``n`` ping-pongs after 200 of warm-up (``tls``: the authority's certificate, a
+    certificate and its key, for both ends, with the bus's settings)."""
+    endpoint = f"{'tcp' if tls is None else 'tls'}/127.0.0.1:{free_tcp_port()}"
+    with zenoh.open(_config(endpoint, True, official, tls)) as session:
         publisher = _publisher(session, "bench/ping", official)
         replies = session.declare_subscriber("bench/pong")
-        child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(official))])
+        child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(official)), json.dumps(tls)])
         try:
             deadline = time.monotonic() + 30
             while not publisher.matching_status.matching:
@@ -107,6 +111,6 @@ def udp_round_trips(n: int) -> list[float]:
 
 if __name__ == "__main__":
     if sys.argv[1] == "pong":
-        _pong(sys.argv[2], bool(int(sys.argv[3])))
+        _pong(sys.argv[2], bool(int(sys.argv[3])), json.loads(sys.argv[4]))
     else:
         _udp_echo(int(sys.argv[2]))

@@ -1,10 +1,10 @@
 """A Zenoh peer that tries to find, read and disturb a zencosim run (tests/manager/test_secure_run.py).
 
-``python intruder.py JSON`` with ``{"endpoint": ..., "run_id": ..., "tls": {...} or null, "publish": bool}``
-opens a peer session to ``endpoint`` with the run's transport settings and the TLS settings given (none:
-plain ``tcp/``), tries every way to learn about the run (queries, liveliness, a subscription to
+``python intruder.py JSON`` with ``{"endpoint": ..., "run_id": ..., "config": {...}, "publish": bool}``
+opens a peer session to ``endpoint`` with the run's transport settings and the credentials given in
+``config`` (Zenoh configuration keys and values, e.g. ``transport/link/tls/root_ca_certificate``), tries every way to learn about the run (queries, liveliness, a subscription to
 ``zencosim/**``) and, with ``publish``, sends a STOP and garbage on the run's keys. It prints what it got as
-JSON. Apart from its endpoint and TLS settings it is not zencosim's own code: an intruder owes it nothing.
+JSON. Apart from its endpoint and credentials it is not zencosim's own code: an intruder owes it nothing.
 """
 from __future__ import annotations
 
@@ -18,14 +18,14 @@ import zenoh
 LISTEN_S = 2.0  # how long the subscription listens for the run's traffic
 
 
-def session_config(endpoint: str, tls: dict | None) -> zenoh.Config:
+def session_config(endpoint: str, credentials: dict) -> zenoh.Config:
     config = zenoh.Config()
     for key, value in {"mode": "peer", "scouting/multicast/enabled": False, "scouting/gossip/enabled": False,
                        "connect/endpoints": [endpoint], "transport/unicast/lowlatency": True,
                        "transport/unicast/qos/enabled": False}.items():
         config.insert_json5(key, json.dumps(value))
-    for key, value in (tls or {}).items():
-        config.insert_json5(f"transport/link/tls/{key}", json.dumps(value))
+    for key, value in credentials.items():
+        config.insert_json5(key, json.dumps(value))
     return config
 
 
@@ -39,12 +39,12 @@ def server_certificate(endpoint: str) -> str | None:
     return pem.splitlines()[0] if pem else None
 
 
-def intrude(endpoint: str, run_id: str, tls: dict | None, publish: bool) -> dict:
+def intrude(endpoint: str, run_id: str, config: dict, publish: bool) -> dict:
     found: dict = {"endpoint": endpoint}
     if endpoint.startswith("tls/"):
         found["certificate"] = server_certificate(endpoint)
     try:
-        session = zenoh.open(session_config(endpoint, tls))
+        session = zenoh.open(session_config(endpoint, config))
     except zenoh.ZError as error:
         found["session"] = f"refused: {error}"
         return found

@@ -10,6 +10,9 @@ queryable, no liveliness token and no sample, and its STOP and garbage on the ru
 taken from S1's command line: the worst case) must change nothing. The same intruder code with host
 B's credentials finds the run, which shows that the code would have found it. Then S2 joins and the
 run completes with the in-process digest. Needs root, ``ip`` and ``openssl``; skipped otherwise.
+
+The same on loopback with user/password authentication: a process with no password, a wrong one or
+another user's gets nothing of the run and cannot stop it.
 """
 from __future__ import annotations
 
@@ -31,19 +34,71 @@ pytestmark = pytest.mark.multiprocess
 HOST_TO_B, B_ADDRESS = "10.213.80.1", "10.213.80.2"  # this host and host B, a /30 of the test's own
 HOST_TO_INTRUDER, INTRUDER_ADDRESS = "10.213.81.1", "10.213.81.2"  # this host and the intruder's
 INTRUDER = Path(__file__).with_name("intruder.py")
+SECRET = "correct horse battery staple"  # the password of the user/password test
+
+
+TLS = "transport/link/tls/"  # Zenoh's configuration keys of TLS links
+USRPWD = "transport/auth/usrpwd/"
 
 
 def tls_options(ca: Path, cert: Path, key: Path) -> list[str]:
     return ["--tls-ca", str(ca), "--tls-cert", str(cert), "--tls-key", str(key)]
 
 
-def intrude(prefix: tuple[str, ...], endpoint: str, run_id: str, tls: dict | None, publish: bool) -> dict:
+def client_tls(ca: Path, cert: Path | None = None, key: Path | None = None) -> dict:
+    """The Zenoh configuration of a peer that trusts ``ca`` and, given them, shows ``cert`` and ``key``."""
+    shown = {} if cert is None else {TLS + "enable_mtls": True, TLS + "connect_certificate": str(cert),
+                                     TLS + "connect_private_key": str(key)}
+    return {TLS + "root_ca_certificate": str(ca), **shown}
+
+
+def start_waiting_run(processes, summary: Path, *options: str):
+    """A manager that spawned S1 and waits for S2; its process, the run id and S1's port (read from S1's command
+    line: the worst case, an intruder that knows them), once it is clear that no secret is on that line."""
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--external", "S2", "--summary", str(summary),
+                        *options)
+    read_until(manager.stderr, "waiting", 60)
+    s1 = wait_for(lambda: [pid for pid in children_of(manager.pid) if " S1 " in cmdline(pid)], 30, "S1's process")
+    line = cmdline(s1[0])
+    assert SECRET not in line and "PRIVATE KEY" not in line, line
+    return manager, line.split("--run-id ")[1].split()[0], line.split("--listen ")[1].split()[0].rpartition(":")[2]
+
+
+def intrude(prefix: tuple[str, ...], endpoint: str, run_id: str, config: dict, publish: bool) -> dict:
     """What ``intruder.py`` found, run in the namespace ``prefix`` enters."""
-    arguments = json.dumps({"endpoint": endpoint, "run_id": run_id, "tls": tls, "publish": publish})
+    arguments = json.dumps({"endpoint": endpoint, "run_id": run_id, "config": config, "publish": publish})
     done = subprocess.run([*prefix, sys.executable, str(INTRUDER), arguments], capture_output=True, text=True,
                           timeout=60)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.splitlines()[-1])
+
+
+def attack(run_id: str, attempts: dict, member: tuple) -> tuple[dict, dict]:
+    """Every attempt ``name: (prefix, endpoint, config)`` publishing its STOP and garbage, and a member's look
+    (the same code with the run's credentials, publishing nothing), all at once; what each found."""
+    with ThreadPoolExecutor(len(attempts) + 1) as pool:
+        refused = {name: pool.submit(intrude, *attempt[:2], run_id, attempt[2], True)
+                   for name, attempt in attempts.items()}
+        looked = pool.submit(intrude, *member[:2], run_id, member[2], False)
+        refused = {name: future.result() for name, future in refused.items()}
+        found = looked.result()
+    # the same code with credentials finds the run: a peer, its description, the manager's liveliness token
+    assert found["peers"] >= 1, found
+    assert [json.loads(run)["run_id"] for run in found["runs"]] == [run_id], found
+    assert f"zencosim/{run_id}/manager/alive" in found["tokens"], found
+    for name, got in refused.items():
+        assert got.get("peers", 0) == 0, (name, got)
+        for learned in ("runs", "queryables", "tokens", "heard"):
+            assert not got.get(learned), (name, learned, got)
+    return refused, found
+
+
+def completes_with_the_in_process_digest(manager, remote, summary: Path) -> None:
+    _, manager_err = manager.communicate(timeout=120)
+    _, remote_err = remote.communicate(timeout=30)
+    assert manager.returncode == 0, manager_err + remote_err
+    assert remote.returncode == 0, remote_err
+    assert json.loads(summary.read_text())["digest"] == summary_of("two_mass_damped")["digest"]
 
 
 @pytest.fixture
@@ -68,53 +123,43 @@ def test_an_intruder_without_credentials_cannot_find_read_or_stop_a_tls_run_that
     ca = certificates["ca"]
     port = free_tcp_port()
     summary = tmp_path / "summary.json"
-    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--listen", f"tls/0.0.0.0:{port}",
-                        "--external", "S2", "--summary", str(summary), *tls_options(ca, *certificates["a"]))
-    read_until(manager.stderr, "waiting", 60)  # the manager waits for S2; S1 is spawned
-    s1 = wait_for(lambda: [pid for pid in children_of(manager.pid) if " S1 " in cmdline(pid)], 30, "S1's process")
-    run_id = cmdline(s1[0]).split("--run-id ")[1].split()[0]
-    assert "s3cret" not in cmdline(s1[0]) and "PRIVATE" not in cmdline(s1[0])
-
-    s1_port = cmdline(s1[0]).split("--listen ")[1].split()[0].rpartition(":")[2]
-    rogue_cert, rogue_key = certificates["rogue"]
+    manager, run_id, s1_port = start_waiting_run(processes, summary, "--listen", f"tls/0.0.0.0:{port}",
+                                                 *tls_options(ca, *certificates["a"]))
     credentials = {  # an intruder may know the authority's certificate: it is no secret
-        "plain tcp": ("tcp", None),
-        "tls without a certificate": ("tls", {"root_ca_certificate": str(ca)}),
-        "tls with another authority's certificate": ("tls", {
-            "root_ca_certificate": str(ca), "enable_mtls": True, "connect_certificate": str(rogue_cert),
-            "connect_private_key": str(rogue_key)}),
+        "plain tcp": ("tcp", {}),
+        "tls without a certificate": ("tls", client_tls(ca)),
+        "tls with another authority's certificate": ("tls", client_tls(ca, *certificates["rogue"])),
     }
-    attempts = {(name, process): (on_intruder, f"{protocol}/{HOST_TO_INTRUDER}:{target_port}", tls)
-                for name, (protocol, tls) in credentials.items()
+    attempts = {(name, process): (on_intruder, f"{protocol}/{HOST_TO_INTRUDER}:{target_port}", config)
+                for name, (protocol, config) in credentials.items()
                 for process, target_port in (("manager", port), ("S1", s1_port))}
-    cert_b, key_b = certificates["b"]
-    with ThreadPoolExecutor(len(attempts) + 1) as pool:
-        refused = {name: pool.submit(intrude, prefix, endpoint, run_id, tls, True)
-                   for name, (prefix, endpoint, tls) in attempts.items()}
-        member = pool.submit(intrude, on_b, f"tls/{HOST_TO_B}:{port}", run_id,
-                             {"root_ca_certificate": str(ca), "enable_mtls": True, "connect_certificate": str(cert_b),
-                              "connect_private_key": str(key_b)}, False)
-        refused = {name: future.result() for name, future in refused.items()}
-        member = member.result()
-
-    # the same code with credentials finds the run: a peer, its description, the manager's liveliness token
-    assert member["peers"] >= 1, member
-    assert [json.loads(run)["run_id"] for run in member["runs"]] == [run_id], member
-    assert f"zencosim/{run_id}/manager/alive" in member["tokens"], member
-    for name, found in refused.items():
-        assert found.get("peers", 0) == 0, (name, found)
-        for learned in ("runs", "queryables", "tokens", "heard"):
-            assert not found.get(learned), (name, learned, found)
+    refused, _ = attack(run_id, attempts, (on_b, f"tls/{HOST_TO_B}:{port}", client_tls(ca, *certificates["b"])))
     # what it still gets: the port answers, and TLS shows anyone the manager's certificate (its names, addresses)
     assert refused["tls without a certificate", "manager"]["certificate"] == "-----BEGIN CERTIFICATE-----"
 
     remote = processes("subsystem", "two_mass_damped", "S2", "--connect", f"tls/{HOST_TO_B}:{port}",
                        "--listen", f"tls/{B_ADDRESS}:0", *tls_options(ca, *certificates["b"]), prefix=on_b)
-    _, manager_err = manager.communicate(timeout=120)
-    _, remote_err = remote.communicate(timeout=30)
-    assert manager.returncode == 0, manager_err + remote_err
-    assert remote.returncode == 0, remote_err
-    assert json.loads(summary.read_text())["digest"] == summary_of("two_mass_damped")["digest"]
+    completes_with_the_in_process_digest(manager, remote, summary)
+
+
+@pytest.mark.timeout(240)
+def test_on_loopback_a_process_without_the_password_cannot_find_read_or_stop_a_run_that_completes(
+        processes, tmp_path):
+    password = tmp_path / "password.txt"
+    password.write_text(SECRET + "\n")
+    credentials = ["--user", "runner", "--password-file", str(password)]
+    port = free_tcp_port()
+    summary = tmp_path / "summary.json"
+    manager, run_id, s1_port = start_waiting_run(processes, summary, "--listen", f"tcp/127.0.0.1:{port}", *credentials)
+    here = ()
+    attempts = {(name, process): (here, f"tcp/127.0.0.1:{target_port}", config)
+                for name, config in (("no password", {}),
+                                     ("a wrong password", {USRPWD + "user": "runner", USRPWD + "password": "guess"}),
+                                     ("another user", {USRPWD + "user": "root", USRPWD + "password": SECRET}))
+                for process, target_port in (("manager", port), ("S1", s1_port))}
+    attack(run_id, attempts, (here, f"tcp/127.0.0.1:{port}", {USRPWD + "user": "runner", USRPWD + "password": SECRET}))
+    remote = processes("subsystem", "two_mass_damped", "S2", "--connect", f"tcp/127.0.0.1:{port}", *credentials)
+    completes_with_the_in_process_digest(manager, remote, summary)
 
 
 @pytest.mark.parametrize(("options", "expected"), [
