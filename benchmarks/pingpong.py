@@ -21,6 +21,7 @@ import zenoh
 from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, session_config
 
+PING, PONG = "zencosim/pingpong/ping", "zencosim/pingpong/pong"  # under zencosim/**: what a TLS run's ACL admits
 PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
 
 
@@ -44,8 +45,8 @@ def _publisher(session: zenoh.Session, key_expr: str, official: bool) -> zenoh.P
 
 def _pong(endpoint: str, official: bool, tls: tuple[str, str, str] | None) -> None:
     with zenoh.open(_config(endpoint, False, official, tls)) as session:
-        publisher = _publisher(session, "bench/pong", official)
-        session.declare_subscriber("bench/ping", lambda sample: publisher.put(sample.payload))
+        publisher = _publisher(session, PONG, official)
+        session.declare_subscriber(PING, lambda sample: publisher.put(sample.payload))
         time.sleep(3600)
 
 
@@ -54,8 +55,8 @@ def zenoh_round_trips(n: int, official: bool = True, tls: tuple[str, str, str] |
     certificate and its key, for both ends, with the bus's settings)."""
     endpoint = f"{'tcp' if tls is None else 'tls'}/127.0.0.1:{free_tcp_port()}"
     with zenoh.open(_config(endpoint, True, official, tls)) as session:
-        publisher = _publisher(session, "bench/ping", official)
-        replies = session.declare_subscriber("bench/pong")
+        publisher = _publisher(session, PING, official)
+        replies = session.declare_subscriber(PONG)
         child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(official)), json.dumps(tls)])
         try:
             deadline = time.monotonic() + 30
