@@ -80,8 +80,9 @@ class ZenohSecurity:
         """The link protocol of the run's endpoints."""
         return "tls" if self.tls else "tcp"
 
-    def checked(self) -> "ZenohSecurity":
-        """The same settings with absolute paths, once every file is usable; else SecurityError naming it."""
+    def checked(self, config_origin: str = "--zenoh-config") -> "ZenohSecurity":
+        """The same settings with absolute paths, once every file is usable; else SecurityError naming it (the
+        configuration file as ``config_origin`` says where it was given)."""
         tls = {"--tls-ca": self.tls_ca, "--tls-cert": self.tls_cert, "--tls-key": self.tls_key}
         given = [option for option, path in tls.items() if path is not None]
         if given and len(given) < 3:
@@ -92,7 +93,7 @@ class ZenohSecurity:
             raise SecurityError("--user and --password-file go together (user/password authentication needs both)")
         if self.user is not None and (not self.user or ":" in self.user or not self.user.isprintable()):
             raise SecurityError(f"--user {self.user!r}: expected a non-empty name without ':' or control characters")
-        self.base_config()  # its errors now (naming the file as given), not in a spawned process
+        self.base_config(config_origin)  # its errors now (naming the file as given), not in a spawned process
         if self.password_file is not None:
             self.password()
         config_file, password_file = (None if path is None else path.resolve()
@@ -102,17 +103,17 @@ class ZenohSecurity:
                            zip(tls.items(), ("certificate", "certificate", "private key"))),
             self.user, password_file)
 
-    def base_config(self) -> zenoh.Config:
+    def base_config(self, origin: str = "--zenoh-config") -> zenoh.Config:
         """The user's Zenoh configuration file, or an empty configuration."""
         path = self.config_file
         if path is None:
             return zenoh.Config()
         if not path.is_file():
-            raise SecurityError(f"--zenoh-config {path}: no such file")
+            raise SecurityError(f"{origin} {path}: no such file")
         try:
             return zenoh.Config.from_file(str(path))
         except zenoh.ZError as error:
-            raise SecurityError(f"--zenoh-config {path}: {zenoh_reason(error)}") from None
+            raise SecurityError(f"{origin} {path}: {zenoh_reason(error)}") from None
 
     def password(self) -> str:
         """The first line of the password file."""

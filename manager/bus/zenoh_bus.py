@@ -32,6 +32,7 @@ from zencosim.manager.bus.children import start_child
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
+    concrete_endpoint,
     coupling_publisher,
     endpoint_host,
     free_tcp_port,
@@ -72,7 +73,9 @@ class ZenohBus:
         self.plan = plan
         self.options = options
         self.run_id = run_id or new_run_id()
-        self.endpoint = listen or f"{options.security.protocol}/127.0.0.1:{free_tcp_port()}"
+        # a free port is chosen now: the processes it spawns are told where to connect
+        self.endpoint = concrete_endpoint(listen or f"{options.security.protocol}/127.0.0.1:0")
+        self.protocol = self.endpoint.split("/", 1)[0]  # the processes it spawns listen on the same protocol
         self.external = tuple(external)
         self.routers = tuple(routers)
         self.wait_external_s = wait_external_s
@@ -172,13 +175,13 @@ class ZenohBus:
         for name in self.names:
             if name in self.external:
                 if self.announce is not None:
-                    listen = None if self.routers else f"{self.options.security.protocol}/<its-address>:<port>"
+                    listen = None if self.routers else f"{self.protocol}/<its-address>:<port>"
                     arguments = self.spawn_arguments(name, listen, by_hand=True)
                     command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
                     self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
                 continue
             host = endpoint_host(self.endpoint)  # where the manager listens: loopback, or every interface
-            listen = f"{self.options.security.protocol}/{host}:{free_tcp_port(host)}"
+            listen = f"{self.protocol}/{host}:{free_tcp_port(host)}"
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
             _, partners = process_scope(self.scene, self.plan, name)
             peers = tuple(endpoint for peer, endpoint in spawned.items() if peer in partners)

@@ -75,6 +75,7 @@ class ManagerSettings:
     timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
     realtime: bool = False
     record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
+    zenoh_config: str = ""  # a Zenoh JSON5 configuration file for a run over Zenoh ("" = none; also: --zenoh-config)
     correction: CorrectionSettings | None = None  # [manager.correction]
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
     compensation: Literal["none", "eigenstructure"] = "none"  # paper 000 compensator (docs/compensation.md)

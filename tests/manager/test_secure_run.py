@@ -180,6 +180,8 @@ def test_on_loopback_a_process_without_the_password_cannot_find_read_or_stop_a_r
     (["--user", "runner", "--password-file", "missing.txt"], "--password-file missing.txt: cannot read it"),
     (["--user", "run:ner", "--password-file", "password.txt"], "--user 'run:ner': expected a non-empty name"),
     (["--user", "runner"], "--user and --password-file go together"),
+    (["--set", "manager.zenoh_config=unknown.json5"],
+     "manager.zenoh_config = unknown.json5: line 1, column 16: unknown field `nosuch`"),
 ])
 def test_bad_credentials_and_zenoh_configuration_files_are_named_with_exit_status_2(tmp_path, options, expected):
     if shutil.which("openssl") is None:
@@ -196,3 +198,22 @@ def test_bad_credentials_and_zenoh_configuration_files_are_named_with_exit_statu
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr
     assert expected in " ".join(done.stderr.split()), done.stderr
+
+
+@pytest.mark.timeout(240)
+def test_tls_set_up_by_a_zenoh_configuration_file_alone_runs_with_the_in_process_digest(tmp_path):
+    # anything Zenoh supports goes through --zenoh-config (here the scene's manager.zenoh_config): the
+    # spawned subsystems get the file and listen with the manager's protocol
+    if shutil.which("openssl") is None:
+        pytest.skip("needs the openssl command to make certificates")
+    certificate_authority(tmp_path, "run")
+    cert, key = certificate(tmp_path, "run", "host", ["127.0.0.1"])
+    tls = {"root_ca_certificate": "run-ca.pem", "enable_mtls": True, "listen_certificate": cert.name,
+           "listen_private_key": key.name, "connect_certificate": cert.name, "connect_private_key": key.name}
+    (tmp_path / "zenoh.json5").write_text(json.dumps({"transport": {"link": {"tls": tls}}}))
+    summary = tmp_path / "summary.json"
+    done = subprocess.run([sys.executable, "-m", "zencosim", "run", "two_mass_damped", "--bus", "zenoh", "--quiet",
+                           "--set", "manager.zenoh_config=zenoh.json5", "--listen", "tls/127.0.0.1:0",
+                           "--summary", str(summary)], cwd=tmp_path, capture_output=True, text=True, timeout=200)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(summary.read_text())["digest"] == summary_of("two_mass_damped")["digest"]

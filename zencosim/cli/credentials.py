@@ -12,7 +12,8 @@ OPTIONS = ("--zenoh-config", "--tls-ca", "--tls-cert", "--tls-key", "--user", "-
 def add_security_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("who may join the run (docs/security.md)")
     group.add_argument("--zenoh-config", type=Path, metavar="FILE",
-                       help="a Zenoh JSON5 configuration file, merged under the run's own settings")
+                       help="a Zenoh JSON5 configuration file, merged under the run's own settings (default: the "
+                            "scene's manager.zenoh_config)")
     group.add_argument("--tls-ca", type=Path, metavar="FILE",
                        help="mutual TLS: the certificate authority (PEM) every process's certificate is signed by")
     group.add_argument("--tls-cert", type=Path, metavar="FILE", help="mutual TLS: this process's certificate (PEM)")
@@ -22,10 +23,14 @@ def add_security_arguments(parser: argparse.ArgumentParser) -> None:
                        help="a file whose first line is the password (never on the command line)")
 
 
-def security_options(args: argparse.Namespace) -> ZenohSecurity:
-    """The checked settings (absolute paths); SecurityError naming the option and file that cannot be used."""
-    return ZenohSecurity(args.zenoh_config, args.tls_ca, args.tls_cert, args.tls_key, args.user,
-                         args.password_file).checked()
+def security_options(args: argparse.Namespace, scene=None) -> ZenohSecurity:
+    """The checked settings (absolute paths); SecurityError naming the option and file that cannot be used.
+    The configuration file is ``--zenoh-config``, else the ``scene``'s ``manager.zenoh_config``."""
+    config_file, origin = args.zenoh_config, "--zenoh-config"
+    if config_file is None and scene is not None and scene.manager.zenoh_config:
+        config_file, origin = Path(scene.manager.zenoh_config), f"scene {scene.path}: manager.zenoh_config ="
+    return ZenohSecurity(config_file, args.tls_ca, args.tls_cert, args.tls_key, args.user,
+                         args.password_file).checked(origin)
 
 
 def given_security_options(args: argparse.Namespace) -> list[str]:

@@ -116,7 +116,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
-        security = security_options(args)
+        security = security_options(args, scene)
         security.check_endpoints("--listen", [args.listen] if args.listen else [])
         security.check_endpoints("--connect", args.connect)
         bus_options = dict(zenoh_options=ZenohOptions(not args.no_lowlatency, security), listen=args.listen,

@@ -12,7 +12,7 @@ from zencosim.manager.scene.load import load_scene
 def cmd_subsystem(args: argparse.Namespace) -> int:
     from zencosim.subsystems.process.host import serve
     scene = load_scene(args.scene, args.overrides)
-    security = security_options(args)
+    security = security_options(args, scene)
     listen = args.listen or f"{security.protocol}/127.0.0.1:0"
     security.check_endpoints("--connect", args.connect)
     security.check_endpoints("--listen", [listen])
