@@ -17,6 +17,7 @@ another user's gets nothing of the run and cannot stop it.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -176,7 +177,8 @@ def test_on_loopback_a_process_without_the_password_cannot_find_read_or_stop_a_r
     (["--zenoh-config", "type.json5"],
      '--zenoh-config type.json5: line 1, column 44: invalid type: string "yes", expected a boolean'),
     (["--zenoh-config", "names-missing-key.json5", "--listen", "tls/127.0.0.1:0"],
-     "cannot open the Zenoh session listening on tls/127.0.0.1:0: Cannot create a new TLS listener on 127.0.0.1:0"),
+     "cannot open the Zenoh session listening on tls/127.0.0.1:…: Cannot create a new TLS listener on 127.0.0.1:…"
+     "Missing TLS private key"),
     (["--user", "runner", "--password-file", "missing.txt"], "--password-file missing.txt: cannot read it"),
     (["--user", "run:ner", "--password-file", "password.txt"], "--user 'run:ner': expected a non-empty name"),
     (["--user", "runner"], "--user and --password-file go together"),
@@ -197,7 +199,8 @@ def test_bad_credentials_and_zenoh_configuration_files_are_named_with_exit_statu
                           cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr
-    assert expected in " ".join(done.stderr.split()), done.stderr
+    message = " ".join(done.stderr.split())
+    assert re.search(".*".join(map(re.escape, expected.split("…"))), message), done.stderr  # … stands for a port
 
 
 @pytest.mark.timeout(240)
