@@ -171,10 +171,21 @@ def run_access_control() -> dict:
     }
 
 
+_DICTIONARIES: list[Path] = []  # written for sessions not opened yet
+
+
 def _dictionary_file(content: str) -> str:
-    """A private file (mode 0600) with Zenoh's user/password dictionary, removed when this process exits."""
+    """A private file (mode 0600) with Zenoh's user/password dictionary, until the session that reads it has opened
+    (:func:`remove_dictionaries`), or this process exits."""
     handle, path = tempfile.mkstemp(prefix="zencosim-usrpwd-")
     with os.fdopen(handle, "w") as file:
         file.write(content)
+    _DICTIONARIES.append(Path(path))
     atexit.register(Path(path).unlink, missing_ok=True)
     return path
+
+
+def remove_dictionaries() -> None:
+    """Remove the dictionary files written so far: Zenoh reads them when a session opens, not later."""
+    while _DICTIONARIES:
+        _DICTIONARIES.pop().unlink(missing_ok=True)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import zenoh
 
-from zencosim.manager.bus.security import ZenohSecurity, zenoh_reason
+from zencosim.manager.bus.security import ZenohSecurity, remove_dictionaries, zenoh_reason
 
 ROOT = "zencosim"
 
@@ -140,6 +140,8 @@ def open_session(config: zenoh.Config, listen: list[str] = ()) -> zenoh.Session:
     except zenoh.ZError as error:
         where = f" listening on {', '.join(listen)}" if listen else ""
         raise SessionError(f"cannot open the Zenoh session{where}: {zenoh_reason(error)}") from None
+    finally:
+        remove_dictionaries()
 
 
 def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:
