@@ -16,7 +16,7 @@ import json
 import os
 import re
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import zenoh
@@ -102,6 +102,13 @@ class ZenohSecurity:
             config_file, *(None if path is None else _pem(option, path, holds) for (option, path), holds in
                            zip(tls.items(), ("certificate", "certificate", "private key"))),
             self.user, password_file)
+
+    def checked_with_scene(self, scene_config: str, scene_path: str) -> "ZenohSecurity":
+        """:meth:`checked`, with the scene's ``manager.zenoh_config`` (``scene_config``, "" for none) when no
+        configuration file is given."""
+        if self.config_file is None and scene_config:
+            return replace(self, config_file=Path(scene_config)).checked(f"scene {scene_path}: manager.zenoh_config =")
+        return self.checked()
 
     def base_config(self, origin: str = "--zenoh-config") -> zenoh.Config:
         """The user's Zenoh configuration file, or an empty configuration."""

@@ -5,6 +5,7 @@ import argparse
 from pathlib import Path
 
 from zencosim.manager.bus.security import ZenohSecurity
+from zencosim.manager.scene.load import Scene
 
 OPTIONS = ("--zenoh-config", "--tls-ca", "--tls-cert", "--tls-key", "--user", "--password-file")
 
@@ -23,14 +24,11 @@ def add_security_arguments(parser: argparse.ArgumentParser) -> None:
                        help="a file whose first line is the password (never on the command line)")
 
 
-def security_options(args: argparse.Namespace, scene=None) -> ZenohSecurity:
+def security_options(args: argparse.Namespace, scene: Scene | None = None) -> ZenohSecurity:
     """The checked settings (absolute paths); SecurityError naming the option and file that cannot be used.
     The configuration file is ``--zenoh-config``, else the ``scene``'s ``manager.zenoh_config``."""
-    config_file, origin = args.zenoh_config, "--zenoh-config"
-    if config_file is None and scene is not None and scene.manager.zenoh_config:
-        config_file, origin = Path(scene.manager.zenoh_config), f"scene {scene.path}: manager.zenoh_config ="
-    return ZenohSecurity(config_file, args.tls_ca, args.tls_cert, args.tls_key, args.user,
-                         args.password_file).checked(origin)
+    given = ZenohSecurity(args.zenoh_config, args.tls_ca, args.tls_cert, args.tls_key, args.user, args.password_file)
+    return given.checked() if scene is None else given.checked_with_scene(scene.manager.zenoh_config, scene.path)
 
 
 def given_security_options(args: argparse.Namespace) -> list[str]:
