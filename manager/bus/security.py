@@ -149,11 +149,15 @@ class ZenohSecurity:
         if self.tls and not json.loads(config.get_json("access_control/enabled")):
             config.insert_json5("access_control", json.dumps(run_access_control()))
 
-    def arguments(self) -> list[str]:
-        """The ``zencosim`` options that give a spawned process the same settings (paths and a user name only)."""
-        options = {"--zenoh-config": self.config_file, "--tls-ca": self.tls_ca, "--tls-cert": self.tls_cert,
-                   "--tls-key": self.tls_key, "--user": self.user, "--password-file": self.password_file}
-        return [part for option, value in options.items() if value is not None for part in (option, str(value))]
+    def arguments(self, elsewhere: bool = False) -> list[str]:
+        """The ``zencosim`` options that give a spawned process the same settings (paths and a user name only);
+        ``elsewhere``: for a process started by hand on another host, which has files of its own (placeholders)."""
+        options = {"--zenoh-config": (self.config_file, "<its Zenoh configuration>"),
+                   "--tls-ca": (self.tls_ca, "<the authority's certificate>"),
+                   "--tls-cert": (self.tls_cert, "<its certificate>"), "--tls-key": (self.tls_key, "<its key>"),
+                   "--user": (self.user, self.user), "--password-file": (self.password_file, "<the password file>")}
+        return [part for option, (value, placeholder) in options.items() if value is not None
+                for part in (option, placeholder if elsewhere else str(value))]
 
     def check_endpoints(self, option: str, endpoints: list[str]) -> None:
         """With certificates, every endpoint of the run is a TLS one (a ``tcp/`` link would bypass them)."""

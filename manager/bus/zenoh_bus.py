@@ -168,7 +168,7 @@ class ZenohBus:
             command += ["--set", override]
         if not self.options.lowlatency:
             command.append("--no-lowlatency")
-        return command + self.options.security.arguments()  # file paths: no secret on a command line
+        return command + self.options.security.arguments(by_hand)  # file paths: no secret on a command line
 
     def _spawn(self) -> None:
         spawned: dict[str, str] = {}  # name -> the endpoint the others reach it at

@@ -28,6 +28,7 @@ import pytest
 
 from tests.certificates import certificate, certificate_authority
 from tests.conftest import children_of, cmdline, read_until, summary_of, wait_for
+from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import free_tcp_port
 
 pytestmark = pytest.mark.multiprocess
@@ -220,3 +221,13 @@ def test_tls_set_up_by_a_zenoh_configuration_file_alone_runs_with_the_in_process
                            "--summary", str(summary)], cwd=tmp_path, capture_output=True, text=True, timeout=200)
     assert done.returncode == 0, done.stderr
     assert json.loads(summary.read_text())["digest"] == summary_of("two_mass_damped")["digest"]
+
+
+def test_the_options_handed_to_other_processes_are_paths_and_placeholders_never_secrets(tmp_path):
+    password = tmp_path / "password.txt"
+    password.write_text(SECRET + "\n")
+    security = ZenohSecurity(user="runner", password_file=password).checked()
+    spawned, by_hand = security.arguments(), security.arguments(elsewhere=True)
+    assert spawned == ["--user", "runner", "--password-file", str(password.resolve())]
+    assert by_hand == ["--user", "runner", "--password-file", "<the password file>"]
+    assert security.password() == SECRET and SECRET not in " ".join(spawned + by_hand)
