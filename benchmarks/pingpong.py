@@ -4,7 +4,7 @@
   configuration, CongestionControl.BLOCK, no express; ping waits on a FIFO subscriber, pong echoes
   from its callback), as peers on loopback with multicast scouting off;
 * ``zenoh_round_trips(n, official=False)``: the same pattern with the bus's transport settings
-  (low-latency transport, express, real-time priority);
+  (low-latency transport, express, real-time priority); with ``tls=(ca, cert, key)``, over mutual TLS;
 * ``jacobi_lockstep_steps(n)``: the transport floor of a Jacobi macro-step: two processes in lock step,
   each publishing its value for step j from its subscriber callback as soon as it holds the other's
   value for step j-1, with the bus's session and publisher settings (what two subsystem processes do
@@ -20,20 +20,24 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import zenoh
 
+from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, session_config
 
+PING, PONG = "zencosim/pingpong/ping", "zencosim/pingpong/pong"  # under zencosim/**: what a TLS run's ACL admits
 PAYLOAD = bytes(64)  # a STEP of two_mass_damped is 32 + 2 * 8 = 48 bytes, an OUTPUT 56
 STEP_VALUE = struct.Struct("<q48x")  # a lock-step message: the step index, padded to an OUTPUT's 56 bytes
 WARM_UP = 200  # steps or round trips before timing starts
 
 
-def _config(endpoint: str, listen: bool, official: bool) -> zenoh.Config:
+def _config(endpoint: str, listen: bool, official: bool, tls: tuple[str, str, str] | None = None) -> zenoh.Config:
     if not official:
+        security = ZenohSecurity() if tls is None else ZenohSecurity(None, *map(Path, tls))
         return session_config(listen=[endpoint] if listen else [], connect=[] if listen else [endpoint],
-                           options=ZenohOptions(lowlatency=True))
+                              options=ZenohOptions(True, security))
     config = zenoh.Config()  # the examples' defaults, plus explicit loopback endpoints and no multicast
     config.insert_json5("mode", '"peer"')
     config.insert_json5("scouting/multicast/enabled", "false")
@@ -47,20 +51,21 @@ def _publisher(session: zenoh.Session, key_expr: str, official: bool) -> zenoh.P
     return coupling_publisher(session, key_expr)
 
 
-def _pong(endpoint: str, official: bool) -> None:
-    with zenoh.open(_config(endpoint, False, official)) as session:
-        publisher = _publisher(session, "bench/pong", official)
-        session.declare_subscriber("bench/ping", lambda sample: publisher.put(sample.payload))
+def _pong(endpoint: str, official: bool, tls: tuple[str, str, str] | None) -> None:
+    with zenoh.open(_config(endpoint, False, official, tls)) as session:
+        publisher = _publisher(session, PONG, official)
+        session.declare_subscriber(PING, lambda sample: publisher.put(sample.payload))
         time.sleep(3600)
 
 
-def zenoh_round_trips(n: int, official: bool = True) -> list[float]:
-    """Round-trip times [s] of ``n`` ping-pongs after ``WARM_UP`` of warm-up."""
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    with zenoh.open(_config(endpoint, True, official)) as session:
-        publisher = _publisher(session, "bench/ping", official)
-        replies = session.declare_subscriber("bench/pong")
-        child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(official))])
+def zenoh_round_trips(n: int, official: bool = True, tls: tuple[str, str, str] | None = None) -> list[float]:
+    """Round-trip times [s] of ``n`` ping-pongs after ``WARM_UP`` of warm-up (``tls``: the authority's
+    certificate, a certificate and its key, for both ends, with the bus's settings)."""
+    endpoint = f"{'tcp' if tls is None else 'tls'}/127.0.0.1:{free_tcp_port()}"
+    with zenoh.open(_config(endpoint, True, official, tls)) as session:
+        publisher = _publisher(session, PING, official)
+        replies = session.declare_subscriber(PONG)
+        child = subprocess.Popen([sys.executable, __file__, "pong", endpoint, str(int(official)), json.dumps(tls)])
         try:
             deadline = time.monotonic() + 30
             while not publisher.matching_status.matching:
@@ -119,7 +124,7 @@ class _LockStep:
 
 def _lockstep_side(endpoint: str, last: int) -> None:
     with zenoh.open(_config(endpoint, False, official=False)) as session:
-        side = _LockStep(session, "bench/b", "bench/a", last)
+        side = _LockStep(session, "zencosim/pingpong/b", "zencosim/pingpong/a", last)
         side.start()
         side.done.wait(600)
         time.sleep(1.0)  # let the other side take the last value
@@ -131,7 +136,7 @@ def jacobi_lockstep_steps(n: int) -> list[float]:
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
     last = n + WARM_UP
     with zenoh.open(_config(endpoint, True, official=False)) as session:
-        side = _LockStep(session, "bench/a", "bench/b", last)
+        side = _LockStep(session, "zencosim/pingpong/a", "zencosim/pingpong/b", last)
         child = subprocess.Popen([sys.executable, __file__, "lockstep", endpoint, str(last)])
         try:
             side.start()
@@ -180,7 +185,7 @@ def udp_round_trips(n: int) -> list[float]:
 
 if __name__ == "__main__":
     if sys.argv[1] == "pong":
-        _pong(sys.argv[2], bool(int(sys.argv[3])))
+        _pong(sys.argv[2], bool(int(sys.argv[3])), json.loads(sys.argv[4]))
     elif sys.argv[1] == "lockstep":
         _lockstep_side(sys.argv[2], int(sys.argv[3]))
     else:

@@ -14,8 +14,8 @@ from importlib.metadata import version
 __version__ = version("zencosim")
 
 _API = ("BUSES", "MissingExtra", "OutputFileError", "ProtocolError", "Recording", "RecordingError", "Result",
-        "Scene", "SceneError", "Signal", "SubsystemFailure", "Table", "bundled_scenes", "load_recording",
-        "load_scene", "run")
+        "Scene", "SceneError", "SecurityError", "Signal", "SubsystemFailure", "Table", "bundled_scenes",
+        "load_recording", "load_scene", "run")
 __all__ = ["__version__", *_API]
 
 

@@ -18,6 +18,8 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from zencosim.extras import MissingExtra as MissingExtra
+from zencosim.manager.bus.security import SecurityError as SecurityError
+from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.output_files import OutputFileError as OutputFileError
 from zencosim.manager.results.tables import Signal, Table, record_signals, tables, write_tables
@@ -104,8 +106,9 @@ def run(scene: Scene | str | Path, bus: str = "inproc", *, record: str | Path | 
 
     ``record``: write every message of the run to this MCAP file. ``realtime``: pace macro-steps to
     the wall clock (default: the scene's ``manager.realtime``). ``progress(step)`` is called every few
-    hundred macro-steps. Raises :class:`SceneError` for a scene that cannot run and
-    :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed.
+    hundred macro-steps. Over Zenoh, the scene's ``manager.zenoh_config`` configures every session
+    (:class:`SecurityError` when that file cannot be used). Raises :class:`SceneError` for a scene that
+    cannot run and :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed.
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -115,7 +118,10 @@ def run(scene: Scene | str | Path, bus: str = "inproc", *, record: str | Path | 
     if record is not None:
         from zencosim.recordings.recorder import Recorder
         recorder = Recorder(record)
-    options = {"zenoh_options": ZenohOptions()} if bus == "zenoh" else {}
+    options = {}
+    if bus == "zenoh":  # the scene's manager.zenoh_config, if any (docs/security.md)
+        security = ZenohSecurity().checked_with_scene(scene.manager.zenoh_config, scene.path)
+        options = {"zenoh_options": ZenohOptions(security=security)}
     record_, wall_s = execute(scene, bus, realtime, progress, recorder=recorder, **options)
     summary = summarize_run(scene, record_, bus, wall_s, recorder)
     return Result(record_signals(record_), scene, bus, summary, record_)

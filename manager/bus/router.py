@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import zenoh
 
+from zencosim.manager.bus.security import remove_dictionaries, zenoh_reason
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.bus.zenoh_session import ZenohOptions, concrete_endpoint, session_config
 
@@ -32,7 +33,9 @@ def serve_router(listen: list[str], connect: list[str], options: ZenohOptions,
     try:
         session = zenoh.open(session_config(listen, connect, options, mode="router"))
     except zenoh.ZError as error:
-        raise RouterError(f"cannot start the router on {', '.join(listen)}: {error}") from None
+        raise RouterError(f"cannot start the router on {', '.join(listen)}: {zenoh_reason(error)}") from None
+    finally:
+        remove_dictionaries()
     with session:
         transport = "lowlatency" if options.lowlatency else "default"
         announce(f"zencosim router {session.zid()} listening on {', '.join(listen)} ({transport} transport); "

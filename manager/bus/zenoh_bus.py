@@ -32,11 +32,13 @@ from zencosim.manager.bus.children import start_child
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
+    concrete_endpoint,
     coupling_publisher,
     endpoint_host,
     free_tcp_port,
     key,
     new_run_id,
+    open_session,
     reachable,
     session_config,
     wait_for_listener,
@@ -72,7 +74,9 @@ class ZenohBus:
         self.plan = plan
         self.options = options
         self.run_id = run_id or new_run_id()
-        self.endpoint = listen or f"tcp/127.0.0.1:{free_tcp_port()}"
+        # a free port is chosen now: the processes it spawns are told where to connect
+        self.endpoint = concrete_endpoint(listen or f"{options.security.protocol}/127.0.0.1:0")
+        self.protocol = self.endpoint.split("/", 1)[0]  # the processes it spawns listen on the same protocol
         self.external = tuple(external)
         self.routers = tuple(routers)
         self.wait_external_s = wait_external_s
@@ -111,7 +115,7 @@ class ZenohBus:
                 wait_for_listener(router, ROUTER_WAIT_S)
             except TimeoutError as error:
                 raise RouterError(f"cannot reach the router: {error}") from None
-        self._session = zenoh.open(session_config(listen=[self.endpoint], connect=self.routers, options=self.options))
+        self._session = open_session(session_config([self.endpoint], self.routers, self.options), [self.endpoint])
         session = self._session
         self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
         self._entities.append(session.declare_subscriber(key(self.run_id, "*", "log"), self._on_log))
@@ -165,20 +169,20 @@ class ZenohBus:
             command += ["--set", override]
         if not self.options.lowlatency:
             command.append("--no-lowlatency")
-        return command
+        return command + self.options.security.arguments(by_hand)  # file paths: no secret on a command line
 
     def _spawn(self) -> None:
         spawned: dict[str, str] = {}  # name -> the endpoint the others reach it at
         for name in self.names:
             if name in self.external:
                 if self.announce is not None:
-                    arguments = self.spawn_arguments(name, None if self.routers else "tcp/<its-address>:<port>",
-                                                     by_hand=True)
+                    listen = None if self.routers else f"{self.protocol}/<its-address>:<port>"
+                    arguments = self.spawn_arguments(name, listen, by_hand=True)
                     command = " ".join(["zencosim"] + arguments).replace("127.0.0.1", "<this-host>")
                     self.announce(f"waiting {self.wait_external_s:g} s for subsystem {name}: on its host run\n  {command}")
                 continue
             host = endpoint_host(self.endpoint)  # where the manager listens: loopback, or every interface
-            listen = f"tcp/{host}:{free_tcp_port(host)}"
+            listen = f"{self.protocol}/{host}:{free_tcp_port(host)}"
             log = open(Path(self._logs.name) / f"{name}.log", "wb")
             _, partners = process_scope(self.scene, self.plan, name)
             peers = tuple(endpoint for peer, endpoint in spawned.items() if peer in partners)

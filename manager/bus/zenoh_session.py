@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import zenoh
 
+from zencosim.manager.bus.security import ZenohSecurity, remove_dictionaries, zenoh_reason
+
 ROOT = "zencosim"
 
 
@@ -33,6 +35,7 @@ def key(run_id: str, *parts: str) -> str:
     return "/".join((ROOT, run_id) + parts)
 
 
+TCP_PROTOCOLS = ("tcp", "tls")  # Zenoh link protocols over a TCP port
 EVERY_INTERFACE = "0.0.0.0"  # a listening host that is no address to connect to
 
 
@@ -49,11 +52,12 @@ def reachable(endpoint: str, via_host: str) -> str:
 
 
 def wait_for_listener(endpoint: str, timeout_s: float) -> None:
-    """Block until a ``tcp/HOST:PORT`` endpoint accepts connections (Zenoh peers do not reliably retry
-    a connect endpoint that was not listening when the session opened)."""
-    if not endpoint.startswith("tcp/"):
+    """Block until a ``tcp/`` or ``tls/HOST:PORT`` endpoint accepts TCP connections (Zenoh peers do not reliably
+    retry a connect endpoint that was not listening when the session opened)."""
+    protocol = endpoint.split("/", 1)[0]
+    if protocol not in TCP_PROTOCOLS:
         return
-    host, _, port = reachable(endpoint, "127.0.0.1").removeprefix("tcp/").rpartition(":")
+    host, _, port = reachable(endpoint, "127.0.0.1").removeprefix(protocol + "/").rpartition(":")
     deadline = time.monotonic() + timeout_s
     while True:
         try:
@@ -66,10 +70,11 @@ def wait_for_listener(endpoint: str, timeout_s: float) -> None:
 
 
 def concrete_endpoint(endpoint: str) -> str:
-    """``tcp/HOST:0`` with a free port chosen now (so that it can be told to others); else unchanged."""
-    if endpoint.startswith("tcp/") and endpoint.endswith(":0"):
-        host = endpoint[len("tcp/"):-len(":0")]
-        return f"tcp/{host}:{free_tcp_port(host.strip('[]'))}"
+    """``tcp/HOST:0`` (or ``tls/``) with a free port chosen now (so that it can be told to others); else unchanged."""
+    protocol = endpoint.split("/", 1)[0]
+    if protocol in TCP_PROTOCOLS and endpoint.endswith(":0"):
+        host = endpoint[len(protocol) + 1:-len(":0")]
+        return f"{protocol}/{host}:{free_tcp_port(host.strip('[]'))}"
     return endpoint
 
 
@@ -85,10 +90,12 @@ class ZenohOptions:
     """Transport settings every process of a run must share.
 
     ``lowlatency`` selects Zenoh's low-latency unicast transport (QoS off, no batching); it cannot
-    fragment, so every message must stay below 64 KiB, which coupling messages do by far.
+    fragment, so every message must stay below 64 KiB, which coupling messages do by far. ``security``: the
+    credentials and Zenoh configuration file of the run (``manager.bus.security``).
     """
 
     lowlatency: bool = True
+    security: ZenohSecurity = ZenohSecurity()
 
 
 MODES = ("peer", "client", "router")
@@ -104,10 +111,11 @@ def session_config(listen: list[str] = (), connect: list[str] = (), options: Zen
     starts of a 9-subsystem chain. A process that reaches the run only through a router is that router's
     client (a Zenoh router forwards between its clients and everyone, not between two peers, which it
     takes to be linked), and ``zencosim router`` is a router; every link of a run has the same transport
-    settings (``options``)."""
+    settings (``options``). A Zenoh configuration file of the user's is the base these settings go on, and the
+    credentials are added last (``manager.bus.security``)."""
     if mode not in MODES:
         raise ValueError(f"Zenoh mode {mode!r}: expected one of {', '.join(MODES)}")
-    config = zenoh.Config()
+    config = options.security.base_config()
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "false")
@@ -116,7 +124,24 @@ def session_config(listen: list[str] = (), connect: list[str] = (), options: Zen
     if options.lowlatency:
         config.insert_json5("transport/unicast/lowlatency", "true")
         config.insert_json5("transport/unicast/qos/enabled", "false")
+    options.security.apply(config)
     return config
+
+
+class SessionError(ValueError):
+    """A Zenoh session that does not open with the settings given (exit status 2)."""
+
+
+def open_session(config: zenoh.Config, listen: list[str] = ()) -> zenoh.Session:
+    """``zenoh.open``, with Zenoh's reason in one line (a certificate file that a configuration names but that
+    is missing, an address that is not this host's, a port in use)."""
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        where = f" listening on {', '.join(listen)}" if listen else ""
+        raise SessionError(f"cannot open the Zenoh session{where}: {zenoh_reason(error)}") from None
+    finally:
+        remove_dictionaries()
 
 
 def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:

@@ -79,6 +79,7 @@ class ManagerSettings:
     realtime_priority: int = field(default=0, metadata=quantity("", minimum=0, maximum=99))
     realtime_affinity: bool = False
     record: str = ""  # write an MCAP recording of every run to this path ("" = none; also: zencosim run --record)
+    zenoh_config: str = ""  # a Zenoh JSON5 configuration file for a run over Zenoh ("" = none; also: --zenoh-config)
     correction: CorrectionSettings | None = None  # [manager.correction]
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
     compensation: Literal["none", "eigenstructure"] = "none"  # paper 000 compensator (docs/compensation.md)

@@ -33,6 +33,7 @@ from zencosim.manager.bus.zenoh_session import (
     coupling_publisher,
     endpoint_host,
     key,
+    open_session,
     reachable,
     session_config,
     wait_for_listener,
@@ -226,7 +227,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         # it exchanges with that are already in it, so that every pair that exchanges has a direct link; a
         # process that found the run through a router stays the router's client (the router forwards for it)
         _wait_for(connect, wait_s)
-        with zenoh.open(session_config(connect=connect, options=options, mode="client")) as probe:
+        with open_session(session_config(connect=connect, options=options, mode="client")) as probe:
             info = find_run(probe, scene, name, wait_s)
             through_router = any(True for _ in probe.info.routers_zid())
         run_id = info["run_id"]
@@ -239,7 +240,8 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             connect = connect + [ep for ep in peers if ep not in connect]
     _wait_for(connect, wait_s)
     listen = concrete_endpoint(listen) if mode == "peer" else None
-    with zenoh.open(session_config([listen] if listen else [], connect, options, mode)) as session:
+    with open_session(session_config([listen] if listen else [], connect, options, mode), [listen] if listen else []) \
+            as session:
         host = _Host(scene, name, run_id, session)
         signals = SignalNote(signal.SIGINT, signal.SIGTERM)
         entities = [

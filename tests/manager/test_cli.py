@@ -2,8 +2,12 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
+from pathlib import Path
+
+import pytest
 
 from tests.conftest import REPO
 from zencosim.manager.scene.load import bundled_scene_names
@@ -67,10 +71,11 @@ def test_a_router_that_cannot_listen_says_where_in_one_line():
     assert "cannot start the router on tcp/192.0.2.1:7447" in result.stderr and "Traceback" not in result.stderr
 
 
-def test_docker_compose_is_a_run_through_its_router_with_valid_command_lines():
+def test_docker_compose_is_a_run_through_its_router_with_valid_command_lines(tmp_path):
     # no container engine runs here: what is checked is that every service's command parses, names a real
-    # scene, that everyone connects to the router service's port, and that the manager waits for exactly the
-    # subsystems the other services serve
+    # scene, that everyone connects to the router service's port over TLS, that the manager waits for exactly
+    # the subsystems the other services serve, and that docker/certificates.sh makes every certificate and key
+    # a service names, signed by the authority they all name
     import yaml
 
     from zencosim.cli.main import build_parser
@@ -83,12 +88,23 @@ def test_docker_compose_is_a_run_through_its_router_with_valid_command_lines():
     (manager,) = [a for a in args.values() if a.command == "run"]
     served = {a.name: a for a in args.values() if a.command == "subsystem"}
     assert set(manager.external) == set(served)
+    assert args[router].listen[0].startswith("tls/")
     for name, a in args.items():
         if name != router:
-            assert a.connect == [f"tcp/{router}:{port}"], name
+            assert a.connect == [f"tls/{router}:{port}"], name
             scene = load_scene(a.scene, a.overrides)
             assert set(served) <= set(scene.subsystems), name
     assert all("build" in service for service in services.values())
+    if shutil.which("openssl") is None:
+        pytest.skip("needs the openssl command to make the certificates")
+    subprocess.run(["sh", str(REPO / "docker" / "certificates.sh"), str(tmp_path)], check=True, capture_output=True,
+                   timeout=120)
+    for name, a in args.items():
+        assert "./certs:/certs:ro" in services[name]["volumes"], name
+        ca, cert, key = (tmp_path / Path(path).relative_to("/certs") for path in (a.tls_ca, a.tls_cert, a.tls_key))
+        assert ca.name == "ca.pem" and key.read_text().startswith("-----BEGIN PRIVATE KEY-----"), name
+        verified = subprocess.run(["openssl", "verify", "-CAfile", str(ca), str(cert)], capture_output=True, text=True)
+        assert verified.returncode == 0, (name, verified.stdout + verified.stderr)
 
 
 def test_version_names_zencosim_its_protocol_and_what_a_run_depends_on():

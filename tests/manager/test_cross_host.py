@@ -10,72 +10,20 @@ veth pair and loopback. Needs CAP_NET_ADMIN (root) and ``ip``; skipped otherwise
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
+from pathlib import Path
 
 import pytest
 
+from tests.certificates import certificate, certificate_authority
 from tests.conftest import summary_of
+from tests.netns import ip as _ip
 from zencosim.manager.bus.zenoh_session import free_tcp_port, reachable
 
 pytestmark = pytest.mark.multiprocess
 
 HOST_ADDRESS, OTHER_ADDRESS = "10.213.77.1", "10.213.77.2"  # RFC 1918, a /30 of the test's own
-
-
-def _ip(*args: str) -> None:
-    subprocess.run(["ip", *args], check=True, capture_output=True, text=True, timeout=10)
-
-
-class Network:
-    """Network namespaces joined by veth pairs on /30s of the test's own; all removed by :meth:`remove`."""
-
-    def __init__(self) -> None:
-        self.namespaces: list[str] = []
-        self.links: list[str] = []  # veth pairs with an end in this namespace (the others go with theirs)
-        self.made = 0
-
-    def namespace(self, tag: str) -> str:
-        name = f"zc{os.getpid()}{tag}"
-        _ip("netns", "add", name)
-        self.namespaces.append(name)
-        _ip("-n", name, "link", "set", "lo", "up")
-        return name
-
-    def link(self, a: str | None, a_address: str, b: str, b_address: str) -> None:
-        """A veth pair from namespace ``a`` (None: this one) to ``b``, addressed ``a_address`` and ``b_address``."""
-        self.made += 1
-        veth = f"zv{os.getpid() % 10000}n{self.made}"
-        here = () if a is None else ("-n", a)
-        _ip(*here, "link", "add", veth, "type", "veth", "peer", "name", veth + "b", "netns", b)
-        if a is None:
-            self.links.append(veth)
-        _ip(*here, "addr", "add", f"{a_address}/30", "dev", veth)
-        _ip(*here, "link", "set", veth, "up")
-        _ip("-n", b, "addr", "add", f"{b_address}/30", "dev", veth + "b")
-        _ip("-n", b, "link", "set", veth + "b", "up")
-
-    def remove(self) -> None:
-        for veth in self.links:
-            subprocess.run(["ip", "link", "del", veth], capture_output=True, timeout=10)
-        for name in self.namespaces:
-            subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
-
-
-@pytest.fixture
-def network():
-    if shutil.which("ip") is None or os.geteuid() != 0:
-        pytest.skip("needs root and iproute2 to make network namespaces")
-    made = Network()
-    try:
-        try:
-            made.namespace("p")  # can this machine make one?
-        except subprocess.CalledProcessError as error:
-            pytest.skip(f"cannot make a network namespace here: {error.stderr.strip()}")
-        yield made
-    finally:
-        made.remove()
 
 
 @pytest.fixture
@@ -111,12 +59,27 @@ ROUTER_A, SIDE_A = "10.213.78.1", "10.213.78.2"  # the router's namespace and ho
 ROUTER_B, SIDE_B = "10.213.79.1", "10.213.79.2"  # the router's namespace and host B's, another /30
 
 
+def credentials(protocol: str, directory: Path) -> dict[str, list[str]]:
+    """Each process's TLS options (``tls``: certificates of one authority naming the addresses it is reached at),
+    or none (``tcp``)."""
+    if protocol == "tcp":
+        return {"router": [], "a": [], "b": []}
+    if shutil.which("openssl") is None:
+        pytest.skip("needs the openssl command to make certificates")
+    certificate_authority(directory, "run")
+    addresses = {"router": [ROUTER_A, ROUTER_B], "a": ["127.0.0.1"], "b": [SIDE_B]}
+    return {name: ["--tls-ca", str(directory / "run-ca.pem"), "--tls-cert", str(cert), "--tls-key", str(key)]
+            for name, (cert, key) in ((name, certificate(directory, "run", name, ips)) for name, ips in addresses.items())}
+
+
 @pytest.mark.timeout(150)
+@pytest.mark.parametrize("protocol", ["tcp", "tls"])
 def test_two_hosts_that_reach_each_other_only_through_a_router_run_with_the_in_process_digest(
-        processes, network, tmp_path):
+        processes, network, tmp_path, protocol):
     # host A (the manager, which spawns S1) and host B (S2, started by hand) each reach the router's namespace
     # on a link of their own; the router does not forward IP, so every message between A and B passes the
-    # Zenoh router, and S2 joins as its client
+    # Zenoh router, and S2 joins as its client; with tls, every link is mutual TLS (docs/security.md)
+    options = credentials(protocol, tmp_path)
     router_ns, a, b = network.namespace("r"), network.namespace("a"), network.namespace("b")
     network.link(router_ns, ROUTER_A, a, SIDE_A)
     network.link(router_ns, ROUTER_B, b, SIDE_B)
@@ -128,10 +91,12 @@ def test_two_hosts_that_reach_each_other_only_through_a_router_run_with_the_in_p
         return ("ip", "netns", "exec", namespace)
 
     summary = tmp_path / "summary.json"
-    router = processes("router", "--listen", "tcp/0.0.0.0:7447", prefix=on(router_ns))
-    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--connect", f"tcp/{ROUTER_A}:7447",
-                        "--external", "S2", "--summary", str(summary), prefix=on(a))
-    remote = processes("subsystem", "two_mass_damped", "S2", "--connect", f"tcp/{ROUTER_B}:7447", prefix=on(b))
+    router = processes("router", "--listen", f"{protocol}/0.0.0.0:7447", *options["router"], prefix=on(router_ns))
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--quiet", "--connect",
+                        f"{protocol}/{ROUTER_A}:7447", "--external", "S2", "--summary", str(summary), *options["a"],
+                        prefix=on(a))
+    remote = processes("subsystem", "two_mass_damped", "S2", "--connect", f"{protocol}/{ROUTER_B}:7447", *options["b"],
+                       prefix=on(b))
     _, manager_err = manager.communicate(timeout=120)
     _, remote_err = remote.communicate(timeout=30)
     assert manager.returncode == 0, manager_err + remote_err

@@ -4,15 +4,19 @@ from __future__ import annotations
 import argparse
 
 from zencosim.cli.console import examples, warn
+from zencosim.cli.credentials import add_security_arguments, security_options
 from zencosim.manager.bus.router import serve_router
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 
-DEFAULT_LISTEN = "tcp/0.0.0.0:7447"
+DEFAULT_LISTEN = "tcp/0.0.0.0:7447"  # tls/ with certificates
 
 
 def cmd_router(args: argparse.Namespace) -> int:
-    return serve_router(args.listen or [DEFAULT_LISTEN], args.connect,
-                        ZenohOptions(lowlatency=not args.no_lowlatency), warn)
+    security = security_options(args)
+    listen = args.listen or [DEFAULT_LISTEN.replace("tcp/", f"{security.protocol}/")]
+    security.check_endpoints("--listen", listen)
+    security.check_endpoints("--connect", args.connect)
+    return serve_router(listen, args.connect, ZenohOptions(not args.no_lowlatency, security), warn)
 
 
 def add_parsers(commands) -> None:
@@ -27,4 +31,5 @@ def add_parsers(commands) -> None:
                      help="another router to link with (repeatable), for runs across several networks")
     sub.add_argument("--no-lowlatency", action="store_true",
                      help="use Zenoh's default transport (the run's processes must use it too)")
+    add_security_arguments(sub)
     sub.set_defaults(handler=cmd_router)

@@ -10,6 +10,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, out, say, warn
+from zencosim.cli.credentials import add_security_arguments, given_security_options, security_options
 from zencosim.extras import require
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.output_files import check_output_file
@@ -98,7 +99,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                          f"{', '.join(scene.subsystems)}")
     zenoh_only = [option for option, given in (("--listen", args.listen), ("--connect", args.connect),
                                                ("--external", args.external), ("--no-lowlatency", args.no_lowlatency))
-                  if given]
+                  if given] + given_security_options(args)
     if args.bus != "zenoh" and zenoh_only:
         raise UsageError(f"{', '.join(zenoh_only)} configure the Zenoh bus: add --bus zenoh")
     # every file the run writes is checked before it starts
@@ -115,7 +116,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
-        bus_options = dict(zenoh_options=ZenohOptions(lowlatency=not args.no_lowlatency), listen=args.listen,
+        security = security_options(args, scene)
+        security.check_endpoints("--listen", [args.listen] if args.listen else [])
+        security.check_endpoints("--connect", args.connect)
+        bus_options = dict(zenoh_options=ZenohOptions(not args.no_lowlatency, security), listen=args.listen,
                            external=tuple(args.external), announce=None if args.quiet else warn,
                            routers=tuple(args.connect))
     show_progress = err.is_terminal and not args.quiet
@@ -148,7 +152,9 @@ def add_parsers(commands) -> None:
                    "zencosim run two_mass_damped --bus zenoh          # one process per subsystem",
                    "zencosim run four_mass --set manager.macro_step=0.002 --out results.csv --summary summary.json",
                    "zencosim run two_mass_damped --bus zenoh --record run.mcap",
-                   "zencosim run two_mass_damped --realtime            # paced to the wall clock"))
+                   "zencosim run two_mass_damped --realtime            # paced to the wall clock",
+                   "zencosim run two_mass_damped --bus zenoh --listen tls/0.0.0.0:7447 --external S2 "
+                   "--tls-ca ca.pem --tls-cert a.pem --tls-key a.key   # across hosts, mutual TLS"))
     add_scene_arguments(run)
     run.add_argument("--bus", choices=BUSES, default="inproc",
                      help="inproc: all subsystems in this process; zenoh: one process per subsystem over Zenoh")
@@ -170,4 +176,5 @@ def add_parsers(commands) -> None:
                           "viewer or 'rerun --serve-grpc' there) or serve (the web viewer at http://127.0.0.1:9090)")
     run.add_argument("--record-host-info", action="store_true",
                      help="also record the host's name and the scene file's absolute path (left out by default)")
+    add_security_arguments(run)
     run.set_defaults(handler=cmd_run)
