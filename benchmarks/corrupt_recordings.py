@@ -30,11 +30,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import zencosim  # noqa: E402
-from tests.recordings.corruption import KINDS, corrupt  # noqa: E402
+from tests.recordings.corruption import KINDS, claiming_duration, corrupt  # noqa: E402
 from zencosim.cli.main import build_parser, main  # noqa: E402
-from zencosim.manager.scene.load import scene_from_text  # noqa: E402
 from zencosim.recordings.reader import read_recording  # noqa: E402
-from zencosim.recordings.writer import RecordingWriter  # noqa: E402
 
 build_parser()  # imports every command's module now
 
@@ -49,19 +47,6 @@ def outcome(argv: list[str]) -> str:
         except BaseException as error:  # noqa: BLE001 - what escapes is the finding
             frame = traceback.extract_tb(error.__traceback__)[-1]
             return f"traceback {type(error).__name__} ({Path(frame.filename).name}:{frame.lineno})"
-
-
-def crafted(directory: Path, small: Path) -> Path:
-    """A recording of ``small``'s messages whose scene claims a run of 1e7 s (digest made to match)."""
-    recording = read_recording(small)
-    toml = recording.scene_toml.replace("duration = 0.01", "duration = 10000000.0")
-    assert toml != recording.scene_toml, "the scene text has no 'duration = 0.01'"
-    scene = scene_from_text(toml, "crafted")
-    path = directory / "crafted.mcap"
-    writer = RecordingWriter(path, {**recording.info, "scene_digest": scene.digest}, toml,
-                             [c.spec for c in recording.channels.values()])
-    writer.finish("completed", {})
-    return path
 
 
 def main_() -> None:
@@ -104,7 +89,7 @@ def main_() -> None:
 
     small = directory / "small.mcap"
     zencosim.run(zencosim.load_scene("two_mass_damped", ["manager.duration=0.01"]), record=small)
-    bomb = crafted(directory, small)
+    bomb = claiming_duration(small, directory / "crafted.mcap", 1e7)
 
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))

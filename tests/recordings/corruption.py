@@ -1,11 +1,13 @@
 """Damage a recording's bytes the ways a disk, a copy or a person does: bit flips, truncation, two chunks
 swapped, a byte range zeroed, and a flip inside one of the records outside the chunks (metadata, scene,
-schemas, channels, end record, summary, footer). Used by the fuzz test (tests/recordings/test_damaged_recordings.py)
+schemas, channels, end record, summary, footer); and a crafted recording whose scene claims a longer
+run than it holds (``claiming_duration``). Used by the fuzz test (tests/recordings/test_damaged_recordings.py)
 and by ``benchmarks/corrupt_recordings.py``; each function takes the intact bytes and returns a damaged copy.
 """
 from __future__ import annotations
 
 import struct
+from pathlib import Path
 
 MAGIC = b"\x89MCAP0\r\n"
 CHUNK = 0x06
@@ -91,3 +93,20 @@ def corrupt(data: bytes, kind: str, a: int, b: int) -> bytes:
     if kind == "record":
         return flip_in_record(data, a, b)
     raise ValueError(kind)
+
+
+def claiming_duration(recording_path: Path, out: Path, duration_s: float) -> Path:
+    """A well-formed recording at ``out`` with the metadata and channels of ``recording_path`` (recorded with
+    ``manager.duration = 0.01``) and no messages, whose embedded scene claims ``duration_s`` (its digest
+    updated to match): an attacker's small file that asks a re-run of a huge run."""
+    from zencosim.manager.scene.load import scene_from_text
+    from zencosim.recordings.reader import read_recording
+    from zencosim.recordings.writer import RecordingWriter
+    recording = read_recording(recording_path)
+    toml = recording.scene_toml.replace("duration = 0.01", f"duration = {duration_s!r}")
+    assert toml != recording.scene_toml, "the scene text has no 'duration = 0.01'"
+    scene = scene_from_text(toml, "crafted")
+    writer = RecordingWriter(out, {**recording.info, "scene_digest": scene.digest}, toml,
+                             [c.spec for c in recording.channels.values()])
+    writer.finish("completed", {})
+    return out

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import tracemalloc
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -20,7 +21,7 @@ from hypothesis import strategies as st
 
 import zencosim
 from tests.conftest import REPO
-from tests.recordings.corruption import KINDS, corrupt, records
+from tests.recordings.corruption import KINDS, claiming_duration, corrupt, records
 from zencosim.recordings import RecordingError
 from zencosim.recordings.reader import describe, read_recording
 from zencosim.recordings.verify import verify
@@ -39,33 +40,26 @@ def intact(tmp_path_factory) -> bytes:
     return data
 
 
-def _inspected(path) -> bool | None:
-    """Whether inspect finds the file intact; None for a RecordingError."""
+def _verdicts(path) -> tuple[bool, bool] | None:
+    """(whether inspect finds the file intact, whether verify passes), from one reading of the file (as both
+    commands read it); None for a RecordingError naming the file."""
     try:
-        info = describe(recording := read_recording(path))
+        recording = read_recording(path)
+        info = describe(recording)
+        result = verify(recording)
     except RecordingError as error:
         assert str(path) in str(error)
         return None
     assert info["complete"] == (recording.truncated is None) and info["damage"] == recording.damage
-    return recording.intact
-
-
-def _verified(path) -> bool | None:
-    """Whether verify passes; None for a RecordingError."""
-    try:
-        result = verify(read_recording(path))
-    except RecordingError as error:
-        assert str(path) in str(error)
-        return None
     assert result.passed == (result.divergence is None and not result.note and not result.damage
                              and result.truncated is None)
-    return result.passed
+    return recording.intact, result.passed
 
 
 def test_the_intact_recording_passes(intact, tmp_path):
     path = tmp_path / "intact.mcap"
     path.write_bytes(intact)
-    assert _inspected(path) is True and _verified(path) is True
+    assert _verdicts(path) == (True, True)
 
 
 @settings(max_examples=60, deadline=None, derandomize=True, database=None,
@@ -75,9 +69,11 @@ def test_a_damaged_recording_never_passes(intact, tmp_path, kind, a, b):
     data = corrupt(intact, kind, a, b)
     path = tmp_path / f"{kind}.mcap"
     path.write_bytes(data)
-    same = data == intact
-    assert _inspected(path) in ((True,) if same else (False, None))
-    assert _verified(path) in ((True,) if same else (False, None))
+    verdicts = _verdicts(path)
+    if data == intact:
+        assert verdicts == (True, True)
+    else:
+        assert verdicts is None or verdicts == (False, False), verdicts
 
 
 def _zencosim(*args: str) -> subprocess.CompletedProcess:
@@ -107,3 +103,21 @@ def test_the_command_line_names_the_damage_and_exits_non_zero(intact, tmp_path):
     result = _zencosim("replay", str(cut), "--verify")
     assert result.returncode == 1 and "verify INCOMPLETE" in result.stdout and "the end record" in result.stdout
     assert "bit-identical to a re-run" in result.stdout, result.stdout
+
+
+def test_a_small_file_claiming_a_huge_run_allocates_nothing_of_it(tmp_path):
+    """A 10-step recording rewritten to claim 1e7 s (1e10 macro-steps: 149 GiB of residual arrays) and hold no
+    message: verify plans its re-run for the statuses the file holds (none, plus one), so it allocates about
+    what a one-step run does; 64 MiB bounds that with a wide margin and is a thousandth of one array of the
+    claimed run."""
+    small = tmp_path / "small.mcap"
+    zencosim.run(zencosim.load_scene("two_mass_damped", ["manager.duration=0.01"]), record=small)
+    crafted = claiming_duration(small, tmp_path / "crafted.mcap", 1e7)
+    tracemalloc.start()
+    try:
+        result = verify(read_recording(crafted))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 64 << 20, peak
+    assert not result.passed and result.completed_run and "has no message" in result.note, result
