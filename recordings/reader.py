@@ -125,7 +125,9 @@ def read_recording(path: str | Path) -> Recording:
     path = Path(path)
     try:
         with open(path, "rb") as handle:
-            data = handle.read()
+            data = handle.read(len(MAGIC))
+            if data == MAGIC:  # only then the rest (not the endless bytes of a device)
+                data += handle.read()
     except OSError as error:
         raise RecordingError(f"cannot read recording {path}: {error.strerror}") from None
     if not data.startswith(MAGIC):
