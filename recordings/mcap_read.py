@@ -219,7 +219,7 @@ class McapScan:
         if data[end:] != MAGIC:
             self.damage.append(f"the file does not end with the MCAP magic right after its footer (byte {end}: "
                                f"{len(data) - end} bytes follow it)")
-        if footer.summary_start and footer.summary_start != data_end:
+        if footer.summary_start and data_end is not None and footer.summary_start != data_end:
             self.damage.append(f"the footer puts the summary at byte {footer.summary_start}, it starts at {data_end}")
         if footer.summary_crc:
             crc = zlib.crc32(memoryview(data)[footer.summary_start or at:at + _FOOTER_FIELDS])

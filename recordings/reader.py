@@ -99,7 +99,7 @@ class Recording:
         return max(status, default=0)
 
 
-INFO_KEYS = ("format", "zencosim", "scene", "scene_digest", "run_id", "bus", "started", "steps", "macro_step_ns")
+_INFO_KEYS = ("format", "zencosim", "scene", "scene_digest", "run_id", "bus", "started", "steps", "macro_step_ns")
 _END_TEXT = ("outcome", "path", "first_malformed", "finished", CONTENT_DIGEST)  # the end record's fields kept as text
 
 
@@ -130,6 +130,8 @@ def read_recording(path: str | Path) -> Recording:
                 data += handle.read()
     except OSError as error:
         raise RecordingError(f"cannot read recording {path}: {error.strerror}") from None
+    if not data:
+        raise RecordingError(f"{path} is empty (a recording cut off before its first byte)")
     if not data.startswith(MAGIC):
         if MAGIC.startswith(data):
             raise RecordingError(f"{path} is cut off after {len(data)} bytes, inside the MCAP magic bytes it starts with")
@@ -219,7 +221,7 @@ def _channel_spec(path: Path, record: Channel) -> ChannelSpec:
 
 def _check_info(path: Path, info: dict[str, str]) -> None:
     """RecordingError unless the run metadata has every field a recording's reader uses."""
-    missing = [key for key in INFO_KEYS if key not in info]
+    missing = [key for key in _INFO_KEYS if key not in info]
     if missing:
         raise RecordingError(f"{path}: its run metadata has no {', '.join(missing)}")
     for key in ("steps", "macro_step_ns"):
