@@ -24,6 +24,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     recording = read_recording(args.recording)
     if recording.truncated:
         warn(f"{recording.path}: {recording.truncated}; replaying what it holds")
+    if recording.damage and (rrd or args.spawn):
+        warn(f"{recording.path} is damaged: {'; '.join(recording.damage)}; replaying what it holds")
     status = 0
     if rrd or args.spawn:
         from zencosim.recordings.rerun_replay import replay_in_rerun
@@ -80,6 +82,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     recording = read_recording(args.recording)
     if recording.truncated:
         warn(f"{recording.path}: {recording.truncated}; exporting what it holds")
+    if recording.damage:
+        warn(f"{recording.path} is damaged: {'; '.join(recording.damage)}; exporting what it holds")
     written = write_tables(tables(recorded_signals(recording)), out_path)
     say(f"wrote {', '.join(map(str, written))}")
     return 0
