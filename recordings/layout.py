@@ -10,7 +10,8 @@ is read without the scene.
 The ``zencosim`` metadata record describes the run (scene, digest, overrides, software versions,
 bus, run id; the host and the scene's path only when asked); the attachment ``scene.toml`` is the scene after overrides, enough to re-run it;
 the ``zencosim.end`` metadata record, written when the recorder finishes, holds the outcome and, per
-channel, what the manager published, what the recorder received and what was lost.
+channel, what the manager published, what the recorder received and what was lost, and what the file
+holds before it: the messages recorded per channel, the number of chunks and the SHA-256 of those bytes.
 """
 from __future__ import annotations
 
@@ -33,6 +34,7 @@ FORMAT_1 = "zencosim-recording/1"  # one generic message for every channel, log 
 RUN_METADATA = "zencosim"
 END_METADATA = "zencosim.end"
 SCENE_ATTACHMENT = "scene.toml"
+CONTENT_DIGEST = "content_sha256"  # the end record's SHA-256 of every byte of the file before it
 STATUS_TOPIC = "manager/status"
 COMMANDS = "commands"  # the channel of a subsystem's commands; its replies are "y"
 

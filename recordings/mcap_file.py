@@ -9,10 +9,13 @@ record — header, schemas, channels, metadata, attachments, chunks, the summary
 and indexes, the footer — is written with the library's record classes, and the library's readers
 read the file (the tests read every recording with CRCs checked and with
 ``mcap.reader.make_reader``). Schemas and channels are written before the first chunk, outside
-chunks, so that a file cut short still declares them.
+chunks, so that a file cut short still declares them. Every chunk carries the CRC-32 of its records,
+the ``DataEnd`` record the CRC-32 of the whole data section and the footer the summary's: no byte of a
+finished file goes unchecked (``recordings.mcap_read`` checks them all).
 """
 from __future__ import annotations
 
+import hashlib
 import struct
 import zlib
 from collections import defaultdict
@@ -43,6 +46,26 @@ from mcap.writer import MCAP0_MAGIC
 _MESSAGE_INDEX = struct.Struct("<BQHI")  # opcode, record length, channel id, byte length of its (time, offset) pairs
 
 
+class _Summed:
+    """A binary stream that keeps the CRC-32 and the SHA-256 of every byte written to it."""
+
+    def __init__(self, stream: BinaryIO) -> None:
+        self.stream = stream
+        self.crc = 0
+        self.sha256 = hashlib.sha256()
+
+    def write(self, data) -> None:
+        self.crc = zlib.crc32(data, self.crc)
+        self.sha256.update(data)
+        self.stream.write(data)
+
+    def tell(self) -> int:
+        return self.stream.tell()
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+
 def _record(record: McapRecord) -> bytes:
     builder = RecordBuilder()
     record.write(builder)
@@ -53,7 +76,7 @@ class McapFile:
     """An MCAP file being written to ``stream``: ZSTD chunks of about ``chunk_bytes`` of messages."""
 
     def __init__(self, stream: BinaryIO, library: str, chunk_bytes: int) -> None:
-        self._stream = stream
+        self._stream = _Summed(stream)
         self._chunk_bytes = chunk_bytes
         self._compress = zstandard.ZstdCompressor(level=1).compress
         self._schemas: list[Schema] = []
@@ -65,8 +88,8 @@ class McapFile:
         self._metadata_indexes: list[MetadataIndex] = []
         self._counts: dict[int, int] = defaultdict(int)
         self._times: tuple[int, int] | None = None  # first and last log time of every message
-        stream.write(MCAP0_MAGIC)
-        stream.write(_record(Header(profile="", library=library)))
+        self._stream.write(MCAP0_MAGIC)
+        self._stream.write(_record(Header(profile="", library=library)))
 
     def schema(self, name: str, encoding: str, data: bytes) -> int:
         schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
@@ -115,10 +138,15 @@ class McapFile:
         self._write_chunk()
         self._stream.flush()
 
+    def written(self) -> tuple[str, dict[int, int], int]:
+        """The SHA-256 (hex) of every byte written so far, the messages written per channel id and the number of
+        chunks written (the open chunk is not written yet: ``flush`` first)."""
+        return self._stream.sha256.hexdigest(), dict(self._counts), len(self._chunk_indexes)
+
     def finish(self) -> None:
         """Write the last chunk, the summary (schemas, channels, statistics, indexes) and the footer."""
         self._write_chunk()
-        self._stream.write(_record(DataEnd(data_section_crc=0)))
+        self._stream.write(_record(DataEnd(data_section_crc=self._stream.crc)))
         summary_start = self._stream.tell()
         statistics = Statistics(
             message_count=sum(self._counts.values()), schema_count=len(self._schemas),

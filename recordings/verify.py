@@ -5,10 +5,16 @@ the next recorded message of the same channel: kind, step, time, rows, reference
 value by its bits (NaN included). The status's measured fields (wall-clock times) are not compared. The first
 difference stops the re-run and is reported with its channel, step, value name and both values; a
 recording that ends early (a failed or interrupted run) is compared up to its last message.
+
+The re-run is planned for no more macro-steps than the recording holds statuses (plus one), so what
+it allocates is bounded by the file's size (``recordings.mcap_read`` bounds what the file may hold),
+never by the duration its scene claims. A verification passes only when the file is intact as well
+(``Recording.intact``: read to its end, every CRC, count and digest checked): a damaged or cut-off
+file never passes, whatever its messages.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -41,10 +47,13 @@ class Verification:
     divergence: Divergence | None
     note: str  # why the comparison ended before the end of the re-run or of the recording, or ""
     completed_run: bool  # the recording says its run completed: then it must hold every message
+    truncated: str | None  # why the file was read only in part (Recording.truncated)
+    damage: tuple[str, ...]  # every check the file failed (Recording.damage)
 
     @property
     def passed(self) -> bool:
-        return self.divergence is None and not (self.completed_run and self.note)
+        return (self.divergence is None and not (self.completed_run and self.note) and self.truncated is None
+                and not self.damage)
 
 
 class _Stop(Exception):
@@ -98,6 +107,9 @@ class _Comparer:
         if topic == STATUS_TOPIC:
             pairs = self.status_pairs
             self.last_step = message.step
+            if recorded.values.size != len(self.recording.channels[topic].spec.names):
+                self._diverged(topic, message.step, "number of values", str(recorded.values.size),
+                               str(len(self.recording.channels[topic].spec.names)))
         else:
             if recorded.values.size != message.values.size:
                 self._diverged(topic, message.step, "number of values", str(recorded.values.size),
@@ -119,7 +131,13 @@ class _Comparer:
 def verify(recording: Recording) -> Verification:
     """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run."""
     scene = recording.scene()
-    plan, subsystems = plan_scene(scene)
+    try:
+        plan, subsystems = plan_scene(scene)
+    except (ValueError, TypeError, KeyError, AttributeError, IndexError, ArithmeticError, RecursionError) as error:
+        raise RecordingError(f"{recording.path}: its scene cannot be planned ({type(error).__name__}: {error})"
+                             f"{recording.damage_note()}") from None
+    held = len(recording.channels[STATUS_TOPIC].messages) if STATUS_TOPIC in recording.channels else 0
+    plan = replace(plan, n_ticks=min(plan.n_ticks, held + 1))  # the re-run ends once it has passed the recording
     status = StatusReport(plan, realtime=False)
     expected = {spec.topic: spec for spec in channel_specs(plan, status)}
     if set(expected) != set(recording.channels):
@@ -141,4 +159,5 @@ def verify(recording: Recording) -> Verification:
         if extra:
             note = "the recording holds more messages than the re-run: " + ", ".join(f"{t} {n}" for t, n in extra.items())
     completed = recording.end is not None and recording.end["outcome"] == "completed"
-    return Verification(dict(comparer.cursor), comparer.last_step, comparer.divergence, note, completed)
+    return Verification(dict(comparer.cursor), comparer.last_step, comparer.divergence, note, completed,
+                        recording.truncated, tuple(recording.damage))

@@ -5,7 +5,11 @@ is also closed and handed to the operating system once it is ``FLUSH_INTERVAL_S`
 message, or when the recorder is idle: ``flush_if_due``). A recorder killed outright (SIGKILL)
 therefore leaves a file whose every complete chunk is readable: it loses at most the messages of the
 last ``FLUSH_INTERVAL_S`` (one chunk at most). ``finish`` writes the ``zencosim.end`` record, the
-MCAP summary and the footer.
+MCAP summary and the footer. The end record comes after the last chunk and holds what the file holds
+before it — the messages recorded per channel, the number of chunks, and the SHA-256 of every byte
+before it (header, schemas, channels, the run's metadata, the scene, every chunk and its message
+indexes): ``recordings.reader`` compares them with what it reads, so no damage before the end record
+goes unnoticed, the metadata and the embedded scene included.
 """
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ import numpy as np
 
 from zencosim.recordings import RecordingError
 from zencosim.recordings.encoding import BatchEncoder
-from zencosim.recordings.layout import END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
+from zencosim.recordings.layout import CONTENT_DIGEST, END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
 from zencosim.recordings.mcap_file import McapFile
 from zencosim.recordings.schema import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSchema
 
@@ -74,7 +78,11 @@ class RecordingWriter:
     def finish(self, outcome: str, published: dict[str, int] | None) -> dict:
         """Close the file with its end record; return what it says (see ``end_record``)."""
         end = self.end_record(outcome, published)
-        stored = {**end, "path": self.path.name}  # the file's own name: no absolute path in the file
+        self._mcap.flush()  # the last chunk goes before the end record, so that the record covers every message
+        digest, counts, chunks = self._mcap.written()
+        stored = {**end, "path": self.path.name,  # the file's own name: no absolute path in the file
+                  "recorded": {spec.topic: counts.get(int(i), 0) for spec, i in zip(self.channels, self._ids)},
+                  "chunks": chunks, CONTENT_DIGEST: digest}
         self._mcap.metadata(END_METADATA, {key: value if isinstance(value, str) else json.dumps(value)
                                            for key, value in stored.items()})
         self._mcap.finish()

@@ -24,6 +24,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     recording = read_recording(args.recording)
     if recording.truncated:
         warn(f"{recording.path}: {recording.truncated}; replaying what it holds")
+    if recording.damage and (rrd or args.spawn):
+        warn(f"{recording.path} is damaged: {'; '.join(recording.damage)}; replaying what it holds")
     status = 0
     if rrd or args.spawn:
         from zencosim.recordings.rerun_replay import replay_in_rerun
@@ -34,7 +36,15 @@ def cmd_replay(args: argparse.Namespace) -> int:
         from zencosim.recordings.verify import verify
         result = verify(recording)
         compared = sum(result.compared.values())
-        if result.divergence is not None:
+        held = (f"the {compared} messages it holds up to step {result.last_step} are bit-identical to a re-run"
+                if result.divergence is None else f"first divergence at {result.divergence}")
+        if result.damage:
+            say(f"verify FAILED: the file is damaged: {'; '.join(result.damage)}"
+                + (f"; {result.truncated}" if result.truncated else "") + f"; {held}")
+        elif result.truncated:
+            say(f"verify INCOMPLETE: {result.truncated}; missing: what followed"
+                + (", the end record among it" if recording.end is None else "") + f"; {held}")
+        elif result.divergence is not None:
             say(f"verify FAILED: first divergence at {result.divergence}")
         elif not result.passed:
             say(f"verify FAILED: {result.note}")
@@ -61,7 +71,9 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         f"outcome: {info['outcome']}; lost: {'unknown' if info['lost'] is None else info['lost']}")
     if info["truncated"]:
         say(f"incomplete: {info['truncated']}")
-    return 0
+    for damage in info["damage"]:
+        say(f"damaged: {damage}")
+    return 1 if info["damage"] else 0
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -70,6 +82,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     recording = read_recording(args.recording)
     if recording.truncated:
         warn(f"{recording.path}: {recording.truncated}; exporting what it holds")
+    if recording.damage:
+        warn(f"{recording.path} is damaged: {'; '.join(recording.damage)}; exporting what it holds")
     written = write_tables(tables(recorded_signals(recording)), out_path)
     say(f"wrote {', '.join(map(str, written))}")
     return 0
