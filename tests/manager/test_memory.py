@@ -1,0 +1,78 @@
+"""A long run in bounded memory (manager.scheme.window): its arrays go to spill files as it runs, and the
+summary, the digest and the results file read them back in blocks, so a run's peak memory does not grow with
+its length. Each run is a fresh process (peak RSS of a process only grows); the figures are
+benchmarks/bench_memory.py's.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import zencosim
+from zencosim.manager.scheme.window import BLOCK_ROWS
+
+# two_mass_damped at 1 ms: before the arrays were bounded a run held ~0.45 kB per macro-step, so 10 s -> 200 s
+# grew the peak by ~85 MB. Bounded, what a run holds does not depend on its length once it is longer than a
+# block (8192 steps, so both runs here are): a few windows of 8 200 rows and the blocks being read back
+# (~1 MB together). The bound leaves room for the allocator's noise between two processes (measured
+# growth 10 s -> 200 s: see docs/memory.md) and is still 17x below the growth it replaces.
+GROWTH_BOUND_KB = 5 * 1024
+
+CHILD = """
+import json, resource, sys, tempfile
+import zencosim
+scene = zencosim.load_scene("two_mass_damped", {"manager.duration": float(sys.argv[1])})
+result = zencosim.run(scene, sys.argv[2], keep=False)
+with tempfile.TemporaryDirectory() as folder:
+    result.write(folder + "/out.csv")
+print(json.dumps({"self_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                  "children_kb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
+                  "digest": result.digest, "stable": result.summary["stable"]}))
+"""
+
+
+def _peak_rss(duration_s: float, bus: str) -> dict:
+    done = subprocess.run([sys.executable, "-c", CHILD, str(duration_s), bus], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+@pytest.mark.multiprocess
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("bus", ["inproc", "zenoh"])
+def test_peak_memory_of_a_200_s_run_is_that_of_a_10_s_run(bus):
+    short, long = _peak_rss(10.0, bus), _peak_rss(200.0, bus)
+    assert short["stable"] and long["stable"]
+    assert long["self_kb"] - short["self_kb"] < GROWTH_BOUND_KB, (short, long)
+    if bus == "zenoh":  # the largest subsystem process
+        assert long["children_kb"] - short["children_kb"] < GROWTH_BOUND_KB, (short, long)
+
+
+@pytest.mark.parametrize("scene, overrides", [
+    ("two_mass_damped", {"manager.duration": 20.0}),
+    ("double_oscillator", {"manager.duration": 12.0, "manager.correction.enabled": True, "manager.correction.mu": 0.5}),
+    ("constrained_two_mass", {"manager.duration": 9.0}),  # the implicit scheme
+])
+def test_a_spilled_run_gives_the_kept_runs_arrays_digest_and_summary(scene, overrides, tmp_path):
+    # longer than a block: the spilled run writes blocks to its files and reads them back in several blocks
+    loaded = zencosim.load_scene(scene, overrides)
+    assert loaded.manager.duration_ns // loaded.manager.macro_step_ns > BLOCK_ROWS
+    kept, spilled = zencosim.run(loaded, keep=True), zencosim.run(loaded, keep=False)
+    assert isinstance(spilled.record.trajectories[0], np.memmap) and not isinstance(kept.record.trajectories[0],
+                                                                                   np.memmap)
+    for a, b in zip(kept.record.trajectories, spilled.record.trajectories):
+        assert a.tobytes() == b.tobytes()
+    assert kept.record.residual_energy.tobytes() == spilled.record.residual_energy.tobytes()
+    for log, spilled_log in zip(kept.record.corrections, spilled.record.corrections):
+        assert log.force.tobytes() == spilled_log.force.tobytes() and log.work.tobytes() == spilled_log.work.tobytes()
+    timing = ("timing",)  # wall clock: differs between any two runs
+    assert {k: v for k, v in kept.summary.items() if k not in timing} == \
+        {k: v for k, v in spilled.summary.items() if k not in timing}
+    kept_files, spilled_files = kept.write(tmp_path / "kept.csv"), spilled.write(tmp_path / "spilled.csv")
+    assert [p.read_bytes() for p in kept_files] == [p.read_bytes() for p in spilled_files]
