@@ -156,9 +156,10 @@ def energy_balance(record: RunRecord, reference: Reference | None, finite: bool)
         if e0 is None:
             e0 = float(energy[0])
         final = float(energy[-1])
-        highest = max(highest, float(np.max(energy)))
-        drift = max(drift, float(np.max(np.abs(energy - e0))))
-        envelope.add(first, t, energy)
+        highest = float(np.max((highest, np.max(energy))))  # NaN once a value is
+        if finite:
+            drift = max(drift, float(np.max(np.abs(energy - e0))))
+            envelope.add(first, t, energy)
     if e0 is None:
         return None
     balance = {
