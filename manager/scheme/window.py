@@ -95,6 +95,9 @@ class RowWindow:
             return self.array[:rows]
         held = min(self.array.shape[0], max(rows - self.offset, 0))
         self._file.write(self.array[:held].tobytes())
+        self.array[:] = self.fill
+        for start in range(self.offset + held, rows, len(self.array)):  # rows never written (a run that stopped early)
+            self._file.write(self.array[:min(len(self.array), rows - start)].tobytes())
         self._file.close()
         self._file = None
         self.array = self.array[:0]

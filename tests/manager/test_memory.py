@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import zencosim
-from zencosim.manager.scheme.window import BLOCK_ROWS
+from zencosim.manager.scheme.window import BLOCK_ROWS, RowWindow, Spill, read_rows, row_blocks
 
 # two_mass_damped at 1 ms: before the arrays were bounded a run held ~0.45 kB per macro-step, so 10 s -> 200 s
 # grew the peak by ~85 MB. Bounded, what a run holds does not depend on its length once it is longer than a
@@ -40,6 +40,25 @@ def _peak_rss(duration_s: float, bus: str) -> dict:
                           timeout=600)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("written", [3 * BLOCK_ROWS + 5, 100])  # every row; a run that stopped early
+def test_a_spilled_window_gives_the_array_written_and_reads_columns_from_its_file(written):
+    rows, history = 3 * BLOCK_ROWS + 5, 4
+    values = np.random.default_rng(15).normal(size=(rows, 3))
+    expected = np.full((rows, 3), np.nan)
+    expected[:written] = values[:written]
+    window = RowWindow(rows, 3, float, np.nan, history, Spill(), "test")
+    for row in range(written):
+        if row >= window.end:
+            window.advance(row)
+        window.array[row - window.offset] = values[row]
+        assert np.array_equal(window.row(max(row - history + 1, 0)), values[max(row - history + 1, 0)])
+    spilled = window.finish()
+    assert isinstance(spilled, np.memmap) and spilled.tobytes() == expected.tobytes()
+    column = spilled[::3, 1]  # a view: read from the file, not through the mapping
+    assert read_rows(column, 5, 2000).tobytes() == expected[::3, 1][5:2000].tobytes()
+    assert np.concatenate([block for _, block in row_blocks(column)]).tobytes() == expected[::3, 1].tobytes()
 
 
 @pytest.mark.slow
