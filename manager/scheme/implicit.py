@@ -277,7 +277,8 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
         if tick == 0:
             first_release_ns = released_ns
         predicted = yield from exchanges.run(tick, subs, tick, 0)
-        newest_first = history.array[max(0, tick - k) - history.offset:tick + 1 - history.offset][::-1]  # e_N … e_{N-k}
+        # e_N … e_{N-k}, a copy: the corrector's candidate may move the window (manager.scheme.window)
+        newest_first = history.array[max(0, tick - k) - history.offset:tick + 1 - history.offset][::-1].copy()
         e_predicted = extrapolation_weights(len(newest_first) - 1) @ newest_first
         sensitivity = yield from exchanges.derivatives(predicted, e_predicted,
                                                        lambda e, targets: exchanges.corrector(tick, e, targets))
