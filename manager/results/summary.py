@@ -44,8 +44,8 @@ def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
 def streamed_nrms(x: np.ndarray, x_ref: np.ndarray, ratio: int) -> float:
     """:func:`nrms` of ``x`` (a sample every ``ratio`` base steps) against ``x_ref`` (a sample every base step),
     read in blocks (``manager.scheme.window.row_blocks``): the sums of one pass, so a long run's arrays need
-    not be in memory. Equal to ``nrms(x, x_ref[::ratio])`` for up to ``BLOCK_ROWS`` samples, and up to the
-    rounding of the sums beyond."""
+    not be in memory. Equal to ``nrms(x, x_ref[::ratio])`` for arrays in memory (one block), and up to the
+    rounding of the sums for a spilled run's."""
     squares, count, high, low = 0.0, 0, -math.inf, math.inf
     for first, values in row_blocks(x):
         reference = read_rows(x_ref[::ratio], first, first + len(values))

@@ -111,8 +111,13 @@ class RowWindow:
 def row_blocks(array: np.ndarray, start: int = 0, stop: int | None = None,
                block: int = BLOCK_ROWS) -> Iterator[tuple[int, np.ndarray]]:
     """``(first row, rows)`` of ``array[start:stop]`` in blocks of ``block`` rows, each read as
-    :func:`read_rows` reads it."""
+    :func:`read_rows` reads it; an array held in memory in one block (a view: it costs nothing, and sums over
+    it are numpy's, as they were before runs could spill)."""
     stop = len(array) if stop is None else stop
+    if _spilled_base(array) is None:
+        if stop > start:
+            yield start, array[start:stop]
+        return
     for first in range(start, stop, block):
         yield first, read_rows(array, first, min(first + block, stop))
 

@@ -63,14 +63,17 @@ def test_a_spilled_window_gives_the_array_written_and_reads_columns_from_its_fil
 
 @pytest.mark.slow
 @pytest.mark.multiprocess
-@pytest.mark.timeout(900)
-@pytest.mark.parametrize("bus", ["inproc", "zenoh"])
-def test_peak_memory_of_a_200_s_run_is_that_of_a_10_s_run(bus):
-    short, long = _peak_rss(10.0, bus), _peak_rss(200.0, bus)
-    assert short["stable"] and long["stable"]
-    assert long["self_kb"] - short["self_kb"] < GROWTH_BOUND_KB, (short, long)
-    if bus == "zenoh":  # the largest subsystem process
-        assert long["children_kb"] - short["children_kb"] < GROWTH_BOUND_KB, (short, long)
+@pytest.mark.timeout(1800)
+def test_peak_memory_of_a_200_s_run_is_that_of_a_10_s_run_on_both_buses_with_one_digest():
+    runs = {(bus, duration): _peak_rss(duration, bus) for bus in ("inproc", "zenoh") for duration in (10.0, 200.0)}
+    for bus in ("inproc", "zenoh"):
+        short, long = runs[bus, 10.0], runs[bus, 200.0]
+        assert short["stable"] and long["stable"]
+        assert long["self_kb"] - short["self_kb"] < GROWTH_BOUND_KB, (bus, short, long)
+        if bus == "zenoh":  # the largest subsystem process
+            assert long["children_kb"] - short["children_kb"] < GROWTH_BOUND_KB, (short, long)
+    for duration in (10.0, 200.0):  # spilled on both buses, and bit-identical
+        assert runs["inproc", duration]["digest"] == runs["zenoh", duration]["digest"]
 
 
 @pytest.mark.parametrize("scene, overrides", [
@@ -90,8 +93,20 @@ def test_a_spilled_run_gives_the_kept_runs_arrays_digest_and_summary(scene, over
     assert kept.record.residual_energy.tobytes() == spilled.record.residual_energy.tobytes()
     for log, spilled_log in zip(kept.record.corrections, spilled.record.corrections):
         assert log.force.tobytes() == spilled_log.force.tobytes() and log.work.tobytes() == spilled_log.work.tobytes()
-    timing = ("timing",)  # wall clock: differs between any two runs
-    assert {k: v for k, v in kept.summary.items() if k not in timing} == \
-        {k: v for k, v in spilled.summary.items() if k not in timing}
+    # the summary read in blocks: equal up to the rounding of sums over blocks instead of numpy's pairwise sums
+    # (1e-9 relative is far above that and far below any figure's meaning); the wall-clock timing differs anyway
+    for key in set(kept.summary) - {"timing"}:
+        _assert_close(kept.summary[key], spilled.summary[key], key)
     kept_files, spilled_files = kept.write(tmp_path / "kept.csv"), spilled.write(tmp_path / "spilled.csv")
     assert [p.read_bytes() for p in kept_files] == [p.read_bytes() for p in spilled_files]
+
+
+def _assert_close(a, b, where: str) -> None:
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for key in a:
+            _assert_close(a[key], b[key], f"{where}.{key}")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-300, nan_ok=True), where
+    else:
+        assert a == b, where
