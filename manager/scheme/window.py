@@ -9,16 +9,15 @@ enough to fit (``rows <= history + block``) is never spilled: its window is the 
 When the run ends, :meth:`RowWindow.finish` gives the whole array: the window itself, or the spill file as
 an ``np.memmap`` (read lazily, page by page: mapping it costs no memory). Whoever reads a finished array
 to its end reads it in blocks with :func:`row_blocks`, which reads a spilled array from its file
-(``np.fromfile``) and so keeps none of it resident. Spill files live in a temporary directory
-(``Spill``, under ``TMPDIR``) that is removed when the last array mapping it is gone.
+(``os.pread``) and so keeps none of it resident. Spill files are unnamed temporary files (under
+``TMPDIR``): they are gone once the last array that maps one is, or the process ends, however it ends.
 """
 from __future__ import annotations
 
 import mmap
+import os
 import tempfile
-import weakref
-from pathlib import Path
-from typing import Iterator
+from typing import BinaryIO, Iterator
 
 import numpy as np
 
@@ -32,24 +31,17 @@ BLOCK_ROWS = 8_192  # rows written to a spill file at once, and read back at onc
 
 
 class Spill:
-    """The temporary directory of one run's spill files."""
+    """Where one run's spill files go: unnamed temporary files in ``folder`` (default: ``TMPDIR``)."""
 
-    def __init__(self) -> None:
-        self._folder = tempfile.TemporaryDirectory(prefix="zencosim-run-")
-        self.path = Path(self._folder.name)
-        self._count = 0
+    def __init__(self, folder: str | None = None) -> None:
+        self.folder = folder
 
-    def new_file(self, label: str) -> Path:
-        self._count += 1
-        return self.path / f"{self._count:03d}-{label}.bin"
-
-    def keep_alive(self, array: np.ndarray) -> None:
-        """Remove the directory only once ``array`` (a mapping of one of its files) is gone."""
-        weakref.finalize(array, lambda folder=self._folder: None)  # holds the folder while the array lives
+    def new_file(self, label: str) -> BinaryIO:
+        return tempfile.TemporaryFile(prefix=f"zencosim-{label}-", dir=self.folder)
 
 
 def spill_for(n_ticks: int, keep: bool | None) -> Spill | None:
-    """The spill directory of a run of ``n_ticks`` base macro-steps, or None when it keeps everything in memory:
+    """The spill of a run of ``n_ticks`` base macro-steps, or None when it keeps everything in memory:
     ``keep`` True (always keep), False (always spill), None (keep runs of at most ``KEEP_STEPS`` steps)."""
     if keep is None:
         keep = n_ticks <= KEEP_STEPS
@@ -69,10 +61,7 @@ class RowWindow:
         self.array = np.full((capacity, *self.row_shape), fill, dtype=self.dtype)
         self.offset = 0  # the row of array[0]
         self.end = capacity  # the first row past the window
-        self.spill, self._file, self._path = spill, None, None
-        if capacity < rows:
-            self._path = spill.new_file(label)
-            self._file = open(self._path, "wb")
+        self._file = spill.new_file(label) if capacity < rows else None
 
     def advance(self, row: int) -> None:
         """Make ``row`` (at or after the window's start, at most one block past its end) writable."""
@@ -98,13 +87,13 @@ class RowWindow:
         self.array[:] = self.fill
         for start in range(self.offset + held, rows, len(self.array)):  # rows never written (a run that stopped early)
             self._file.write(self.array[:min(len(self.array), rows - start)].tobytes())
-        self._file.close()
-        self._file = None
+        self._file.flush()
+        spilled, self._file = self._file, None
         self.array = self.array[:0]
         if rows == 0:
             return np.empty((0, *self.row_shape), dtype=self.dtype)
-        mapped = np.memmap(self._path, dtype=self.dtype, mode="r", shape=(rows, *self.row_shape))
-        self.spill.keep_alive(mapped)
+        mapped = np.memmap(spilled, dtype=self.dtype, mode="r", shape=(rows, *self.row_shape))
+        mapped.spill_file = spilled  # read_rows reads it; it closes when the array is gone
         return mapped
 
 
@@ -131,14 +120,14 @@ def read_rows(array: np.ndarray, start: int, stop: int) -> np.ndarray:
         return view
     low, high = byte_bounds(view)
     base_low, _ = byte_bounds(mapped)
-    data = np.fromfile(mapped.filename, dtype=np.uint8, count=high - low, offset=mapped.offset + low - base_low)
+    data = os.pread(mapped.spill_file.fileno(), high - low, mapped.offset + low - base_low)
     return np.ndarray(view.shape, view.dtype, buffer=data, strides=view.strides).copy()
 
 
 def _spilled_base(array: np.ndarray) -> np.memmap | None:
     """The spilled array (``RowWindow.finish``) that ``array`` is or views, or None."""
     while array is not None and isinstance(array, np.ndarray):
-        if isinstance(array, np.memmap) and isinstance(array.base, mmap.mmap):
+        if isinstance(array, np.memmap) and isinstance(array.base, mmap.mmap) and hasattr(array, "spill_file"):
             return array
         array = array.base
     return None
