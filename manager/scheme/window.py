@@ -31,13 +31,10 @@ BLOCK_ROWS = 8_192  # rows written to a spill file at once, and read back at onc
 
 
 class Spill:
-    """Where one run's spill files go: unnamed temporary files in ``folder`` (default: ``TMPDIR``)."""
-
-    def __init__(self, folder: str | None = None) -> None:
-        self.folder = folder
+    """Where one run's arrays go as it runs: unnamed temporary files in ``TMPDIR``."""
 
     def new_file(self, label: str) -> BinaryIO:
-        return tempfile.TemporaryFile(prefix=f"zencosim-{label}-", dir=self.folder)
+        return tempfile.TemporaryFile(prefix=f"zencosim-{label}-")
 
 
 def spill_for(n_ticks: int, keep: bool | None) -> Spill | None:
