@@ -7,7 +7,7 @@ polynomial forces up to degree 15; for a smooth force of frequency ω its relati
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 from scipy.linalg import expm
@@ -18,18 +18,25 @@ GAUSS_POINTS = 8
 def linear_response(A: np.ndarray, z0: np.ndarray, step: float, n_steps: int,
                     B: np.ndarray | None = None, force: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
     """States ``z(k step)`` for ``k = 0 … n_steps`` of ``z' = A z + B f(t)``, shape ``(n_steps + 1, len(z0))``."""
+    return np.array(list(linear_response_states(A, z0, step, n_steps, B, force)))
+
+
+def linear_response_states(A: np.ndarray, z0: np.ndarray, step: float, n_steps: int, B: np.ndarray | None = None,
+                           force: Callable[[float], np.ndarray] | None = None) -> Iterator[np.ndarray]:
+    """The states of :func:`linear_response`, one at a time (a long run's need not all be in memory)."""
     Phi = expm(A * step)
-    Z = np.empty((n_steps + 1, len(z0)))
-    Z[0] = z0
+    z = np.asarray(z0, dtype=float)
+    yield z
     if force is None:
-        for k in range(n_steps):
-            Z[k + 1] = Phi @ Z[k]
-        return Z
+        for _ in range(n_steps):
+            z = Phi @ z
+            yield z
+        return
     nodes, weights = np.polynomial.legendre.leggauss(GAUSS_POINTS)
     offsets = 0.5 * step * (nodes + 1.0)
     kernels = [0.5 * step * w * expm(A * (step - s)) @ B for s, w in zip(offsets, weights)]
     for k in range(n_steps):
         t = k * step
         forced = sum(G @ np.atleast_1d(force(t + s)) for G, s in zip(kernels, offsets))
-        Z[k + 1] = Phi @ Z[k] + forced
-    return Z
+        z = Phi @ z + forced
+        yield z

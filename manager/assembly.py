@@ -14,6 +14,7 @@ from zencosim.manager.scheme.correction import build_correctors
 from zencosim.manager.scheme.implicit import compile_joint, implicit
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.pacing import SPIN_ALONE_NS, Pacer, ThreadScheduling
+from zencosim.manager.scheme.window import spill_for
 from zencosim.manager.wire.status import StatusReport
 from zencosim.subsystems.ports import Attachments
 from zencosim.subsystems.subsystem import Subsystem
@@ -45,22 +46,26 @@ def plan_scene(scene: Scene) -> tuple[Plan, dict]:
 
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
                 progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
-                spin_ns: int = SPIN_ALONE_NS, local: frozenset[int] | None = None, cpu: int | None = None,
-                who: str = "zencosim"):
+                spin_ns: int = SPIN_ALONE_NS, local: frozenset[int] | None = None, keep: bool | None = None,
+                cpu: int | None = None, who: str = "zencosim"):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
     recorded run); ``spin_ns``: see ``manager.scheme.pacing``; ``local``: the subsystems this process computes
-    commands for (``manager.scheme.jacobi``; None: all; the implicit scheme always follows all); ``cpu``: the
-    CPU the pacing thread keeps to when the scene sets ``manager.realtime_affinity`` (``who`` names the
-    process in a warning when a real-time lever is refused)."""
+    commands for (``manager.scheme.jacobi``; None: all; the implicit scheme always follows all); ``keep``: hold the
+    run's arrays whole in memory (True), spill them to files as the run goes (False), or spill those of a
+    long run only (None; ``manager.scheme.window.spill_for``); ``cpu``: the CPU the pacing thread keeps to when
+    the scene sets ``manager.realtime_affinity`` (``who`` names the process in a warning when a real-time lever
+    is refused)."""
     levers = scene.manager
     scheduling = (ThreadScheduling(levers.realtime_priority, cpu if levers.realtime_affinity else None, who)
                   if levers.realtime_priority or levers.realtime_affinity else None)
-    pacer = Pacer(plan.base_step_ns, plan.n_ticks, start_ns, spin_ns, scheduling) if realtime else None
+    pacer = Pacer(plan.base_step_ns, start_ns, spin_ns, scheduling) if realtime else None
+    spill = spill_for(plan.n_ticks, keep)
     if scene.manager.scheme == "implicit":
-        return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status)
-    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local), status, local)
+        return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
+    return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,
+                  spill)
 
 
 def process_scope(scene: Scene, plan: Plan, name: str) -> tuple[frozenset[int] | None, frozenset[str]]:

@@ -20,6 +20,7 @@ from zencosim.manager.results.reference import analytic_reference, monolithic_re
 from zencosim.manager.results.summary import summarize
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.window import spill_for
 from zencosim.manager.wire.status import StatusReport
 
 BUSES = ("inproc", "zenoh")
@@ -57,11 +58,14 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             progress: Callable[[int], None] | None = None, zenoh_options: ZenohOptions = ZenohOptions(),
             listen: str | None = None, external: tuple[str, ...] = (),
             announce: Callable[[str], None] | None = None,
-            recorder: RunRecorder | None = None, routers: tuple[str, ...] = ()) -> tuple[RunRecord, float]:
+            recorder: RunRecorder | None = None, routers: tuple[str, ...] = (),
+            keep: bool | None = None) -> tuple[RunRecord, float]:
     """Run the co-simulation; return the record and the wall-clock time [s] of the stepping loop.
 
     With ``recorder``, the recording is finished before this returns or raises (its ``result`` says
-    how the run ended) and released in any case."""
+    how the run ended) and released in any case. ``keep``: hold the record's arrays in memory (True), spill
+    them to temporary files as the run goes (False), or spill those of a run longer than ``KEEP_STEPS``
+    macro-steps (None; ``manager.scheme.window``)."""
     if bus not in BUSES:
         raise ValueError(f"unknown bus {bus!r}; expected one of {', '.join(BUSES)}")
     realtime = scene.manager.realtime if realtime is None else realtime
@@ -77,14 +81,14 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             started = True
         tap = recorder
         if bus == "inproc":
-            scheme = make_scheme(scene, plan, realtime, None, progress, status, cpu=0)
+            scheme = make_scheme(scene, plan, realtime, None, progress, status, keep=keep, cpu=0)
             start = time.perf_counter()
             record = run_in_process(scheme, plan, subsystems, tap)
             wall_s = time.perf_counter() - start
         else:
             with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id,
                           routers=routers) as zbus:
-                record, wall_s = zbus.drive(realtime, progress, status, tap)
+                record, wall_s = zbus.drive(realtime, progress, status, tap, keep)
         if recorder is not None:
             recorder.finish("completed")
         return record, wall_s
@@ -100,20 +104,23 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             recorder.close()
 
 
-def references(scene: Scene) -> tuple[dict, str | None]:
-    """The references the scene asks for, or why there are none."""
+def references(scene: Scene, keep: bool | None = None) -> tuple[dict, str | None]:
+    """The references the scene asks for, or why there are none; ``keep`` as in ``execute`` (a long run's
+    references are spilled to temporary files as they are computed)."""
     if scene.outputs.reference == "none":
         return {}, None
+    spill = spill_for(scene.manager.duration_ns // scene.manager.macro_step_ns, keep)
     if scene.outputs.reference == "solve_ivp":
-        return {"solve_ivp": solve_ivp_reference(scene)}, None
+        return {"solve_ivp": solve_ivp_reference(scene, spill=spill)}, None
     reason = monolithic_unavailable(scene)
     if reason:
         return {}, f"no analytic reference: {reason}"
-    return {"analytic": analytic_reference(scene), "monolithic": monolithic_reference(scene)}, None
+    return {"analytic": analytic_reference(scene, spill), "monolithic": monolithic_reference(scene, spill)}, None
 
 
-def summarize_run(scene: Scene, record: RunRecord, bus: str, wall_s: float, recorder: RunRecorder | None = None) -> dict:
+def summarize_run(scene: Scene, record: RunRecord, bus: str, wall_s: float, recorder: RunRecorder | None = None,
+                  keep: bool | None = None) -> dict:
     """The summary of a run that ``execute`` returned (see ``manager.results.summary``), against the
-    references the scene asks for."""
-    refs, note = references(scene)
+    references the scene asks for (``keep`` as in ``execute``)."""
+    refs, note = references(scene, keep)
     return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)

@@ -22,7 +22,7 @@ from zencosim.manager.bus.security import SecurityError as SecurityError
 from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.output_files import OutputFileError as OutputFileError
-from zencosim.manager.results.tables import Signal, Table, record_signals, tables, write_tables
+from zencosim.manager.results.tables import Signal, Table, record_signals, record_tables, tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import Scene, bundled_scene_names
 from zencosim.manager.scene.load import SceneError as SceneError
@@ -57,7 +57,7 @@ def load_scene(scene: str | Path, overrides: Mapping[str, object] | Sequence[str
 class _Signals:
     """Named signals with their time vectors and units, as tables and files."""
 
-    signals: dict[str, Signal]  # by name: every output of every subsystem, then each bond's residuals
+    signals: Mapping[str, Signal]  # by name: every output of every subsystem, then each bond's residuals
 
     def signal(self, name: str) -> Signal:
         """The signal ``name`` (``"x2"``, ``"S1.energy"``, ``"delta_p.c1"``)."""
@@ -85,6 +85,11 @@ class Result(_Signals):
     summary: dict  # as ``zencosim run --summary`` writes it (docs/summary.md)
     record: RunRecord  # the run as the scheme recorded it, on the base macro-step grid
 
+    def write(self, path: str | Path) -> list[Path]:
+        """Write every signal to ``path`` (.csv, .npz, .parquet); one file per grid of a multi-rate run, block
+        by block (a long run's arrays are read from their files). Returns the files written."""
+        return write_tables(record_tables(self.record), path)
+
     @property
     def digest(self) -> str:
         """sha256 of every output trajectory: equal digests mean bit-identical runs."""
@@ -101,13 +106,17 @@ class Recording(_Signals):
 
 
 def run(scene: Scene | str | Path, bus: str = "inproc", *, record: str | Path | None = None,
-        realtime: bool | None = None, progress: Callable[[int], None] | None = None) -> Result:
+        realtime: bool | None = None, progress: Callable[[int], None] | None = None,
+        keep: bool | None = None) -> Result:
     """Run ``scene`` (a loaded :class:`Scene`, or a bundled name or file loaded as it is) on ``bus``.
 
     ``record``: write every message of the run to this MCAP file. ``realtime``: pace macro-steps to
     the wall clock (default: the scene's ``manager.realtime``). ``progress(step)`` is called every few
     hundred macro-steps. Over Zenoh, the scene's ``manager.zenoh_config`` configures every session
-    (:class:`SecurityError` when that file cannot be used). Raises :class:`SceneError` for a scene that
+    (:class:`SecurityError` when that file cannot be used). ``keep``: hold the run's arrays in memory (True),
+    or spill them to temporary files as the run goes, so that memory does not grow with the run's length
+    (False); by default runs of up to ``KEEP_STEPS`` (100 000) macro-steps are held, longer ones spilled. A
+    spilled run's signals read their files as they are used. Raises :class:`SceneError` for a scene that
     cannot run and :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed.
     """
     if not isinstance(scene, Scene):
@@ -122,8 +131,8 @@ def run(scene: Scene | str | Path, bus: str = "inproc", *, record: str | Path | 
     if bus == "zenoh":  # the scene's manager.zenoh_config, if any (docs/security.md)
         security = ZenohSecurity().checked_with_scene(scene.manager.zenoh_config, scene.path)
         options = {"zenoh_options": ZenohOptions(security=security)}
-    record_, wall_s = execute(scene, bus, realtime, progress, recorder=recorder, **options)
-    summary = summarize_run(scene, record_, bus, wall_s, recorder)
+    record_, wall_s = execute(scene, bus, realtime, progress, recorder=recorder, keep=keep, **options)
+    summary = summarize_run(scene, record_, bus, wall_s, recorder, keep)
     return Result(record_signals(record_), scene, bus, summary, record_)
 
 

@@ -8,11 +8,36 @@ from __future__ import annotations
 import numpy as np
 
 from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.window import read_rows, row_blocks
+
+# lower edges [ns] of the bins of a long run's step statistics: 1 ns to ~1000 s, each 0.1 % wider than the last
+HISTOGRAM_EDGES_NS = np.unique(np.round(np.geomspace(1.0, 1e12, int(np.log(1e12) / np.log(1.001)) + 1)))
 
 
 def _percentiles_us(values_ns: np.ndarray) -> dict[str, float]:
-    return {"median": float(np.median(values_ns)) * 1e-3, "p99": float(np.percentile(values_ns, 99)) * 1e-3,
-            "max": float(np.max(values_ns)) * 1e-3}
+    """Median, 99th percentile and maximum [µs]: exact for an array in memory; for a long run's spilled array
+    (``manager.scheme.window``) read in blocks into a histogram whose bins are 0.1 % wide (``HISTOGRAM_EDGES_NS``),
+    so the percentiles are within 0.1 % (and 1 ns) of the exact ones and the maximum is exact."""
+    if not isinstance(values_ns, np.memmap):
+        return {"median": float(np.median(values_ns)) * 1e-3, "p99": float(np.percentile(values_ns, 99)) * 1e-3,
+                "max": float(np.max(values_ns)) * 1e-3}
+    return _histogram_percentiles_us(block for _, block in row_blocks(values_ns))
+
+
+def _histogram_percentiles_us(blocks) -> dict[str, float]:
+    counts = np.zeros(len(HISTOGRAM_EDGES_NS) + 1, dtype=np.int64)
+    highest = -np.inf
+    for block in blocks:
+        counts += np.bincount(np.searchsorted(HISTOGRAM_EDGES_NS, block, side="right"), minlength=len(counts))
+        highest = max(highest, float(np.max(block)))
+    cumulative = np.cumsum(counts)
+    lower_edges = np.concatenate(([-np.inf], HISTOGRAM_EDGES_NS))
+
+    def percentile(q: float) -> float:
+        where = int(np.searchsorted(cumulative, q / 100 * (cumulative[-1] - 1), side="right"))
+        return min(max(float(lower_edges[where]), 0.0), highest)
+
+    return {"median": percentile(50) * 1e-3, "p99": percentile(99) * 1e-3, "max": highest * 1e-3}
 
 
 def step_timing(record: RunRecord) -> dict:
@@ -20,9 +45,13 @@ def step_timing(record: RunRecord) -> dict:
     between consecutive releases, and in real-time mode lateness (release minus deadline) and missed
     deadlines. Over Zenoh every subsystem reports these of its own replica (``subsystems.process.host``)."""
     timing = {}
-    steps = np.diff(record.send_time_ns)
-    if len(steps):
-        per_step = _percentiles_us(steps)
+    releases = record.send_time_ns
+    if len(releases) > 1:
+        if isinstance(releases, np.memmap):  # a long run's, read in blocks (its steps: differences across blocks)
+            per_step = _histogram_percentiles_us(np.diff(read_rows(releases, max(first - 1, 0), first + len(block)))
+                                                 for first, block in row_blocks(releases))
+        else:
+            per_step = _percentiles_us(np.diff(releases))
         timing.update(step_us_median=per_step["median"], step_us_p99=per_step["p99"], step_us_max=per_step["max"])
     if record.lateness_ns is not None:
         late = _percentiles_us(record.lateness_ns)

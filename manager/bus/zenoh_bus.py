@@ -264,13 +264,14 @@ class ZenohBus:
 
     # -- running ---------------------------------------------------------------------------------
     def drive(self, realtime: bool = False, progress=None, status: StatusReport | None = None,
-              tap: Tap | None = None) -> tuple[RunRecord, float]:
+              tap: Tap | None = None, keep: bool | None = None) -> tuple[RunRecord, float]:
         """Start the run, follow it to the end; return its record and the wall-clock time [s].
 
         The subsystems pace their replicas (``realtime``); the manager's replica follows the batches of
         replies unpaced, and the record's timing is what the subsystems report of their own steps.
-        ``tap`` sees every message of the manager's replica (a recorded run)."""
-        scheme = make_scheme(self.scene, self.plan, False, None, progress, status)
+        ``tap`` sees every message of the manager's replica (a recorded run); ``keep``: its arrays in memory or
+        spilled (``manager.run.execute``)."""
+        scheme = make_scheme(self.scene, self.plan, False, None, progress, status, keep=keep)
         self._replica = Replica(scheme, self.names, verify=True, tap=tap)
         self._done = threading.Event()
         self._batches: queue.SimpleQueue = queue.SimpleQueue()  # (subsystem, batch of replies); None ends

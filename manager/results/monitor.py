@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from zencosim.manager.scheme.window import row_blocks
+
 
 @dataclass(frozen=True)
 class SpikeInterval:
@@ -42,49 +44,82 @@ class SpikeInterval:
                 "points": self.points}
 
 
+class SpikeMonitor:
+    """The detector of the module text, fed a bond's δP block by block, in time order."""
+
+    def __init__(self, window: float, threshold: float, merge_gap: float) -> None:
+        self.window, self.threshold, self.merge_gap = window, threshold, merge_gap
+        self.history: deque[tuple[float, float]] = deque()  # (time, |δP|) of the unflagged points in the window
+        self.ordered: list[float] = []  # the same magnitudes, sorted (a running median in O(log n) + memmove)
+        self.start: float | None = None
+        self.intervals: list[SpikeInterval] = []
+        self.open: list | None = None  # the interval being grown: [start, end, peak time, peak, points]
+
+    def flags(self, t: np.ndarray, p_res: np.ndarray) -> np.ndarray:
+        """Boolean mask of the flagged points among the next points ``t`` [s], ``p_res`` [W]."""
+        flagged = np.zeros(len(t), dtype=bool)
+        history, ordered, window = self.history, self.ordered, self.window
+        if self.start is None and len(t):
+            self.start = float(t[0])
+        for i, (time, magnitude) in enumerate(zip(t.tolist(), np.abs(p_res).tolist())):
+            while history and history[0][0] < time - window:
+                del ordered[bisect.bisect_left(ordered, history.popleft()[1])]
+            if time - self.start >= window and ordered:
+                middle = len(ordered) // 2
+                baseline = ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
+                flagged[i] = magnitude > self.threshold * baseline
+            if not flagged[i]:
+                history.append((time, magnitude))
+                bisect.insort(ordered, magnitude)
+        return flagged
+
+    def add(self, t: np.ndarray, p_res: np.ndarray) -> None:
+        """Take the next points; flagged points closer than ``merge_gap`` join one interval."""
+        for i in np.flatnonzero(self.flags(t, p_res)):
+            time, value = float(t[i]), float(p_res[i])
+            if self.open is not None and time - self.open[1] <= self.merge_gap:
+                self.open[1] = time
+                self.open[4] += 1
+                if abs(value) > abs(self.open[3]):
+                    self.open[2], self.open[3] = time, value
+            else:
+                self._close()
+                self.open = [time, time, time, value, 1]
+
+    def finish(self) -> list[SpikeInterval]:
+        """The flagged intervals, in time order."""
+        self._close()
+        return self.intervals
+
+    def _close(self) -> None:
+        if self.open is not None:
+            self.intervals.append(SpikeInterval(*self.open))
+            self.open = None
+
+
 def flag_spikes(t: np.ndarray, p_res: np.ndarray, window: float, threshold: float) -> np.ndarray:
     """Boolean mask of the flagged points of one bond's δP series ``p_res`` [W] at times ``t`` [s]."""
-    flagged = np.zeros(len(t), dtype=bool)
-    history: deque[tuple[float, float]] = deque()  # (time, |δP|) of the unflagged points in the window
-    ordered: list[float] = []  # the same magnitudes, sorted (a running median in O(log n) + memmove)
-    start = float(t[0]) if len(t) else 0.0
-    for i, (time, magnitude) in enumerate(zip(t.tolist(), np.abs(p_res).tolist())):
-        while history and history[0][0] < time - window:
-            del ordered[bisect.bisect_left(ordered, history.popleft()[1])]
-        if time - start >= window and ordered:
-            middle = len(ordered) // 2
-            baseline = ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
-            flagged[i] = magnitude > threshold * baseline
-        if not flagged[i]:
-            history.append((time, magnitude))
-            bisect.insort(ordered, magnitude)
-    return flagged
+    return SpikeMonitor(window, threshold, 0.0).flags(t, p_res)
 
 
 def spike_intervals(t: np.ndarray, p_res: np.ndarray, window: float, threshold: float,
                     merge_gap: float) -> list[SpikeInterval]:
     """The flagged intervals of one bond, in time order."""
-    flagged = np.flatnonzero(flag_spikes(t, p_res, window, threshold))
-    intervals: list[SpikeInterval] = []
-    groups: list[list[int]] = []
-    for i in flagged:
-        if groups and t[i] - t[groups[-1][-1]] <= merge_gap:
-            groups[-1].append(i)
-        else:
-            groups.append([i])
-    for group in groups:
-        peak = group[int(np.argmax(np.abs(p_res[group])))]
-        intervals.append(SpikeInterval(float(t[group[0]]), float(t[group[-1]]), float(t[peak]), float(p_res[peak]),
-                                       len(group)))
-    return intervals
+    monitor = SpikeMonitor(window, threshold, merge_gap)
+    monitor.add(t, p_res)
+    return monitor.finish()
 
 
 def residual_power_spikes(record, settings) -> dict[str, list[SpikeInterval]]:
-    """Flagged intervals of every bond of a run (``settings``: the scene's ``SpikeSettings``)."""
+    """Flagged intervals of every bond of a run (``settings``: the scene's ``SpikeSettings``), its residual
+    power read in blocks."""
     step = record.plan.base_step_ns * 1e-9
     result = {}
     for b, bond in enumerate(record.plan.bonds):
-        ticks = np.flatnonzero(np.isfinite(record.residual_power[:, b]))[1:]  # t0 carries no residual
-        result[bond.name] = spike_intervals(ticks * step, record.residual_power[ticks, b], settings.window,
-                                            settings.threshold, settings.merge_gap)
+        monitor = SpikeMonitor(settings.window, settings.threshold, settings.merge_gap)
+        for first, p_res in row_blocks(record.residual_power[:, b]):
+            ticks = first + np.flatnonzero(np.isfinite(p_res))
+            ticks = ticks[ticks > 0]  # t0 carries no residual
+            monitor.add(ticks * step, p_res[ticks - first])
+        result[bond.name] = monitor.finish()
     return result

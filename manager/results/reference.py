@@ -13,12 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zencosim.compensation.analytic import linear_response
+from zencosim.compensation.analytic import linear_response_states
 from zencosim.manager.analysis.monolithic import build_monolithic
 from zencosim.manager.assembly import build_subsystems
 from zencosim.manager.plan.run_plan import compile_plan
 from zencosim.manager.scene.couplings import RigidJoint
 from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.window import BLOCK_ROWS, RowWindow, Spill
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.integrators.base import state_derivative
 
@@ -31,20 +32,44 @@ SOLVE_IVP_ATOL = 1e-10  # absolute tolerance, in the units of each state (m, m/s
 
 @dataclass(frozen=True)
 class Reference:
-    """Signals and energy of a reference on the base macro-step grid (``n_ticks + 1`` samples)."""
+    """Signals and energy of a reference on the base macro-step grid (``n_ticks + 1`` samples); a long run's
+    are spilled arrays (``manager.scheme.window``), read in blocks."""
 
     kind: str
     signals: dict[str, np.ndarray]
     energy: np.ndarray
 
 
-def _reference(kind: str, outputs: np.ndarray, ports) -> Reference:
-    signals = {p.name: outputs[:, j] for j, p in enumerate(ports) if p.quantity != "energy"}
-    return Reference(kind, signals, outputs[:, -1])
+class _ReferenceRows:
+    """A reference's signals and energy, written tick by tick into windows of their newest values (the whole
+    arrays in memory, or a long run's spilled as they are written)."""
+
+    def __init__(self, n_ticks: int, names: list[str], spill: Spill | None) -> None:
+        self.names = names
+        self.windows = [RowWindow(n_ticks + 1, None, float, np.nan, 1, spill, f"reference-{name}")
+                        for name in (*names, "energy")]
+
+    def put(self, tick: int, values) -> None:
+        """The signals' values at ``tick``, then the energy."""
+        for window, value in zip(self.windows, values):
+            if tick >= window.end:
+                window.advance(tick)
+            window.array[tick - window.offset] = value
+
+    def finish(self, kind: str) -> Reference:
+        arrays = [window.finish() for window in self.windows]
+        return Reference(kind, dict(zip(self.names, arrays[:-1])), arrays[-1])
 
 
-def analytic_reference(scene: Scene) -> Reference:
-    """The exact solution of the monolithic linear system (matrix exponential, free and forced)."""
+def _monolithic_rows(n_ticks: int, ports, spill: Spill | None) -> tuple[_ReferenceRows, list[int]]:
+    """Rows for the monolithic model's outputs (energy last) and the output indices of its signals."""
+    signals = [j for j, p in enumerate(ports) if p.quantity != "energy"]
+    return _ReferenceRows(n_ticks, [ports[j].name for j in signals], spill), [*signals, -1]
+
+
+def analytic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
+    """The exact solution of the monolithic linear system (matrix exponential, free and forced); ``spill``: where
+    a long run's goes as it is computed (``manager.scheme.window``)."""
     mono = build_monolithic(scene)
     model = mono.model
     n = model.n_dof
@@ -62,23 +87,25 @@ def analytic_reference(scene: Scene) -> Reference:
         for j, (_, body) in enumerate(model.external):
             B[n:, j] = Minv[:, body]
         force = lambda t: np.array([effect.force(t) for effect, _ in model.external])  # noqa: E731
-    Z = linear_response(A, model.initial_state(), step, n_ticks, B, force)
     no_inputs = np.empty(0)
-    outputs = np.array([model.outputs_at(k * step, z, no_inputs) for k, z in enumerate(Z)])
-    return _reference("analytic", outputs, model.outputs)
+    rows, columns = _monolithic_rows(n_ticks, model.outputs, spill)
+    for k, z in enumerate(linear_response_states(A, model.initial_state(), step, n_ticks, B, force)):
+        rows.put(k, np.asarray(model.outputs_at(k * step, z, no_inputs), dtype=float)[columns])
+    return rows.finish("analytic")
 
 
-def monolithic_reference(scene: Scene) -> Reference:
-    """The monolithic system integrated with the subsystems' integrator (finest micro-step)."""
+def monolithic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
+    """The monolithic system integrated with the subsystems' integrator (finest micro-step); ``spill`` as in
+    ``analytic_reference``."""
     mono = build_monolithic(scene)
     base = scene.manager.macro_step_ns
     n_ticks = scene.manager.duration_ns // base
     no_inputs = InputPolynomial(np.empty((1, 0)))
-    outputs = np.empty((n_ticks + 1, len(mono.outputs)))
-    outputs[0] = mono.output_values(np.empty(0))
+    rows, columns = _monolithic_rows(n_ticks, mono.outputs, spill)
+    rows.put(0, np.asarray(mono.output_values(np.empty(0)), dtype=float)[columns])
     for k in range(n_ticks):
-        outputs[k + 1] = mono.advance(k * base, (k + 1) * base, no_inputs)
-    return _reference("monolithic", outputs, mono.outputs)
+        rows.put(k + 1, np.asarray(mono.advance(k * base, (k + 1) * base, no_inputs), dtype=float)[columns])
+    return rows.finish("monolithic")
 
 
 class CoupledSystem:
@@ -161,22 +188,34 @@ class JointForce:
             inputs[sub][ports] = force
 
 
-def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL) -> Reference:
+def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL,
+                        spill: Spill | None = None) -> Reference:
     """The scene's coupled equations (:class:`CoupledSystem`) integrated by scipy ``solve_ivp`` (LSODA,
-    tolerances ``rtol``, ``atol``), sampled on the base macro-step grid."""
+    tolerances ``rtol``, ``atol``), sampled on the base macro-step grid. With ``spill`` (a long run) the
+    integration goes block by block of ``BLOCK_ROWS`` macro-steps, each continuing from the last state of the
+    one before (a restart of the integrator: values within the tolerances of the one-pass integration)."""
     from scipy.integrate import solve_ivp  # here: scipy.integrate takes a second to load, which a run without
     system = CoupledSystem(scene)          # this reference (every subsystem process) need not pay
     base = scene.manager.macro_step_ns
     n_ticks = scene.manager.duration_ns // base
-    t = np.arange(n_ticks + 1) * (base * 1e-9)
-    # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
-    # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
-    solution = solve_ivp(system.derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
-                         rtol=rtol, atol=atol, first_step=t[1])
-    if not solution.success:
-        raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
-    samples = [system.outputs(tk, Z) for tk, Z in zip(t, solution.y.T)]
-    signals = {name: np.array([y[sub][j] for y in samples]) for name, (sub, j) in system.plan.signals.items()}
+    step = base * 1e-9
+    names = list(system.plan.signals)
+    rows = _ReferenceRows(n_ticks, names, spill)
     reporting = [s for s in system.plan.subsystems if s.energy_output is not None]
-    energy = np.array([sum(y[s.index][s.energy_output] for s in reporting) for y in samples])
-    return Reference("solve_ivp", signals, energy)
+    block = max(n_ticks, 1) if spill is None else BLOCK_ROWS
+    z = system.z0
+    for first in range(0, max(n_ticks, 1), block):
+        last = min(first + block, n_ticks)
+        t = np.arange(first, last + 1) * step
+        # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
+        # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
+        solution = solve_ivp(system.derivative, (t[0], t[-1]), z, method=SOLVE_IVP_METHOD, t_eval=t,
+                             rtol=rtol, atol=atol, first_step=step)
+        if not solution.success:
+            raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
+        for k in range(0 if first == 0 else 1, len(t)):  # a block's first point is the last of the one before
+            y = system.outputs(t[k], solution.y[:, k])
+            rows.put(first + k, [*(y[sub][j] for sub, j in system.plan.signals.values()),
+                                 sum(y[s.index][s.energy_output] for s in reporting)])
+        z = solution.y[:, -1]
+    return rows.finish("solve_ivp")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+from typing import Iterator
 
 import numpy as np
 
@@ -28,6 +29,7 @@ from zencosim.manager.results.reference import Reference
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.scheme.implicit import compile_joint
+from zencosim.manager.scheme.window import BLOCK_ROWS, read_rows, row_blocks
 
 STABLE_GROWTH_RATE = 0.01  # [1/s]
 ENERGY_WINDOWS = 20
@@ -39,37 +41,89 @@ def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
     return float(np.sqrt(np.mean((x - x_ref) ** 2)) / span)
 
 
+def streamed_nrms(x: np.ndarray, x_ref: np.ndarray, ratio: int) -> float:
+    """:func:`nrms` of ``x`` (a sample every ``ratio`` base steps) against ``x_ref`` (a sample every base step),
+    read in blocks (``manager.scheme.window.row_blocks``): the sums of one pass, so a long run's arrays need
+    not be in memory. Equal to ``nrms(x, x_ref[::ratio])`` for arrays in memory (one block), and up to the
+    rounding of the sums for a spilled run's."""
+    squares, count, high, low = 0.0, 0, -math.inf, math.inf
+    for first, values in row_blocks(x):
+        reference = read_rows(x_ref[::ratio], first, first + len(values))
+        squares += float(np.sum((values - reference) ** 2))
+        count += len(values)
+        high, low = max(high, float(np.max(reference))), min(low, float(np.min(reference)))
+    return float(np.sqrt(squares / count) / (high - low))
+
+
 def digest(record: RunRecord) -> str:
+    """sha256 of every output trajectory (module text), each column read in blocks."""
     h = hashlib.sha256()
     for trajectory in record.trajectories:
         for j in range(trajectory.shape[1]):
-            h.update(np.ascontiguousarray(trajectory[:, j], dtype="<f8").tobytes())
+            for _, values in row_blocks(trajectory[:, j]):
+                h.update(np.ascontiguousarray(values, dtype="<f8").tobytes())
     return h.hexdigest()
 
 
-def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray | None]:
-    """Times [s] and total mechanical energy [J] where every subsystem has a sample: the sum over the
-    subsystems that report their energy (None when none does)."""
+def energy_blocks(record: RunRecord) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+    """``(first sample, times [s], total mechanical energy [J])`` in blocks, at the points where every subsystem
+    has a sample: the sum over the subsystems that report their energy (nothing when none does)."""
     subs = record.plan.subsystems
     period = math.lcm(*(s.ratio for s in subs))
-    ticks = np.arange(0, record.plan.n_ticks + 1, period)
     reporting = [s for s in subs if s.energy_output is not None]
-    energy = sum(record.trajectories[s.index][ticks // s.ratio, s.energy_output] for s in reporting) if reporting else None
-    return ticks * record.plan.base_step_ns * 1e-9, energy
+    if not reporting:
+        return
+    columns = [record.trajectories[s.index][::period // s.ratio, s.energy_output] for s in reporting]
+    samples = record.plan.n_ticks // period + 1
+    for first in range(0, samples, BLOCK_ROWS):
+        stop = min(first + BLOCK_ROWS, samples)
+        ticks = np.arange(first, stop) * period
+        yield first, ticks * record.plan.base_step_ns * 1e-9, sum(read_rows(c, first, stop) for c in columns)
+
+
+def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray | None]:
+    """Times [s] and total mechanical energy [J] where every subsystem has a sample (``energy_blocks``, whole;
+    None when no subsystem reports its energy)."""
+    blocks = list(energy_blocks(record))
+    if not blocks:
+        period = math.lcm(*(s.ratio for s in record.plan.subsystems))
+        return np.arange(0, record.plan.n_ticks + 1, period) * record.plan.base_step_ns * 1e-9, None
+    return np.concatenate([t for _, t, _ in blocks]), np.concatenate([e for _, _, e in blocks])
 
 
 def energy_growth_rate(t: np.ndarray, energy: np.ndarray) -> float:
     """Exponential growth rate [1/s] of the energy envelope over the second half of the run (0 for a run of
     fewer than four energy samples, too short to show growth)."""
-    n_windows = min(ENERGY_WINDOWS, len(t))
-    if n_windows < 4:
-        return 0.0
-    windows = np.array_split(np.arange(len(t)), n_windows)
-    centres = np.array([t[w].mean() for w in windows])
-    peaks = np.array([np.max(np.abs(energy[w])) for w in windows])
-    late = slice(n_windows // 2, None)
-    logs = np.log(np.maximum(peaks[late], np.finfo(float).tiny))
-    return float(np.polyfit(centres[late], logs, 1)[0])
+    envelope = EnergyEnvelope(len(t))
+    envelope.add(0, t, energy)
+    return envelope.growth_rate()
+
+
+class EnergyEnvelope:
+    """The energy's maximum magnitude in each of ``ENERGY_WINDOWS`` windows over ``samples`` samples (the split
+    of ``np.array_split``), filled block by block, and the growth rate it shows (``energy_growth_rate``)."""
+
+    def __init__(self, samples: int) -> None:
+        n_windows = min(ENERGY_WINDOWS, samples)
+        sizes = [samples // n_windows + (w < samples % n_windows) for w in range(n_windows)]
+        self.bounds = np.cumsum([0] + sizes)
+        self.peaks = np.zeros(n_windows)
+        self.time_sums = np.zeros(n_windows)
+        self.sizes = np.array(sizes, dtype=float)
+
+    def add(self, first: int, t: np.ndarray, energy: np.ndarray) -> None:
+        window = np.searchsorted(self.bounds, np.arange(first, first + len(t)), side="right") - 1
+        np.maximum.at(self.peaks, window, np.abs(energy))
+        np.add.at(self.time_sums, window, t)
+
+    def growth_rate(self) -> float:
+        n_windows = len(self.peaks)
+        if n_windows < 4:
+            return 0.0
+        centres = self.time_sums / self.sizes
+        late = slice(n_windows // 2, None)
+        logs = np.log(np.maximum(self.peaks[late], np.finfo(float).tiny))
+        return float(np.polyfit(centres[late], logs, 1)[0])
 
 
 def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Reference], reference: Reference | None,
@@ -82,10 +136,11 @@ def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Refer
         sub = record.plan.subsystems[sub_index]
         entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
         if reference is not None:
-            ref = reference.signals[name][::sub.ratio]
-            entry["nrms"] = nrms(record.signal(name), ref) if finite else None
+            ref = reference.signals[name]
+            entry["nrms"] = streamed_nrms(record.signal(name), ref, sub.ratio) if finite else None
             if "monolithic" in references:
-                entry["nrms_monolithic"] = nrms(references["monolithic"].signals[name][::sub.ratio], ref)
+                entry["nrms_monolithic"] = streamed_nrms(references["monolithic"].signals[name][::sub.ratio], ref,
+                                                         sub.ratio)
         signals[name] = entry
     return signals
 
@@ -93,14 +148,24 @@ def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Refer
 def energy_balance(record: RunRecord, reference: Reference | None, finite: bool) -> dict | None:
     """The ``energy`` entry of the summary; None when no subsystem reports its energy. ``subsystems`` names
     the ones that do, when some do not (an FMU without an energy variable)."""
-    t, energy = total_energy(record)
-    if energy is None:
+    period = math.lcm(*(s.ratio for s in record.plan.subsystems))
+    envelope = EnergyEnvelope(record.plan.n_ticks // period + 1)
+    e0 = final = None
+    highest, drift = -math.inf, 0.0
+    for first, t, energy in energy_blocks(record):
+        if e0 is None:
+            e0 = float(energy[0])
+        final = float(energy[-1])
+        highest = float(np.max((highest, np.max(energy))))  # NaN once a value is
+        if finite:
+            drift = max(drift, float(np.max(np.abs(energy - e0))))
+            envelope.add(first, t, energy)
+    if e0 is None:
         return None
-    e0 = float(energy[0])
     balance = {
-        "initial": e0, "final": float(energy[-1]), "max": float(np.max(energy)),
-        "max_relative_drift": float(np.max(np.abs(energy - e0)) / e0) if e0 > 0 and finite else None,
-        "growth_rate_per_s": energy_growth_rate(t, energy) if finite else math.inf,
+        "initial": e0, "final": final, "max": highest,
+        "max_relative_drift": drift / e0 if e0 > 0 and finite else None,
+        "growth_rate_per_s": envelope.growth_rate() if finite else math.inf,
     }
     if reference is not None:
         balance["reference_final"] = float(reference.energy[-1])
@@ -110,11 +175,25 @@ def energy_balance(record: RunRecord, reference: Reference | None, finite: bool)
     return balance
 
 
+def all_finite(arrays) -> bool:
+    """Every value of every array finite (read in blocks)."""
+    return all(np.isfinite(values).all() for array in arrays for _, values in row_blocks(array))
+
+
+def last_finite(values: np.ndarray) -> float:
+    """The last finite value of a 1-D array (read in blocks; NaN where none is)."""
+    last = math.nan
+    for _, block in row_blocks(values):
+        finite = block[np.isfinite(block)]
+        if len(finite):
+            last = float(finite[-1])
+    return last
+
+
 def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
               reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
-    finite = all(np.isfinite(tr).all() for tr in record.trajectories) and (
-        record.implicit is None or record.implicit.diverged_at is None)
+    finite = all_finite(record.trajectories) and (record.implicit is None or record.implicit.diverged_at is None)
     reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
     signals = signal_accuracy(scene, record, references, reference, finite)
     energy_summary = energy_balance(record, reference, finite)
@@ -136,8 +215,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         "stable": bool(finite and growth < STABLE_GROWTH_RATE),
         "signals": signals,
         "energy": energy_summary,
-        "residual_energy": {bond.name: float(record.residual_energy[np.isfinite(record.residual_energy[:, b]), b][-1])
-                            for b, bond in enumerate(plan.bonds)},
+        "residual_energy": {bond.name: last_finite(record.residual_energy[:, b]) for b, bond in enumerate(plan.bonds)},
         "timing": timing,
         "digest": digest(record),
         "overrides": list(scene.overrides),
@@ -162,11 +240,11 @@ def correction_summary(scene, record: RunRecord) -> dict | None:
     settings = scene.manager.correction
     groups = {}
     for log in record.corrections:
-        norms = np.linalg.norm(log.force, axis=1)
+        max_force = max(float(np.linalg.norm(force, axis=1).max()) for _, force in row_blocks(log.force))
         groups[log.name] = {"subsystem": log.subsystem, "mu": dict(zip(log.bonds, log.mu)),
-                            "work_injected": float(log.work[np.isfinite(log.work)][-1]),
-                            "uncorrected_energy": float(log.uncorrected_energy[np.isfinite(log.uncorrected_energy)][-1]),
-                            "max_force": float(norms.max()), "capped_steps": log.capped_steps, "steps": log.steps}
+                            "work_injected": last_finite(log.work),
+                            "uncorrected_energy": last_finite(log.uncorrected_energy),
+                            "max_force": max_force, "capped_steps": log.capped_steps, "steps": log.steps}
     return {"mu": settings.mu, "nu": settings.nu, "cap_fraction": settings.cap_fraction, "cap_force": settings.cap_force,
             "work_injected": sum(g["work_injected"] for g in groups.values()), "points": groups}
 
@@ -174,19 +252,30 @@ def correction_summary(scene, record: RunRecord) -> dict | None:
 def implicit_summary(scene: Scene, record: RunRecord) -> dict:
     """The ``implicit`` entry of the run summary (docs/summary.md)."""
     joint = compile_joint(scene, record.plan)
-    runs = record.implicit.corrector_runs
     diverged = record.implicit.diverged_at
-    done = runs[:diverged] if diverged is not None else runs
-    side_1, side_2 = (record.trajectories[joint.sides[side]][:, joint.outputs[side]] for side in (0, 1))
-    gaps = np.abs(side_2 - side_1)[:, :2]  # (ticks, position/velocity, axes)
-    finite = np.isfinite(gaps).all(axis=(1, 2))
+    runs = record.implicit.corrector_runs[:diverged] if diverged is not None else record.implicit.corrector_runs
+    counts = np.zeros(0, dtype=np.int64)  # macro-steps by corrector runs
+    for _, block in row_blocks(runs):
+        found = np.bincount(block)
+        counts = np.pad(counts, (0, max(0, len(found) - len(counts))))
+        counts[:len(found)] += found
+    max_gap = np.full(2, -np.inf)  # position, velocity
+    path_1, path_2 = (record.trajectories[joint.sides[side]] for side in (0, 1))
+    for first, rows_1 in row_blocks(path_1):
+        rows_2 = read_rows(path_2, first, first + len(rows_1))
+        gaps = np.abs(rows_2[:, joint.outputs[1]] - rows_1[:, joint.outputs[0]])[:, :2]  # (ticks, position/velocity, axes)
+        finite = np.isfinite(gaps).all(axis=(1, 2))
+        if finite.any():
+            max_gap = np.maximum(max_gap, gaps[finite].max(axis=(0, 2)))
+    done = int(counts.sum())
     return {
         "method": method_name(joint.method),
         "parameters": dataclasses.asdict(joint.method),
         "decomposition": joint.decomposition.name,
         "k": joint.k,
-        "corrector_runs": {"mean": float(done.mean()) if len(done) else None, "max": int(done.max(initial=0)),
-                           "histogram": {int(n): int(c) for n, c in zip(*np.unique(done, return_counts=True))}},
+        "corrector_runs": {"mean": float(np.arange(len(counts)) @ counts / done) if done else None,
+                           "max": int(np.flatnonzero(counts)[-1]) if done else 0,
+                           "histogram": {int(n): int(c) for n, c in enumerate(counts) if c}},
         "diverged_at_s": None if diverged is None else (diverged + 1) * record.plan.base_step_ns * 1e-9,
-        "max_gap": {"position": float(gaps[finite, 0].max()), "velocity": float(gaps[finite, 1].max())},
+        "max_gap": {"position": float(max_gap[0]), "velocity": float(max_gap[1])},
     }

@@ -17,9 +17,12 @@ from __future__ import annotations
 
 import csv
 import math
+import zipfile
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -27,6 +30,7 @@ from zencosim.extras import require
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.window import BLOCK_ROWS, read_rows
 
 TIME_COLUMN = "time [s]"
 FORMATS = (".csv", ".npz", ".parquet")
@@ -69,31 +73,90 @@ class Table:
         return f"{self.step_ns}ns"
 
 
-def run_signals(plan: Plan, trajectories: list[np.ndarray], residual_power: np.ndarray,
-                residual_energy: np.ndarray, last_step: int) -> dict[str, Signal]:
-    """Every signal of a run up to base step ``last_step`` (the last committed one), by name: the outputs of
-    each subsystem in scene and port order, then the residuals of each bond."""
+def _columns(plan: Plan, trajectories: list[np.ndarray], residual_power: np.ndarray, residual_energy: np.ndarray,
+             last_step: int) -> dict[str, tuple]:
+    """Every signal of a run up to base step ``last_step`` by name, as ``(unit, source, every, count, values)``:
+    a sample every ``every`` base steps, ``count`` samples, ``values`` a view of the run's arrays."""
     declared = Counter(port.name for sub in plan.subsystems for port in sub.outputs)
-    base = plan.base_step_ns
-    signals = {}
+    columns = {}
     for sub in plan.subsystems:
-        steps = np.arange(0, last_step + 1, sub.ratio, dtype=np.int64)
+        count = last_step // sub.ratio + 1
         for j, port in enumerate(sub.outputs):
             name = port.name if declared[port.name] == 1 else f"{sub.name}.{port.name}"
-            signals[name] = Signal(name, port.unit, sub.name, steps, trajectories[sub.index][:len(steps), j], base)
+            columns[name] = (port.unit, sub.name, sub.ratio, count, trajectories[sub.index][:count, j])
     for b, bond in enumerate(plan.bonds):
         period = math.lcm(plan.subsystems[bond.force_side].ratio, plan.subsystems[bond.motion_side].ratio)
-        steps = np.arange(0, last_step + 1, period, dtype=np.int64)
         for prefix, unit, values in (("delta_p", "W", residual_power), ("delta_e", "J", residual_energy)):
-            name = f"{prefix}.{bond.name}"
-            signals[name] = Signal(name, unit, bond.name, steps, values[steps, b], base)
-    return signals
+            columns[f"{prefix}.{bond.name}"] = (unit, bond.name, period, last_step // period + 1,
+                                                values[:last_step + 1:period, b])
+    return columns
 
 
-def record_signals(record: RunRecord) -> dict[str, Signal]:
+class RunSignals(Mapping):
+    """The signals of a run by name (``run_signals``), each made when it is asked for: its values are views of
+    the run's arrays (a long run's read from its files as they are used, ``manager.scheme.window``), its
+    steps made once per grid."""
+
+    def __init__(self, columns: dict[str, tuple], base_step_ns: int) -> None:
+        self._columns, self._base = columns, base_step_ns
+        self._steps: dict[tuple[int, int], np.ndarray] = {}
+
+    def __getitem__(self, name: str) -> Signal:
+        unit, source, every, count, values = self._columns[name]
+        steps = self._steps.get((every, count))
+        if steps is None:
+            steps = self._steps[every, count] = np.arange(0, count * every, every, dtype=np.int64)
+        return Signal(name, unit, source, steps, values, self._base)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._columns)
+
+    def __len__(self) -> int:
+        return len(self._columns)
+
+
+def run_signals(plan: Plan, trajectories: list[np.ndarray], residual_power: np.ndarray,
+                residual_energy: np.ndarray, last_step: int) -> RunSignals:
+    """Every signal of a run up to base step ``last_step`` (the last committed one), by name: the outputs of
+    each subsystem in scene and port order, then the residuals of each bond."""
+    return RunSignals(_columns(plan, trajectories, residual_power, residual_energy, last_step), plan.base_step_ns)
+
+
+def record_signals(record: RunRecord) -> RunSignals:
     """Every signal of a run's record (``run_signals``)."""
     return run_signals(record.plan, record.trajectories, record.residual_power, record.residual_energy,
                        record.last_step)
+
+
+class GridTime:
+    """The ``time [s]`` column of a grid, made block by block as it is read (``read_rows``): what
+    ``Signal.time`` gives, ``steps * base_step_ns / 1e9``."""
+
+    def __init__(self, every: int, count: int, base_step_ns: int) -> None:
+        self.every, self.count, self.base_step_ns = every, count, base_step_ns
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __getitem__(self, rows: slice) -> np.ndarray:
+        start, stop, _ = rows.indices(self.count)
+        return np.arange(start * self.every, stop * self.every, self.every, dtype=np.int64) * self.base_step_ns / 1e9
+
+
+def record_tables(record: RunRecord) -> list[Table]:
+    """The tables of a run's record (as ``tables(record_signals(record))``) without reading its arrays: columns
+    are views of them and the time column a :class:`GridTime`, so that ``write_tables`` writes a long run
+    block by block."""
+    plan = record.plan
+    grids: dict[tuple[int, int], tuple[int, int, dict]] = {}
+    columns = _columns(plan, record.trajectories, record.residual_power, record.residual_energy, record.last_step)
+    for name, (unit, _, every, count, values) in columns.items():
+        grid = grids.setdefault((every if count > 1 else 0, count), (every, count, {}))
+        grid[2][f"{name} [{unit}]"] = values
+    result = [Table(every * plan.base_step_ns if count > 1 else plan.base_step_ns,
+                    {TIME_COLUMN: GridTime(every, count, plan.base_step_ns), **columns})
+              for every, count, columns in grids.values()]
+    return sorted(result, key=lambda table: table.step_ns)
 
 
 def tables(signals: dict[str, Signal]) -> list[Table]:
@@ -126,24 +189,55 @@ def table_paths(path: Path, grids: list[Table]) -> list[Path]:
 
 
 def write_tables(grids: list[Table], path: str | Path) -> list[Path]:
-    """Write the tables to ``path`` (format by its suffix, see the module text); return the files written."""
+    """Write the tables to ``path`` (format by its suffix, see the module text), block by block of
+    ``BLOCK_ROWS`` rows; return the files written."""
     path = check_table_path(path)
     paths = table_paths(path, grids)
     for table, target in zip(grids, paths):
         suffix = target.suffix.lower()
-        if suffix == ".csv":
-            _write_csv(table, target)
-        elif suffix == ".npz":
-            np.savez(target, **table.columns)
-        else:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-            pq.write_table(pa.table(table.columns), target)
+        writer = _write_csv if suffix == ".csv" else _write_npz if suffix == ".npz" else _write_parquet
+        writer(table, target)
     return paths
+
+
+def _blocks(table: Table) -> Iterator[list[np.ndarray]]:
+    """The table's columns, ``BLOCK_ROWS`` rows at a time."""
+    rows = len(next(iter(table.columns.values())))
+    for start in range(0, rows, BLOCK_ROWS):
+        yield [read_rows(column, start, min(start + BLOCK_ROWS, rows)) for column in table.columns.values()]
 
 
 def _write_csv(table: Table, path: Path) -> None:
     with open(path, "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(table.columns)
-        writer.writerows(np.column_stack(list(table.columns.values())).tolist())  # floats as repr: exact
+        for block in _blocks(table):
+            writer.writerows(np.column_stack(block).tolist())  # floats as repr: exact
+
+
+def _write_npz(table: Table, path: Path) -> None:
+    """What ``np.savez`` writes (one ``.npy`` per column, uncompressed), each column written in blocks."""
+    rows = len(next(iter(table.columns.values())))
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
+        for j, name in enumerate(table.columns):
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array_header_1_0(member, {"descr": np.dtype("<f8").str, "fortran_order": False,
+                                                              "shape": (rows,)})
+                for start in range(0, rows, BLOCK_ROWS):
+                    column = read_rows(table.columns[name], start, min(start + BLOCK_ROWS, rows))
+                    member.write(np.ascontiguousarray(column, dtype="<f8").tobytes())
+
+
+def _write_parquet(table: Table, path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    writer = None
+    try:
+        for block in _blocks(table):
+            part = pa.table(dict(zip(table.columns, block)))
+            if writer is None:
+                writer = pq.ParquetWriter(path, part.schema)
+            writer.write_table(part)
+    finally:
+        if writer is not None:
+            writer.close()

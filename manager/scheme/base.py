@@ -14,9 +14,11 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
+from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode
 
 PROGRESS_EVERY = 500  # base steps between two progress callbacks
+HISTORY_ROWS = 8  # rows of a trajectory a scheme reads back: Lagrange samples (order + 1 <= 3), correctors (2)
 
 
 class SubsystemFailure(RuntimeError):
@@ -44,8 +46,9 @@ class Corrector(Protocol):
     def adjust(self, sub: int, tick: int, coefficients: np.ndarray) -> np.ndarray:
         """The polynomial subsystem ``sub`` receives at base step ``tick`` (a copy; the argument is kept)."""
 
-    def observe(self, tick: int, trajectories: list[np.ndarray], residual_energy: np.ndarray) -> None:
-        """Outputs due at ``tick`` are committed and the residuals of the bonds due there evaluated."""
+    def observe(self, tick: int, trajectories: list[RowWindow], residual_energy: RowWindow) -> None:
+        """Outputs due at ``tick`` are committed and the residuals of the bonds due there evaluated (the newest
+        rows of each, ``RowWindow.row``)."""
 
     def log(self) -> tuple:
         """What the corrector did, for the run record (one entry per corrected point)."""
@@ -65,7 +68,8 @@ class RunRecord:
     """What one run produced, on the base macro-step grid."""
 
     plan: Plan
-    trajectories: list[np.ndarray]  # per subsystem: outputs at its communication points
+    trajectories: list[np.ndarray]  # per subsystem: outputs at its communication points (a long run's: mapped files,
+    # read them to the end with manager.scheme.window.row_blocks)
     residual_power: np.ndarray  # (n_ticks + 1, n_bonds) [W], NaN where a bond was not evaluated
     residual_energy: np.ndarray  # (n_ticks + 1, n_bonds) [J], cumulative
     send_time_ns: np.ndarray  # (macro-steps executed,) wall clock (perf_counter_ns) when step j's inputs went out
@@ -110,12 +114,13 @@ def check_output(data: bytes, sub: SubsystemPlan, step: int) -> None:
 
 class OutputReader:
     """The committed outputs of one subsystem: its trajectory at its communication points, filled as its replies
-    arrive (their values copied as they are, bytes), and the newest reply with its values as floats."""
+    arrive (their values copied as they are, bytes) into a window of its newest rows (``manager.scheme.window``),
+    and the newest reply with its values as floats."""
 
-    def __init__(self, sub: SubsystemPlan, points: int) -> None:
+    def __init__(self, sub: SubsystemPlan, points: int, spill: Spill | None = None) -> None:
         self.sub = sub
-        self.trajectory = np.full((points, len(sub.outputs)), np.nan, dtype="<f8")
-        self._bytes = memoryview(self.trajectory.view(np.uint8).reshape(-1))  # also for no rows (an untracked source)
+        self.window = RowWindow(points, len(sub.outputs), "<f8", np.nan, HISTORY_ROWS, spill, f"{sub.name}-outputs")
+        self._bytes = memoryview(self.window.array.view(np.uint8).reshape(-1))  # also for no rows (an untracked source)
         self._width = 8 * len(sub.outputs)
         self._unpack = struct.Struct(f"<{len(sub.outputs)}d").unpack_from
         self.newest: tuple[float, ...] = ()  # the values of the newest reply
@@ -124,7 +129,11 @@ class OutputReader:
     def commit(self, data: bytes, step: int) -> None:
         """Take ``sub``'s reply for ``step`` (a named error when it is not one)."""
         check_output(data, self.sub, step)
-        start = step // self.sub.ratio * self._width
+        row = step // self.sub.ratio
+        window = self.window
+        if row >= window.end:
+            window.advance(row)
+        start = (row - window.offset) * self._width
         self._bytes[start:start + self._width] = memoryview(data)[HEADER.size:]
         self.newest = self._unpack(data, HEADER.size)
         self.newest_bytes = data

@@ -27,6 +27,7 @@ import numpy as np
 from zencosim.compensation.energy_correction import EnergyCorrection, correction_coefficient
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scene.settings import CorrectionSettings
+from zencosim.manager.scheme.window import RowWindow, Spill
 
 
 @dataclass
@@ -58,7 +59,7 @@ def bond_mu(plan: Plan, bond_index: int, settings: CorrectionSettings) -> float:
 class _Group:
     """One receiving point and the bonds that act on it."""
 
-    def __init__(self, plan: Plan, bonds: list[int], settings: CorrectionSettings) -> None:
+    def __init__(self, plan: Plan, bonds: list[int], settings: CorrectionSettings, spill: Spill | None) -> None:
         first = plan.bonds[bonds[0]]
         self.bonds = tuple(bonds)
         self.name = "+".join(plan.bonds[b].name for b in bonds)
@@ -74,26 +75,37 @@ class _Group:
         self.mu = tuple(bond_mu(plan, b, settings) for b in bonds)
         dimension = len(self.velocity)
         self.law = EnergyCorrection(settings.nu, settings.cap_fraction, settings.cap_force, dimension)
+        self.subsystem = plan.subsystems[self.motion].name
+        self.bond_names = tuple(plan.bonds[b].name for b in bonds)
         n = plan.n_ticks
-        self.log = CorrectionLog(self.name, plan.subsystems[self.motion].name, tuple(plan.bonds[b].name for b in bonds),
-                                 self.mu, np.zeros((n, dimension)), np.full(n + 1, np.nan), np.full(n + 1, np.nan), 0, 0)
-        self.log.uncorrected_energy[0] = 0.0
-        self.log.work[0] = 0.0
+        history = 2 * self.interval + self.motion_ratio  # rows read back (manager.scheme.window): the last step's force
+        self.force = RowWindow(n, dimension, float, 0.0, history, spill, f"{self.name}-correction-force")
+        self.uncorrected_energy = RowWindow(n + 1, None, float, np.nan, 1, spill, f"{self.name}-uncorrected-energy")
+        self.work_done = RowWindow(n + 1, None, float, np.nan, 1, spill, f"{self.name}-correction-work")
+        self.uncorrected_energy.array[0] = 0.0
+        self.work_done.array[0] = 0.0
+        self.capped_steps = 0
+        self.steps = 0
         self.last_tick = 0
         self.work = 0.0
+
+    def log(self) -> CorrectionLog:
+        return CorrectionLog(self.name, self.subsystem, self.bond_names, self.mu, self.force.finish(),
+                             self.uncorrected_energy.finish(), self.work_done.finish(), self.capped_steps, self.steps)
 
 
 class EnergyCorrector:
     """The :class:`manager.scheme.base.Corrector` of paper 002 §3.2, for every power bond of a plan."""
 
-    def __init__(self, plan: Plan, settings: CorrectionSettings, local: frozenset[int] | None = None) -> None:
+    def __init__(self, plan: Plan, settings: CorrectionSettings, local: frozenset[int] | None = None,
+                 spill: Spill | None = None) -> None:
         """Every receiving point's group, or those of the ``local`` subsystems (a subsystem process corrects
-        its own inputs only)."""
+        its own inputs only); ``spill``: where a long run's logs go (``manager.scheme.window``)."""
         members: dict[tuple, list[int]] = {}
         for b, bond in enumerate(plan.bonds):
             if local is None or bond.motion_side in local:
                 members.setdefault((bond.motion_side, bond.velocity_output), []).append(b)
-        self.groups = [_Group(plan, bonds, settings) for bonds in members.values()]
+        self.groups = [_Group(plan, bonds, settings, spill) for bonds in members.values()]
         self.targets = frozenset(g.motion for g in self.groups)
         self._by_target = {sub: [g for g in self.groups if g.motion == sub] for sub in self.targets}
 
@@ -103,36 +115,42 @@ class EnergyCorrector:
             corrected[0, group.force_input] -= group.law.force
         return corrected
 
-    def observe(self, tick: int, trajectories: list[np.ndarray], residual_energy: np.ndarray) -> None:
+    def observe(self, tick: int, trajectories: list[RowWindow], residual_energy: RowWindow) -> None:
         for group in self.groups:
             ratio = group.motion_ratio
+            for window, last in ((group.force, min(tick + group.interval, group.force.rows) - 1),  # set ahead
+                                 (group.uncorrected_energy, tick), (group.work_done, tick)):
+                if last >= window.end:
+                    window.advance(last)
             if tick % ratio == 0:  # work of the correction over the receiving subsystem's last step (trapezoid)
                 path = trajectories[group.motion]
-                v0, v1 = path[tick // ratio - 1, group.velocity], path[tick // ratio, group.velocity]
-                group.work += float(group.log.force[tick - ratio].dot(v0 + v1)) * 0.5 * group.motion_step
-                group.log.work[tick] = group.work
+                v0, v1 = path.row(tick // ratio - 1)[group.velocity], path.row(tick // ratio)[group.velocity]
+                group.work += float(group.force.row(tick - ratio).dot(v0 + v1)) * 0.5 * group.motion_step
+                group.work_done.array[tick - group.work_done.offset] = group.work
             if tick % group.interval:
                 continue
-            zeta = sum(mu * (residual_energy[tick, b] - residual_energy[group.last_tick, b])
+            zeta = sum(mu * (residual_energy.row(tick)[b] - residual_energy.row(group.last_tick)[b])
                        for mu, b in zip(group.mu, group.bonds))
-            velocity = trajectories[group.motion][tick // ratio, group.velocity]
-            coupling_force = -sum(trajectories[side][tick // side_ratio, outputs]
+            velocity = trajectories[group.motion].row(tick // ratio)[group.velocity]
+            coupling_force = -sum(trajectories[side].row(tick // side_ratio)[outputs]
                                   for side, side_ratio, outputs in group.forces)
             force = group.law.update(float(zeta), velocity, coupling_force, group.macro_step)
-            group.log.force[tick:tick + group.interval] = force
-            group.log.uncorrected_energy[tick] = group.law.uncorrected
-            group.log.capped_steps += group.law.capped
-            group.log.steps += 1
+            start = tick - group.force.offset
+            group.force.array[start:start + group.interval] = force
+            group.uncorrected_energy.array[tick - group.uncorrected_energy.offset] = group.law.uncorrected
+            group.capped_steps += group.law.capped
+            group.steps += 1
             group.last_tick = tick
 
     def log(self) -> tuple[CorrectionLog, ...]:
-        """One log per receiving point."""
-        return tuple(g.log for g in self.groups)
+        """One log per receiving point (once, when the run has ended)."""
+        return tuple(g.log() for g in self.groups)
 
 
-def build_correctors(plan: Plan, settings: CorrectionSettings | None, local: frozenset[int] | None = None) -> tuple:
+def build_correctors(plan: Plan, settings: CorrectionSettings | None, local: frozenset[int] | None = None,
+                     spill: Spill | None = None) -> tuple:
     """The correctors a scene asks for (none when it asks for none), for the ``local`` subsystems' inputs
-    (None: every subsystem's)."""
+    (None: every subsystem's); ``spill`` as in ``manager.scheme.jacobi``."""
     if settings is None or not settings.enabled:
         return ()
-    return (EnergyCorrector(plan, settings, local),)
+    return (EnergyCorrector(plan, settings, local, spill),)

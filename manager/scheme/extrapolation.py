@@ -36,19 +36,21 @@ def extrapolation_matrix(points: int, sample_step_ns: int, offset_ns: int) -> np
 
 
 def lagrange_coefficients(samples: np.ndarray, columns: slice | np.ndarray, newest: int, order: int,
-                          sample_step_ns: int, offset_ns: int = 0) -> np.ndarray:
+                          sample_step_ns: int, offset_ns: int = 0, first: int = 0) -> np.ndarray:
     """Monomial coefficients (one row per power of ``tau``) of the Lagrange polynomials through the
     samples ``newest - points + 1 ... newest`` (rows of ``samples``, oldest first) of ``columns``.
 
     ``points = min(order, newest) + 1``: fewer points while the history is shorter, so the first step
     of a run is always a constant. ``sample_step_ns`` and ``offset_ns`` as in ``extrapolation_matrix``.
     Both schemes build every input polynomial here (Jacobi: paper 002 Fig. 5; implicit predictor and
-    corrector: paper 003 Eqs. 9, 11).
+    corrector: paper 003 Eqs. 9, 11). ``first``: the sample that ``samples[0]`` holds (a window of the newest
+    samples, ``manager.scheme.window``).
     """
     points = min(order, newest) + 1
+    row = newest - first
     if points == 1:
-        return samples[newest:newest + 1, columns]
-    return extrapolation_matrix(points, sample_step_ns, offset_ns).dot(samples[newest - points + 1:newest + 1, columns])
+        return samples[row:row + 1, columns]
+    return extrapolation_matrix(points, sample_step_ns, offset_ns).dot(samples[row - points + 1:row + 1, columns])
 
 
 def evaluate(rows: list, column: int, tau: float) -> float:

@@ -44,6 +44,7 @@ from zencosim.manager.scene.couplings import RigidJoint
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scene.settings import ImplicitSettings
 from zencosim.manager.scheme.base import (
+    HISTORY_ROWS,
     PROGRESS_EVERY,
     Exchange,
     ImplicitRecord,
@@ -52,6 +53,7 @@ from zencosim.manager.scheme.base import (
     expect_reply,
 )
 from zencosim.manager.scheme.extrapolation import lagrange_coefficients
+from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import Kind, encode
 from zencosim.manager.wire.status import StatusReport
 
@@ -121,9 +123,10 @@ class _JointExchanges:
     """The exchanges of one implicit run, around its history ``e_N`` of coupling variables: each is a
     generator that yields :class:`Exchange` requests and returns what the replies say."""
 
-    def __init__(self, plan: Plan, joint: JointPlan, settings: ImplicitSettings) -> None:
+    def __init__(self, plan: Plan, joint: JointPlan, settings: ImplicitSettings, spill: Spill | None = None) -> None:
         self.subs, self.base, self.joint, self.settings = plan.subsystems, plan.base_step_ns, joint, settings
-        self.history = np.full((plan.n_ticks + 1, joint.n_e), np.nan)  # e_N; row N + 1 holds the corrector's candidate
+        # e_N, its newest rows (manager.scheme.window); row N + 1 holds the corrector's candidate
+        self.history = RowWindow(plan.n_ticks + 1, joint.n_e, float, np.nan, joint.k + 2, spill, "coupling-variables")
         self.side_of = {joint.sides[side]: side for side in (0, 1)}
 
     def input_rows(self, s: SubsystemPlan, newest: int, offset_ns: int) -> np.ndarray:
@@ -132,7 +135,9 @@ class _JointExchanges:
         coefficients = np.zeros((joint.k + 1, len(s.inputs)))
         side = self.side_of.get(s.index)
         if side is not None:
-            c = lagrange_coefficients(self.history, joint.variables[side], newest, joint.k, self.base, offset_ns)
+            history = self.history
+            c = lagrange_coefficients(history.array, joint.variables[side], newest, joint.k, self.base, offset_ns,
+                                      history.offset)
             coefficients[:len(c), joint.inputs[side]] = c
         return coefficients
 
@@ -156,14 +161,17 @@ class _JointExchanges:
 
     def at_start(self, e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
         """Outputs of ``targets`` at t_0 with coupling variables ``e`` (INIT leaves the state alone)."""
-        self.history[0] = e
+        self.history.array[0] = e
         sends = {s.name: encode(Kind.INIT, 0, 0, self.input_rows(s, 0, 0)[:1], rows=1) for s in targets}
         replies = yield Exchange(sends, tuple(sends))
         return {s.index: decode_output(replies[s.name], s, 0) for s in targets}
 
     def corrector(self, tick: int, e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
         """Outputs of ``targets`` at T_{N+1} from the state saved at T_N, corrector value ``e`` (Eq. 11)."""
-        self.history[tick + 1] = e
+        history = self.history
+        if tick + 1 >= history.end:
+            history.advance(tick + 1)
+        history.array[tick + 1 - history.offset] = e
         yield from self.control(Kind.RESTORE, tick, targets)
         return (yield from self.run(tick, targets, tick + 1, -self.base))
 
@@ -233,20 +241,24 @@ class _JointExchanges:
 
 
 def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=None,
-             progress: Callable[[int], None] | None = None, status: StatusReport | None = None
-             ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+             progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
+             spill: Spill | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
     With ``status``, the SAVE that opens every macro-step after the first carries the status of the
-    step before it, and a last exchange without commands the status of the last step (as in jacobi)."""
+    step before it, and a last exchange without commands the status of the last step (as in jacobi).
+    ``spill``: as in jacobi, where a long run's arrays go as it runs."""
     subs, base, n_ticks, k = plan.subsystems, plan.base_step_ns, plan.n_ticks, joint.k
-    exchanges = _JointExchanges(plan, joint, settings)
+    exchanges = _JointExchanges(plan, joint, settings, spill)
     history, side_outputs = exchanges.history, exchanges.side_outputs
-    traj = [np.full((n_ticks + 1, len(s.outputs)), np.nan) for s in subs]
-    corrector_runs = np.zeros(n_ticks, dtype=np.int64)
-    send_time = np.zeros(n_ticks, dtype=np.int64)
+    traj = [RowWindow(n_ticks + 1, len(s.outputs), float, np.nan, HISTORY_ROWS, spill, f"{s.name}-outputs")
+            for s in subs]
+    corrector_runs = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "corrector-runs")
+    send_time = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "send-time")
+    late_window = None if pacer is None else RowWindow(n_ticks, None, np.int64, 0, 1, spill, "lateness")
+    first_release_ns = 0
     for s, y in (yield from exchanges.consistent_start()).items():
-        traj[s][0] = y
+        traj[s].array[0] = y
 
     diverged_at = None
     step_status = None
@@ -254,9 +266,19 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     for tick in range(n_ticks):
         yield from exchanges.control(Kind.SAVE, tick, subs, step_status)
         step_status = None  # reported
-        send_time[tick] = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
+        released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
+        for window, row in ((send_time, tick), (corrector_runs, tick), (late_window, tick),
+                            *((path, tick + 1) for path in traj)):
+            if window is not None and row >= window.end:
+                window.advance(row)
+        send_time.array[tick - send_time.offset] = released_ns
+        if late_window is not None:
+            late_window.array[tick - late_window.offset] = pacer.last_lateness_ns
+        if tick == 0:
+            first_release_ns = released_ns
         predicted = yield from exchanges.run(tick, subs, tick, 0)
-        newest_first = history[max(0, tick - k):tick + 1][::-1]  # e_N, ..., e_{N-k}
+        # e_N … e_{N-k}, a copy: the corrector's candidate may move the window (manager.scheme.window)
+        newest_first = history.array[max(0, tick - k) - history.offset:tick + 1 - history.offset][::-1].copy()
         e_predicted = extrapolation_weights(len(newest_first) - 1) @ newest_first
         sensitivity = yield from exchanges.derivatives(predicted, e_predicted,
                                                        lambda e, targets: exchanges.corrector(tick, e, targets))
@@ -266,15 +288,16 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
             break
 
         e_new = corrected_coupling(joint.method, joint.decomposition, newest_first, y_predicted, sensitivity)
-        corrected, e_new, corrector_runs[tick] = yield from exchanges.corrected(tick, e_new, sensitivity)
+        corrected, e_new, runs = yield from exchanges.corrected(tick, e_new, sensitivity)
+        corrector_runs.array[tick - corrector_runs.offset] = runs
         if joint.method.projects_states:
             corrected.update((yield from exchanges.project(side_outputs(corrected), corrected, tick + 1)))
         for s, y in corrected.items():
-            traj[s][tick + 1] = y
+            traj[s].array[tick + 1 - traj[s].offset] = y
         if status is not None:
-            step_status = status.encode(tick + 1, (tick + 1) * base, no_bonds, no_bonds, int(send_time[0]),
-                                        int(send_time[tick]), time.perf_counter_ns(),
-                                        None if pacer is None else int(pacer.lateness_ns[tick]))
+            step_status = status.encode(tick + 1, (tick + 1) * base, no_bonds, no_bonds, first_release_ns,
+                                        released_ns, time.perf_counter_ns(),
+                                        None if pacer is None else pacer.last_lateness_ns)
         y_corrected = side_outputs(corrected)
         gap = np.max(np.abs(y_corrected[1, 0] - y_corrected[0, 0]))
         if not (gap <= settings.divergence_gap and np.isfinite(e_new).all()
@@ -287,7 +310,7 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     if step_status is not None:
         yield Exchange({}, (), step_status)
     done = n_ticks if diverged_at is None else diverged_at + 1  # macro-steps executed
-    residual = np.zeros((n_ticks + 1, len(plan.bonds)))
-    return RunRecord(plan, traj, residual, residual.copy(), send_time[:done],
-                     None if pacer is None else pacer.lateness_ns[:done], 0 if pacer is None else pacer.missed,
-                     implicit=ImplicitRecord(history, corrector_runs, diverged_at))
+    residual = np.broadcast_to(np.zeros(len(plan.bonds)), (n_ticks + 1, len(plan.bonds)))  # a joint is no power bond
+    return RunRecord(plan, [window.finish() for window in traj], residual, residual, send_time.finish(done),
+                     None if late_window is None else late_window.finish(done), 0 if pacer is None else pacer.missed,
+                     implicit=ImplicitRecord(history.finish(), corrector_runs.finish(), diverged_at))

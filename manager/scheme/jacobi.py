@@ -28,9 +28,10 @@ from typing import Callable, Generator
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
-from zencosim.manager.scheme.base import PROGRESS_EVERY, Corrector, Exchange, OutputReader, RunRecord
+from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Corrector, Exchange, OutputReader, RunRecord
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
 from zencosim.manager.scheme.residual import residual_power
+from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
 from zencosim.manager.wire.status import StatusReport
 
@@ -44,7 +45,8 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
            correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None,
-           local: frozenset[int] | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+           local: frozenset[int] | None = None, spill: Spill | None = None
+           ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
     With ``status``, every exchange after the first step carries the status of the step before it, and
@@ -54,21 +56,28 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     then follows only them and the sources of their inputs (``Plan.tracked``), takes only those replies,
     and evaluates only the bonds they take part in, so that its cost per step grows with its own inputs,
     not with the number of subsystems; every command it computes is bit for bit the full replica's.
-    None: every subsystem (the manager's replica, the in-process bus)."""
+    None: every subsystem (the manager's replica, the in-process bus).
+
+    ``spill``: where a long run's arrays go as it runs (``manager.scheme.window``): the scheme then holds only
+    the newest rows of each in memory. None: they are held whole."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
     local = frozenset(range(len(subs))) if local is None else local
     tracked = plan.tracked(local)
-    readers = [OutputReader(s, n_ticks // s.ratio + 1 if s.index in tracked else 0) for s in subs]
-    traj = [reader.trajectory for reader in readers]
+    readers = [OutputReader(s, n_ticks // s.ratio + 1 if s.index in tracked else 0, spill) for s in subs]
+    windows = [reader.window for reader in readers]
     n_bonds = len(plan.bonds)
-    p_res = np.full((n_ticks + 1, n_bonds), np.nan)
-    e_res = np.full((n_ticks + 1, n_bonds), np.nan)
+    bond_history = HISTORY_ROWS + math.lcm(*(s.ratio for s in subs))  # a corrector reads a group's last point
+    p_window = RowWindow(n_ticks + 1, n_bonds, float, np.nan, bond_history, spill, "residual-power")
+    e_window = RowWindow(n_ticks + 1, n_bonds, float, np.nan, bond_history, spill, "residual-energy")
+    p_res, e_res = p_window.array, e_window.array  # their rows from p_window.offset on
     p_res[0], e_res[0] = 0.0, 0.0
     last_bond_tick = [0] * n_bonds
     last_bond_energy = [0.0] * n_bonds
-    send_time = np.zeros(n_ticks, dtype=np.int64)
+    send_window = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "send-time")
+    late_window = None if pacer is None else RowWindow(n_ticks, None, np.int64, 0, 1, spill, "lateness")
+    first_release_ns = 0
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds
               if f.source in tracked] for s in subs]
@@ -81,7 +90,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         coefficients = np.zeros((order + 1, len(s.inputs)))
         for source, ratio, outputs, inputs in feeds[s.index]:
             newest = tick // ratio
-            rows = lagrange_coefficients(traj[source], outputs, newest, order, ratio * base, (tick - newest * ratio) * base)
+            window = windows[source]
+            rows = lagrange_coefficients(window.array, outputs, newest, order, ratio * base, (tick - newest * ratio) * base,
+                                         window.offset)
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
@@ -109,29 +120,42 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
             sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
-        send_time[tick] = released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
+        released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
+        if tick >= send_window.end:
+            send_window.advance(tick)
+        send_window.array[tick - send_window.offset] = released_ns
+        if late_window is not None:
+            if tick >= late_window.end:
+                late_window.advance(tick)
+            late_window.array[tick - late_window.offset] = pacer.last_lateness_ns
+        if tick == 0:
+            first_release_ns = released_ns
         replies = yield Exchange(sends, due_names[phase], step_status)
         for s in due[phase]:
             readers[s.index].commit(replies[s.name], next_tick)
+        if next_tick >= p_window.end:
+            p_window.advance(next_tick)
+            e_window.advance(next_tick)
+        row = next_tick - p_window.offset
         for b, bond, components in bonds_due[phase]:
             delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
-            p_res[next_tick, b] = delta_p
-            e_res[next_tick, b] = last_bond_energy[b] = (last_bond_energy[b]
-                                                         + delta_p * (next_tick - last_bond_tick[b]) * step_s)
+            p_res[row, b] = delta_p
+            e_res[row, b] = last_bond_energy[b] = (last_bond_energy[b]
+                                                   + delta_p * (next_tick - last_bond_tick[b]) * step_s)
             last_bond_tick[b] = next_tick
         for corrector in correctors:
-            corrector.observe(next_tick, traj, e_res)
+            corrector.observe(next_tick, windows, e_window)
         if status is not None:
-            step_status = status.encode(next_tick, next_tick * base, p_res[next_tick], e_res[next_tick],
-                                        int(send_time[0]), released_ns, time.perf_counter_ns(),
-                                        None if pacer is None else int(pacer.lateness_ns[tick]))
+            step_status = status.encode(next_tick, next_tick * base, p_res[row], e_res[row],
+                                        first_release_ns, released_ns, time.perf_counter_ns(),
+                                        None if pacer is None else pacer.last_lateness_ns)
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
     if step_status is not None:
         yield Exchange({}, (), step_status)
 
-    return RunRecord(plan, traj, p_res, e_res, send_time,
-                     None if pacer is None else pacer.lateness_ns,
+    return RunRecord(plan, [w.finish() for w in windows], p_window.finish(), e_window.finish(), send_window.finish(),
+                     None if late_window is None else late_window.finish(),
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 

@@ -17,8 +17,6 @@ import sys
 import threading
 import time
 
-import numpy as np
-
 # how long before a deadline the pacer stops sleeping and spins (measured, docs/realtime.md): a run
 # alone in its process spins longer (wake-ups come late on this machine), subsystem processes that
 # share the cores with each other and with Zenoh's threads spin less (spinning takes those cores)
@@ -62,14 +60,14 @@ class ThreadScheduling:
 
 
 class Pacer:
-    def __init__(self, macro_step_ns: int, n_steps: int, start_ns: int | None = None,
+    def __init__(self, macro_step_ns: int, start_ns: int | None = None,
                  spin_ns: int = SPIN_ALONE_NS, scheduling: ThreadScheduling | None = None) -> None:
         self.macro_step_ns = macro_step_ns
         self.scheduling = scheduling
         self.spin_ns = spin_ns
         self.start_ns = start_ns  # on time.perf_counter_ns's clock (CLOCK_MONOTONIC)
         self.missed_after_ns = int(macro_step_ns * MISSED_SLACK)
-        self.lateness_ns = np.zeros(n_steps, dtype=np.int64)
+        self.last_lateness_ns = 0  # of the step released last (the scheme keeps every step's)
         self.missed = 0
 
     def wait(self, step: int) -> int:
@@ -86,7 +84,7 @@ class Pacer:
                 time.sleep((deadline - now - self.spin_ns) * 1e-9)
             while (now := time.perf_counter_ns()) < deadline:
                 pass
-        self.lateness_ns[step] = now - deadline
+        self.last_lateness_ns = now - deadline
         if now - deadline > self.missed_after_ns:
             self.missed += 1
         return now

@@ -43,15 +43,18 @@ def test_every_step_of_a_realtime_run_is_paced_and_accounted(scene, overrides):
 
 def test_a_step_whose_predecessor_overran_is_released_at_once_and_missed():
     step_ns = 1_000_000
-    pacer = Pacer(step_ns, 3)
+    pacer = Pacer(step_ns)
     released = [pacer.wait(0)]
+    lateness = [pacer.last_lateness_ns]
     released.append(pacer.wait(1))
+    lateness.append(pacer.last_lateness_ns)
     busy_until = released[-1] + 3 * step_ns // 2  # step 1 takes 1.5 steps: step 2 is 0.5 steps late
     while time.perf_counter_ns() < busy_until:
         pass
     released.append(pacer.wait(2))
-    _check_accounted(np.array(released), pacer.lateness_ns, pacer.missed, step_ns)
-    assert pacer.lateness_ns[2] >= step_ns // 2 and pacer.missed >= 1
+    lateness.append(pacer.last_lateness_ns)
+    _check_accounted(np.array(released), np.array(lateness), pacer.missed, step_ns)
+    assert lateness[2] >= step_ns // 2 and pacer.missed >= 1
 
 
 def _in_a_thread(action):
@@ -67,7 +70,7 @@ def _in_a_thread(action):
 def test_the_levers_reach_the_pacing_thread_or_are_refused_with_a_warning(capsys):
     def paced():
         scheduling = ThreadScheduling(priority=10, cpu=0, who="subsystem S1")
-        Pacer(1_000_000, 2, scheduling=scheduling).wait(0)
+        Pacer(1_000_000, scheduling=scheduling).wait(0)
         return os.sched_getscheduler(0), os.sched_getaffinity(0), scheduling.refused
 
     policy, cpus, refused = _in_a_thread(paced)

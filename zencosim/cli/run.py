@@ -14,7 +14,7 @@ from zencosim.cli.credentials import add_security_arguments, given_security_opti
 from zencosim.extras import require
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.output_files import check_output_file
-from zencosim.manager.results.tables import check_table_path, record_signals, tables, write_tables
+from zencosim.manager.results.tables import check_table_path, record_tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import load_scene
 
@@ -139,7 +139,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if summary_path:
         summary_path.write_text(json.dumps(summary, indent=2) + "\n")
     if out_path:
-        written = write_tables(tables(record_signals(record)), out_path)
+        written = write_tables(record_tables(record), out_path)
         if not args.quiet:
             say(f"wrote {', '.join(map(str, written))}")
     return 0

@@ -1,0 +1,126 @@
+"""A long run in bounded memory (manager.scheme.window): its arrays go to spill files as it runs, and the
+summary, the digest and the results file read them back in blocks, so a run's peak memory does not grow with
+its length. Each run is a fresh process (peak RSS of a process only grows); the figures are
+benchmarks/bench_memory.py's.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import zencosim
+from zencosim.manager.results.reference import analytic_reference, solve_ivp_reference
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.window import BLOCK_ROWS, RowWindow, Spill, read_rows, row_blocks
+
+# two_mass_damped at 1 ms: before the arrays were bounded a run held ~0.45 kB per macro-step, so 10 s -> 200 s
+# grew the peak by ~85 MB. Bounded, what a run holds does not depend on its length once it is longer than a
+# block (8192 steps, so both runs here are): a few windows of 8 200 rows and the blocks being read back
+# (~1 MB together). The bound leaves room for the allocator's noise between two processes (measured
+# growth 10 s -> 200 s: see docs/memory.md) and is still 17x below the growth it replaces.
+GROWTH_BOUND_KB = 5 * 1024
+
+CHILD = """
+import json, resource, sys, tempfile
+import zencosim
+scene = zencosim.load_scene("two_mass_damped", {"manager.duration": float(sys.argv[1])})
+result = zencosim.run(scene, sys.argv[2], keep=False)
+with tempfile.TemporaryDirectory() as folder:
+    result.write(folder + "/out.csv")
+print(json.dumps({"self_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                  "children_kb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
+                  "digest": result.digest, "stable": result.summary["stable"]}))
+"""
+
+
+def _peak_rss(duration_s: float, bus: str) -> dict:
+    done = subprocess.run([sys.executable, "-c", CHILD, str(duration_s), bus], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("written", [3 * BLOCK_ROWS + 5, 100])  # every row; a run that stopped early
+def test_a_spilled_window_gives_the_array_written_and_reads_columns_from_its_file(written):
+    rows, history = 3 * BLOCK_ROWS + 5, 4
+    values = np.random.default_rng(15).normal(size=(rows, 3))
+    expected = np.full((rows, 3), np.nan)
+    expected[:written] = values[:written]
+    window = RowWindow(rows, 3, float, np.nan, history, Spill(), "test")
+    for row in range(written):
+        if row >= window.end:
+            window.advance(row)
+        window.array[row - window.offset] = values[row]
+        assert np.array_equal(window.row(max(row - history + 1, 0)), values[max(row - history + 1, 0)])
+    spilled = window.finish()
+    assert isinstance(spilled, np.memmap) and spilled.tobytes() == expected.tobytes()
+    column = spilled[::3, 1]  # a view: read from the file, not through the mapping
+    assert read_rows(column, 5, 2000).tobytes() == expected[::3, 1][5:2000].tobytes()
+    assert np.concatenate([block for _, block in row_blocks(column)]).tobytes() == expected[::3, 1].tobytes()
+
+
+@pytest.mark.slow
+@pytest.mark.multiprocess
+@pytest.mark.timeout(1800)
+def test_peak_memory_of_a_200_s_run_is_that_of_a_10_s_run_on_both_buses_with_one_digest():
+    runs = {(bus, duration): _peak_rss(duration, bus) for bus in ("inproc", "zenoh") for duration in (10.0, 200.0)}
+    for bus in ("inproc", "zenoh"):
+        short, long = runs[bus, 10.0], runs[bus, 200.0]
+        assert short["stable"] and long["stable"]
+        assert long["self_kb"] - short["self_kb"] < GROWTH_BOUND_KB, (bus, short, long)
+        if bus == "zenoh":  # the largest subsystem process
+            assert long["children_kb"] - short["children_kb"] < GROWTH_BOUND_KB, (short, long)
+    for duration in (10.0, 200.0):  # spilled on both buses, and bit-identical
+        assert runs["inproc", duration]["digest"] == runs["zenoh", duration]["digest"]
+
+
+@pytest.mark.parametrize("scene, overrides", [
+    ("two_mass_damped", {"manager.duration": 20.0}),
+    ("double_oscillator", {"manager.duration": 12.0, "manager.correction.enabled": True, "manager.correction.mu": 0.5}),
+    # the implicit scheme; its solve_ivp reference is integrated block by block when spilled (checked below)
+    ("constrained_two_mass", {"manager.duration": 9.0, "outputs.reference": "none"}),
+])
+def test_a_spilled_run_gives_the_kept_runs_arrays_digest_and_summary(scene, overrides, tmp_path):
+    # longer than a block: the spilled run writes blocks to its files and reads them back in several blocks
+    loaded = zencosim.load_scene(scene, overrides)
+    assert loaded.manager.duration_ns // loaded.manager.macro_step_ns > BLOCK_ROWS
+    kept, spilled = zencosim.run(loaded, keep=True), zencosim.run(loaded, keep=False)
+    assert isinstance(spilled.record.trajectories[0], np.memmap) and not isinstance(kept.record.trajectories[0],
+                                                                                   np.memmap)
+    for a, b in zip(kept.record.trajectories, spilled.record.trajectories):
+        assert a.tobytes() == b.tobytes()
+    assert kept.record.residual_energy.tobytes() == spilled.record.residual_energy.tobytes()
+    for log, spilled_log in zip(kept.record.corrections, spilled.record.corrections):
+        assert log.force.tobytes() == spilled_log.force.tobytes() and log.work.tobytes() == spilled_log.work.tobytes()
+    # the summary read in blocks: equal up to the rounding of sums over blocks instead of numpy's pairwise sums
+    # (1e-9 relative is far above that and far below any figure's meaning); the wall-clock timing differs anyway
+    for key in set(kept.summary) - {"timing"}:
+        _assert_close(kept.summary[key], spilled.summary[key], key)
+    kept_files, spilled_files = kept.write(tmp_path / "kept.csv"), spilled.write(tmp_path / "spilled.csv")
+    assert [p.read_bytes() for p in kept_files] == [p.read_bytes() for p in spilled_files]
+
+
+def test_a_spilled_solve_ivp_reference_integrated_block_by_block_matches_the_analytic_solution():
+    # restarted at every block of 8192 steps, LSODA keeps the accuracy of one pass: the bound of
+    # test_solve_ivp_reference (1e-8 of each signal's range, of E0) over a run of several blocks
+    scene = load_scene("two_mass_damped", ["manager.duration=20.0"])
+    integrated, exact = solve_ivp_reference(scene, spill=Spill()), analytic_reference(scene)
+    assert isinstance(integrated.energy, np.memmap)
+    for name, signal in exact.signals.items():
+        assert np.max(np.abs(integrated.signals[name] - signal)) < 1e-8 * np.ptp(signal), name
+    assert np.max(np.abs(integrated.energy - exact.energy)) < 1e-8 * exact.energy[0]
+
+
+def _assert_close(a, b, where: str) -> None:
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for key in a:
+            _assert_close(a[key], b[key], f"{where}.{key}")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-300, nan_ok=True), where
+    else:
+        assert a == b, where
