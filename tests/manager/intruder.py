@@ -2,9 +2,9 @@
 
 ``python intruder.py JSON`` with ``{"endpoint": ..., "run_id": ..., "config": {...}, "publish": bool}``
 opens a peer session to ``endpoint`` with the run's transport settings and the credentials given in
-``config`` (Zenoh configuration keys and values, e.g. ``transport/link/tls/root_ca_certificate``), tries every way to learn about the run (queries, liveliness, a subscription to
-``zencosim/**``) and, with ``publish``, sends a STOP and garbage on the run's keys. It prints what it got as
-JSON. Apart from its endpoint and credentials it is not zencosim's own code: an intruder owes it nothing.
+``config`` (Zenoh configuration keys and values, e.g. ``transport/link/tls/root_ca_certificate``),
+tries every way to learn about the run (queries, liveliness, a subscription to ``zencosim/**``) and,
+with ``publish``, sends a STOP and garbage on the run's keys. It prints what it got as JSON. Apart from its endpoint and credentials it is not zencosim's own code: an intruder owes it nothing.
 """
 from __future__ import annotations
 
