@@ -165,6 +165,8 @@ class ZenohBus:
             command += ["--listen", listen]
         if not by_hand:
             command += ["--run-id", self.run_id]
+            if self.external:  # it waits for its partners as long as the manager waits for those started by hand
+                command += ["--wait", f"{self.wait_external_s:g}"]
         for override in self.scene.overrides:
             command += ["--set", override]
         if not self.options.lowlatency:

@@ -2,9 +2,9 @@
 
 ``python intruder.py JSON`` with ``{"endpoint": ..., "run_id": ..., "config": {...}, "publish": bool}``
 opens a peer session to ``endpoint`` with the run's transport settings and the credentials given in
-``config`` (Zenoh configuration keys and values, e.g. ``transport/link/tls/root_ca_certificate``), tries every way to learn about the run (queries, liveliness, a subscription to
-``zencosim/**``) and, with ``publish``, sends a STOP and garbage on the run's keys. It prints what it got as
-JSON. Apart from its endpoint and credentials it is not zencosim's own code: an intruder owes it nothing.
+``config`` (Zenoh configuration keys and values, e.g. ``transport/link/tls/root_ca_certificate``),
+tries every way to learn about the run (queries, liveliness, a subscription to ``zencosim/**``) and,
+with ``publish``, sends a STOP and garbage on the run's keys. It prints what it got as JSON. Apart from its endpoint and credentials it is not zencosim's own code: an intruder owes it nothing.
 """
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import time
 
 import zenoh
 
-LISTEN_S = 2.0  # how long the subscription listens for the run's traffic
+LISTEN_S = 2.0  # how long the subscription listens for the run's traffic (after the queries)
+QUERY_S = 3.0  # how long a query waits for answers
 
 
 def session_config(endpoint: str, credentials: dict) -> zenoh.Config:
@@ -55,12 +56,13 @@ def intrude(endpoint: str, run_id: str, config: dict, publish: bool) -> dict:
         found["peers"] = len(list(session.info.peers_zid()))
         heard: list[str] = []
         subscriber = session.declare_subscriber("zencosim/**", lambda sample: heard.append(str(sample.key_expr)))
-        found["runs"] = [reply.ok.payload.to_string() for reply in session.get("zencosim/*/manager/run", timeout=2.0)
-                         if reply.ok is not None]
-        found["queryables"] = [str(reply.ok.key_expr) for reply in session.get("zencosim/**", timeout=2.0)
-                               if reply.ok is not None]
-        found["tokens"] = [str(reply.ok.key_expr) for reply in session.liveliness().get("zencosim/**", timeout=2.0)
-                           if reply.ok is not None]
+        # the three queries at once: each waits for its timeout when nobody answers
+        runs = session.get("zencosim/*/manager/run", timeout=QUERY_S)
+        queryables = session.get("zencosim/**", timeout=QUERY_S)
+        tokens = session.liveliness().get("zencosim/**", timeout=QUERY_S)
+        found["runs"] = [reply.ok.payload.to_string() for reply in runs if reply.ok is not None]
+        found["queryables"] = [str(reply.ok.key_expr) for reply in queryables if reply.ok is not None]
+        found["tokens"] = [str(reply.ok.key_expr) for reply in tokens if reply.ok is not None]
         time.sleep(LISTEN_S)
         subscriber.undeclare()  # before it publishes: a session hears its own samples
         found["heard"] = sorted(set(heard))

@@ -68,8 +68,9 @@ def credentials(protocol: str, directory: Path) -> dict[str, list[str]]:
         pytest.skip("needs the openssl command to make certificates")
     certificate_authority(directory, "run")
     addresses = {"router": [ROUTER_A, ROUTER_B], "a": ["127.0.0.1"], "b": [SIDE_B]}
+    made = {name: certificate(directory, "run", name, ips) for name, ips in addresses.items()}
     return {name: ["--tls-ca", str(directory / "run-ca.pem"), "--tls-cert", str(cert), "--tls-key", str(key)]
-            for name, (cert, key) in ((name, certificate(directory, "run", name, ips)) for name, ips in addresses.items())}
+            for name, (cert, key) in made.items()}
 
 
 @pytest.mark.timeout(150)

@@ -24,7 +24,8 @@ def add_parsers(commands) -> None:
         "router", help="run a Zenoh router, for hosts of a run that reach each other only through it",
         **examples("zencosim router --listen tcp/0.0.0.0:7447                                          # host R",
                    "zencosim run two_mass_damped --bus zenoh --connect tcp/R:7447 --external S2        # host A",
-                   "zencosim subsystem two_mass_damped S2 --connect tcp/R:7447                         # host B"))
+                   "zencosim subsystem two_mass_damped S2 --connect tcp/R:7447                         # host B",
+                   "zencosim router --tls-ca ca.pem --tls-cert r.pem --tls-key r.key    # tls/0.0.0.0:7447, mutual TLS"))
     sub.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                      help=f"where the run's processes reach the router (repeatable; default {DEFAULT_LISTEN})")
     sub.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",

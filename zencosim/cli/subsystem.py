@@ -24,7 +24,9 @@ def add_parsers(commands) -> None:
     sub = commands.add_parser(
         "subsystem", help="serve one subsystem of a scene over Zenoh (for runs across hosts)",
         **examples("zencosim run two_mass_damped --bus zenoh --listen tcp/0.0.0.0:7447 --external S2   # on host A",
-                   "zencosim subsystem two_mass_damped S2 --connect tcp/HOST_A:7447                   # on host B"))
+                   "zencosim subsystem two_mass_damped S2 --connect tcp/HOST_A:7447                   # on host B",
+                   "zencosim subsystem two_mass_damped S2 --connect tls/HOST_A:7447 --tls-ca ca.pem --tls-cert b.pem "
+                   "--tls-key b.key   # mutual TLS (docs/security.md)"))
     add_scene_arguments(sub)
     sub.add_argument("name", help="the subsystem to serve")
     sub.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
