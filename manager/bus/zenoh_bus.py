@@ -37,6 +37,7 @@ from zencosim.manager.bus.zenoh_session import (
     free_tcp_port,
     key,
     new_run_id,
+    open_session,
     reachable,
     session_config,
     wait_for_listener,
@@ -110,7 +111,8 @@ class ZenohBus:
                 wait_for_listener(router, ROUTER_WAIT_S)
             except TimeoutError as error:
                 raise RouterError(f"cannot reach the router: {error}") from None
-        self._session = zenoh.open(session_config(listen=[self.endpoint], connect=self.routers, options=self.options))
+        self._session = open_session(session_config(listen=[self.endpoint], connect=self.routers, options=self.options),
+                                     [self.endpoint])
         session = self._session
         self._entities.append(session.liveliness().declare_token(key(self.run_id, "manager", "alive")))
         self._entities.append(session.declare_subscriber(key(self.run_id, "*", "log"), self._on_log))

@@ -14,6 +14,7 @@ join as its clients (:func:`session_config`).
 from __future__ import annotations
 
 import json
+import re
 import secrets
 import socket
 import time
@@ -117,6 +118,26 @@ def session_config(listen: list[str] = (), connect: list[str] = (), options: Zen
         config.insert_json5("transport/unicast/lowlatency", "true")
         config.insert_json5("transport/unicast/qos/enabled", "false")
     return config
+
+
+class ListenError(ValueError):
+    """An endpoint this process cannot listen on (its port is taken, or the address is not this host's)."""
+
+
+def open_session(config: zenoh.Config, listen: list[str] = ()) -> zenoh.Session:
+    """``zenoh.open(config)``; a session that cannot listen on ``listen`` raises :class:`ListenError` naming the
+    endpoint and the operating system's reason (Zenoh's own message is a Rust trace)."""
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        text = str(error)
+        reason = re.search(r"([A-Za-z][^:\[\]]*?) \(os error \d+\)", text)
+        where = re.search(r"listener bound to (\S+?):? \[", text)
+        if not listen and where is None:
+            raise
+        endpoint = where.group(1) if where else ", ".join(listen)
+        raise ListenError(f"cannot listen on {endpoint}: "
+                          + (reason.group(1).lower() if reason else text.split(" at /", 1)[0])) from None
 
 
 def coupling_publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:

@@ -33,6 +33,7 @@ from zencosim.manager.bus.zenoh_session import (
     coupling_publisher,
     endpoint_host,
     key,
+    open_session,
     reachable,
     session_config,
     wait_for_listener,
@@ -41,6 +42,7 @@ from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.pacing import SPIN_SHARED_NS
 from zencosim.manager.scheme.replica import Replica
 from zencosim.manager.wire.protocol import Kind
+from zencosim.manager.wire.text import printable
 
 
 class HostError(RuntimeError):
@@ -238,7 +240,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             connect = connect + [ep for ep in peers if ep not in connect]
     _wait_for(connect, wait_s)
     listen = concrete_endpoint(listen) if mode == "peer" else None
-    with zenoh.open(session_config([listen] if listen else [], connect, options, mode)) as session:
+    with open_session(session_config([listen] if listen else [], connect, options, mode), [listen] if listen else []) as session:
         host = _Host(scene, name, run_id, session)
         signals = SignalNote(signal.SIGINT, signal.SIGTERM)
         entities = [
@@ -272,5 +274,5 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         host.replies.undeclare()
         host.log.undeclare()
     deadline_timer.cancel()
-    print(f"subsystem {name}: {host.reasons[0]}", file=sys.stderr)
+    print(printable(f"subsystem {name}: {host.reasons[0]}"), file=sys.stderr)
     return 0 if host.reasons[0] == "stopped by the manager" else 1

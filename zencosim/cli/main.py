@@ -2,7 +2,7 @@
 
 Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error) or
 a recording did not verify, 2 bad input (scene, overrides, arguments, recording file, output path,
-a missing optional dependency), 130 interrupted (SIGINT or SIGTERM).
+a missing optional dependency, an endpoint to listen on that is taken), 130 interrupted (SIGINT or SIGTERM).
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from importlib.metadata import version
 from zencosim.cli.console import UsageError, err, examples, warn
 from zencosim.extras import MissingExtra
 from zencosim.manager.bus.router import RouterError
+from zencosim.manager.bus.zenoh_session import ListenError
 from zencosim.manager.results.output_files import OutputFileError
 from zencosim.manager.scene.load import SceneError
 from zencosim.manager.scheme.base import SubsystemFailure
@@ -28,7 +29,7 @@ COMMANDS = ("scenes", "run", "realtime", "analysis", "study", "recordings", "sub
 # a run starts one `zencosim subsystem` process per subsystem: it imports its own command only (about 0.5 s of CPU
 # instead of 0.85 s each, which 33 processes starting on 2 cores feel)
 SUBSYSTEM_ONLY = "subsystem"
-BAD_INPUT = (SceneError, RecordingError, OutputFileError, MissingExtra, UsageError)  # exit status 2
+BAD_INPUT = (SceneError, RecordingError, OutputFileError, MissingExtra, UsageError, ListenError)  # exit status 2
 RUN_FAILED = (SubsystemFailure, ProtocolError, HostError, RouterError)  # exit status 1
 
 
