@@ -267,6 +267,7 @@ class ZenohBus:
         self._driving = True
         self._progress = (0, time.monotonic())
         self._heard = time.monotonic()  # when the last batch of replies arrived
+        self._following = False  # the follower is advancing the replica with a batch (or feeding the recorder)
         started, cpu_started = time.perf_counter(), time.process_time()
         start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
         if self.announce is not None:
@@ -331,9 +332,11 @@ class ZenohBus:
             if item is None:
                 return
             name, batch = item
+            self._following = True
             with self._lock:
                 if self._driving and not self._done.is_set():
                     self._guarded(self._deliver_batch, name, batch)
+            self._following = False
 
     def _deliver_batch(self, name: str, batch: bytes) -> None:
         for reply in split_messages(batch, f"subsystem {name}"):
@@ -360,8 +363,10 @@ class ZenohBus:
         steps, missing = self._replica.steps_done, self._replica.waiting_for()
         if steps != self._progress[0]:
             self._progress = (steps, time.monotonic())
-        # a stall is the subsystems' only when no batch arrives either (an idle-priority follower may lag)
-        elif missing and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s:
+        # a stall is the subsystems' only when no batch arrives either and the follower has taken every batch
+        # (an idle-priority follower may lag; one held up by a frozen recorder waits for it: recordings.recorder)
+        elif (missing and not self._following and self._batches.empty()
+              and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s):
             # every replica waits when one subsystem stalls: name the ones whose process does not respond
             frozen = self._unresponsive()
             name = frozen[0] if frozen else missing[0]
