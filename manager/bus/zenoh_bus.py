@@ -28,7 +28,7 @@ from typing import Callable
 import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
-from zencosim.manager.bus.children import start_child
+from zencosim.manager.bus.children import process_state, start_child
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
@@ -358,7 +358,7 @@ class ZenohBus:
                 return self._settle(failure)
         if self._lost:
             name = self._lost[0]
-            return self._settle(SubsystemFailure(name, "its process is gone (liveliness token lost)"))
+            return self._settle(SubsystemFailure(name, self._why_gone(name)))
         # read without the lock, which the idle-priority follower may hold while it waits for a core
         steps, missing = self._replica.steps_done, self._replica.waiting_for()
         if steps != self._progress[0]:
@@ -371,8 +371,23 @@ class ZenohBus:
             frozen = self._unresponsive()
             name = frozen[0] if frozen else missing[0]
             return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
-                                          + ("; its process does not respond" if frozen else ""))
+                                          + (f"; its process {self._state(name) or 'does not respond'}" if frozen else ""))
         return None
+
+    def _state(self, name: str) -> str | None:
+        """Why subsystem ``name``'s process does not answer, when the manager spawned it and its state says
+        (``manager.bus.children.process_state``: frozen, stuck, exited)."""
+        child = self.children.get(name)
+        return None if child is None else process_state(child.pid)
+
+    def _why_gone(self, name: str) -> str:
+        """The reason for a subsystem whose liveliness token is gone (its Zenoh session closed or expired)."""
+        if name not in self.children:
+            return "its liveliness token is gone: its process ended, or froze, or its host is unreachable"
+        state = self._state(name)
+        if state is not None:
+            return f"its process {state}, and its Zenoh session expired (liveliness token lost)"
+        return "its Zenoh session is gone (liveliness token lost) although its process runs"
 
     def _settle(self, failure: SubsystemFailure) -> SubsystemFailure:
         """Before a process that exited or left is blamed: let the follower take the replies
