@@ -29,6 +29,7 @@ import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
 from zencosim.manager.bus.children import process_state, start_child
+from zencosim.manager.bus.dropped import DroppedMessages, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
@@ -46,7 +47,7 @@ from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
 from zencosim.manager.scheme.replica import Replica, Tap
-from zencosim.manager.wire.protocol import Kind, encode, split_messages
+from zencosim.manager.wire.protocol import Kind, ProtocolError, encode, split_messages
 from zencosim.manager.wire.status import StatusReport
 
 ROUTER_WAIT_S = 10.0  # how long the manager waits for a --connect router to listen
@@ -85,11 +86,13 @@ class ZenohBus:
         self._joined = {name: threading.Event() for name in self.names}
         self._endpoints: dict[str, str] = {}  # where each subsystem process listens (for those started by hand)
         self._ready = {name: threading.Event() for name in self.names}
+        self._sources: dict[str, str] = {}  # the publisher of each subsystem's newest batch, when Zenoh gives it
         self._lost: list[str] = []
         self._started_at = time.monotonic()  # the last time a subsystem joined or became ready (start-up progress)
         self._driving = False
         self._session: zenoh.Session | None = None
         self._entities: list = []
+        self.dropped = DroppedMessages()  # what the manager took off the network and dropped (manager.bus.dropped)
 
     # -- start-up --------------------------------------------------------------------------------
     def __enter__(self) -> "ZenohBus":
@@ -260,7 +263,7 @@ class ZenohBus:
         replies unpaced, and the record's timing is what the subsystems report of their own steps.
         ``tap`` sees every message of the manager's replica (a recorded run)."""
         scheme = make_scheme(self.scene, self.plan, False, None, progress, status)
-        self._replica = Replica(scheme, self.names, verify=True, tap=tap)
+        self._replica = Replica(scheme, self.names, tap=tap, on_drop=self._drop_reply)
         self._done = threading.Event()
         self._batches: queue.SimpleQueue = queue.SimpleQueue()  # (subsystem, batch of replies); None ends
         self._error: BaseException | None = None
@@ -293,6 +296,9 @@ class ZenohBus:
             raise self._error
         record = self._replica.result
         record.reported_timing = self._timing_reports()
+        record.dropped_messages = merge({"manager": self.dropped.report(),
+                                         **{name: report.pop("dropped", {}) for name, report in
+                                            record.reported_timing.items()}})
         record.manager_cpu_s = time.process_time() - cpu_started
         return record, wall_s
 
@@ -309,9 +315,17 @@ class ZenohBus:
         return reports
 
     def _on_log(self, sample: zenoh.Sample) -> None:
-        """A batch of replies: handed to the follower thread (Zenoh's thread returns at once)."""
+        """A batch of replies: handed to the follower thread (Zenoh's thread returns at once); one on the key
+        of no subsystem of the run is dropped and counted."""
+        name = str(sample.key_expr).split("/")[-2]
+        if name not in self._publishers:
+            self.dropped.add(str(sample.key_expr), "no subsystem of this run publishes on this key", publisher(sample))
+            return
         self._heard = time.monotonic()
-        self._batches.put((str(sample.key_expr).split("/")[-2], sample.payload.to_bytes()))
+        source = publisher(sample)
+        if source is not None:
+            self._sources[name] = source
+        self._batches.put((name, sample.payload.to_bytes()))
 
     def _follow(self) -> None:
         """The follower thread: advance the manager's replica with every batch, at idle priority.
@@ -339,8 +353,17 @@ class ZenohBus:
             self._following = False
 
     def _deliver_batch(self, name: str, batch: bytes) -> None:
-        for reply in split_messages(batch, f"subsystem {name}"):
+        try:
+            replies = split_messages(batch, f"subsystem {name}")
+        except ProtocolError as error:  # a malformed batch: none of it is taken
+            self.dropped.add(key(self.run_id, name, "log"), str(error), self._sources.get(name))
+            return
+        for reply in replies:
             self._replica.deliver(name, reply)
+
+    def _drop_reply(self, name: str, reason: str) -> None:
+        """The manager's replica dropped a reply of subsystem ``name`` (``manager.scheme.replica``)."""
+        self.dropped.add(key(self.run_id, name, "log"), reason, self._sources.get(name))
 
     def _guarded(self, action, *args) -> None:
         """Advance the manager's replica (under the lock); the end or any error finishes the run."""
@@ -368,10 +391,11 @@ class ZenohBus:
         elif (missing and not self._following and self._batches.empty()
               and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s):
             # every replica waits when one subsystem stalls: name the ones whose process does not respond
-            frozen = self._unresponsive()
+            frozen, dropped = self._unresponsive()
             name = frozen[0] if frozen else missing[0]
             return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
-                                          + (f"; its process {self._state(name) or 'does not respond'}" if frozen else ""))
+                                          + (f"; its process {self._state(name) or 'does not respond'}" if frozen else "")
+                                          + (f"; messages dropped: {dropped}" if dropped else ""))
         return None
 
     def _state(self, name: str) -> str | None:
@@ -403,11 +427,22 @@ class ZenohBus:
             time.sleep(0.01)
         return self._exited(failure.subsystem) or failure
 
-    def _unresponsive(self) -> list[str]:
-        """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together)."""
+    def _unresponsive(self) -> tuple[list[str], str]:
+        """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together), and
+        the messages every process dropped (``manager.bus.dropped.describe``; the others' from their answers)."""
         pending = {name: self._session.get(key(self.run_id, name, "ctl"), timeout=PROBE_TIMEOUT_S)
                    for name in self.names}
-        return [name for name, replies in pending.items() if not any(reply.ok for reply in replies)]
+        frozen, reports = [], {"manager": self.dropped.report()}
+        for name, replies in pending.items():
+            answers = [reply.ok for reply in replies if reply.ok is not None]
+            if not answers:
+                frozen.append(name)
+                continue
+            try:
+                reports[name] = json.loads(answers[0].payload.to_bytes()).get("dropped", {})
+            except ValueError:
+                pass  # not a description: nothing to add
+        return frozen, describe(merge(reports))
 
     # -- shutdown --------------------------------------------------------------------------------
     def close(self) -> None:

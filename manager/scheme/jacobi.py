@@ -110,7 +110,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
         send_time[tick] = released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
-        replies = yield Exchange(sends, due_names[phase], step_status)
+        replies = yield Exchange(sends, due_names[phase], step_status, next_tick)
         for s in due[phase]:
             readers[s.index].commit(replies[s.name], next_tick)
         for b, bond, components in bonds_due[phase]:
@@ -174,7 +174,7 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
                 w0[0, list(step.ready)] = input_polynomial(s, 0)[0, list(step.ready)]
             sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
         taken = [step.subsystem for step in round_ if step.subsystem in tracked]
-        replies = yield Exchange(sends, tuple(subs[i].name for i in taken))
+        replies = yield Exchange(sends, tuple(subs[i].name for i in taken), None, 0)
         for i in taken:
             readers[i].commit(replies[subs[i].name], 0)
 
