@@ -43,6 +43,17 @@ class DroppedMessages:
             return {key: dict(entry) for key, entry in self._by_key.items()}
 
 
+def checked(report) -> dict[str, dict]:
+    """The entries of a report another process sent (JSON from the network) that have the form of
+    :meth:`DroppedMessages.report`; anything else is left out."""
+    if not isinstance(report, dict):
+        return {}
+    return {str(key): {"count": entry["count"], "reason": str(entry.get("reason", "")),
+                       "publisher": None if entry.get("publisher") is None else str(entry["publisher"])}
+            for key, entry in report.items()
+            if isinstance(entry, dict) and isinstance(entry.get("count"), int) and not isinstance(entry["count"], bool)}
+
+
 def merge(reports: dict[str, dict[str, dict]]) -> dict[str, dict]:
     """One report from each process's (``{process: report}``): per key, the counts added, ``seen_by`` the
     processes that dropped messages there, the first reason and publisher found."""

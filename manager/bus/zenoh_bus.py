@@ -29,7 +29,7 @@ import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
 from zencosim.manager.bus.children import process_state, start_child
-from zencosim.manager.bus.dropped import DroppedMessages, describe, merge, publisher
+from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
@@ -297,7 +297,7 @@ class ZenohBus:
         record = self._replica.result
         record.reported_timing = self._timing_reports()
         record.dropped_messages = merge({"manager": self.dropped.report(),
-                                         **{name: report.pop("dropped", {}) for name, report in
+                                         **{name: checked(report.pop("dropped", {})) for name, report in
                                             record.reported_timing.items()}})
         record.manager_cpu_s = time.process_time() - cpu_started
         return record, wall_s
@@ -439,8 +439,8 @@ class ZenohBus:
                 frozen.append(name)
                 continue
             try:
-                reports[name] = json.loads(answers[0].payload.to_bytes()).get("dropped", {})
-            except ValueError:
+                reports[name] = checked(json.loads(answers[0].payload.to_bytes()).get("dropped"))
+            except (ValueError, AttributeError):
                 pass  # not a description: nothing to add
         return frozen, describe(merge(reports))
 

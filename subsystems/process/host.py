@@ -93,7 +93,7 @@ EXIT_LIMIT_S = 10.0  # once stopped, the process has this long to leave the run 
 
 
 def _exit_now(name: str, reason: str) -> None:
-    print(f"subsystem {name}: {reason}; leaving the Zenoh session took over {EXIT_LIMIT_S:g} s, exiting now",
+    print(printable(f"subsystem {name}: {reason}; leaving the Zenoh session took over {EXIT_LIMIT_S:g} s, exiting now"),
           file=sys.stderr, flush=True)
     os._exit(1)
 

@@ -1,19 +1,26 @@
 """The wire codec: exact float64 round trips, and clear errors for malformed or out-of-order messages."""
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from tests.conftest import wait_for
 from zencosim.manager.assembly import build_subsystems
+from zencosim.manager.bus.children import exit_reason, process_state
 from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.plan.run_plan import compile_plan
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.replica import Replica
-from zencosim.manager.wire.protocol import HEADER, Kind, ProtocolError, decode, encode
+from zencosim.manager.wire.protocol import HEADER, Kind, ProtocolError, decode, encode, encode_error
+from zencosim.manager.wire.text import printable
 
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=64), st.integers(0, 2 ** 40),
@@ -149,3 +156,25 @@ def load_plan_with_other_extrapolation():
     # the same scene but first-order extrapolation: from the second step on, the commands differ
     plan, _ = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01", "manager.extrapolation=1"]))
     return plan
+
+
+def test_text_from_the_network_reaches_a_terminal_without_its_control_characters():
+    reason = "bad\x1b]0;title\x07\x1b[2J\r\u202eend\ttab\nnext\x9b"
+    message = decode(encode_error(3, 0, reason), "subsystem S1")
+    assert message.text() == "bad\\x1b]0;title\\x07\\x1b[2J\\r\\u202eend\ttab\nnext\\x9b"
+    assert printable("plain text, ünïcode: 1 µs") == "plain text, ünïcode: 1 µs"
+
+
+def test_a_stopped_process_is_named_frozen_and_a_running_one_is_not():
+    sleeper = subprocess.Popen(["sleep", "60"])
+    try:
+        wait_for(lambda: process_state(sleeper.pid) is None, 10, "the sleeper to sleep")
+        os.kill(sleeper.pid, signal.SIGSTOP)
+        assert wait_for(lambda: process_state(sleeper.pid), 10, "the sleeper to stop").startswith(
+            "is frozen (process stopped, state T")
+        os.kill(sleeper.pid, signal.SIGCONT)
+        wait_for(lambda: process_state(sleeper.pid) is None, 10, "the sleeper to go on")
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    assert exit_reason(sleeper.returncode) == "killed by SIGKILL" and exit_reason(3) == "exited with code 3"
