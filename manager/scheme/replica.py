@@ -133,7 +133,8 @@ class Replica:
     def _advance(self) -> None:
         screened = self.on_drop is not None
         ready = _Screened(self) if screened else self.replies
-        while all(ready[name] for name in self.request.awaits):
+        # a list, not a generator: every awaited queue is screened, so that waiting_for() names the right ones
+        while all([ready[name] for name in self.request.awaits]):
             replies = {name: self.replies[name].popleft() for name in self.request.awaits}
             if screened:
                 for name in replies:
