@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from tests.conftest import wait_for
 from zencosim.manager.assembly import build_subsystems
 from zencosim.manager.bus.children import exit_reason, process_state
+from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge
 from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.plan.run_plan import compile_plan
 from zencosim.manager.scene.load import load_scene
@@ -178,3 +179,18 @@ def test_a_stopped_process_is_named_frozen_and_a_running_one_is_not():
         sleeper.kill()
         sleeper.wait()
     assert exit_reason(sleeper.returncode) == "killed by SIGKILL" and exit_reason(3) == "exited with code 3"
+
+
+def test_the_drops_of_every_process_are_merged_per_key_and_said_in_one_sentence():
+    manager, s2 = DroppedMessages(), DroppedMessages()
+    for _ in range(3):
+        manager.add("zencosim/r/S1/log", "answers another command")
+    s2.add("zencosim/r/S1/y", "protocol version 238, expected 2", "zenoh id abc entity 1")
+    from_network = {"zencosim/r/S1/log": {"count": 2, "reason": "x"}, "bad": {"count": "2"}, "worse": 7}
+    merged = merge({"manager": manager.report(), "S2": s2.report(), "S1": checked(from_network)})
+    assert merged["zencosim/r/S1/log"] == {"count": 5, "reason": "answers another command", "publisher": None,
+                                           "seen_by": ["manager", "S1"]}
+    assert set(merged) == {"zencosim/r/S1/log", "zencosim/r/S1/y"} and checked([1]) == {}
+    assert describe(merged) == ("5 dropped on zencosim/r/S1/log by manager, S1 (first: answers another command); "
+                                "1 dropped on zencosim/r/S1/y by S2 from zenoh id abc entity 1 "
+                                "(first: protocol version 238, expected 2)")
