@@ -105,7 +105,8 @@ def run(scene: Scene | str | Path, bus: str = "inproc", *, record: str | Path | 
     ``record``: write every message of the run to this MCAP file. ``realtime``: pace macro-steps to
     the wall clock (default: the scene's ``manager.realtime``). ``progress(step)`` is called every few
     hundred macro-steps. Raises :class:`SceneError` for a scene that cannot run and
-    :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed.
+    :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed, and
+    ``zencosim.recordings.RecorderLost`` when the recorder process of a recorded run is gone.
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
