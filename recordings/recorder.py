@@ -264,7 +264,7 @@ class Recorder:
         uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
         is sent whole and counted exactly once."""
         n = min(len(self._channels), len(self._messages))
-        if n and all(observer.gone for observer in self._observers):  # recorded no more (--record-lost continue)
+        if n and self._observers and all(observer.gone for observer in self._observers):  # recorded no more (--record-lost continue)
             self._channels.clear()
             self._messages.clear()
             self._stamps.clear()
@@ -274,8 +274,8 @@ class Recorder:
         with _interrupts_deferred():
             channels = bytes(self._channels[:n])
             stamps = self._stamps[:channels.count(self._status)]
-            last_status = channels.rfind(self._status)
-            step = HEADER.unpack_from(self._messages[last_status])[4] if last_status >= 0 else self._step
+            status = self._messages[channels.rfind(self._status)] if stamps else b""
+            step = HEADER.unpack_from(status)[4] if len(status) >= HEADER.size else self._step
             self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
                                                array("I", map(len, self._messages[:n])).tobytes(),
                                                array("q", stamps).tobytes(), *self._messages[:n])))
