@@ -454,6 +454,8 @@ class ZenohBus:
                 publisher.put(encode(Kind.STOP, 0, 0))
         deadline = time.monotonic() + STOP_GRACE_S
         for child in self.children.values():
+            if child.poll() is None and (process_state(child.pid) or "").startswith("is frozen"):
+                child.kill()  # a stopped process cannot act on STOP or SIGTERM
             try:
                 child.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
