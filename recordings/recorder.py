@@ -317,18 +317,18 @@ class Recorder:
                 except BrokenPipeError:
                     pass
         for observer in self._observers:
-            if observer.gone is None:
-                try:
-                    end = observer.event(FINISH_TIMEOUT_S, "finish")
-                except RecordingError:
-                    if observer.process.poll() is None:
-                        raise  # it did not finish in time
+            try:  # one that is gone may have finished before it went (SIGTERM): its end is on its output
+                end = observer.event(FINISH_TIMEOUT_S if observer.gone is None else STOP_WAIT_S, "finish")
+            except RecordingError:
+                if observer.process.poll() is None and observer.gone is None:
+                    raise  # it did not finish in time
+                if observer.gone is None:
                     self._lose(observer, stop=False)  # it died after the last frame
-                    continue
-                if observer is self._recorder:
-                    observer.process.wait()
-                    self.result = {key: value for key, value in end.items() if key != "event"}
-        if self._recorder is not None and self._recorder.gone is not None:
+                continue
+            if observer is self._recorder:
+                observer.process.wait()
+                self.result = {key: value for key, value in end.items() if key != "event"}
+        if self.result is None and self._recorder is not None and self._recorder.gone is not None:
             step, published = self._lost_at
             self.result = {"outcome": f"the recorder was lost at step {step} ({self._recorder.gone}); the run: "
                                       + ("stopped for it" if self.lost in outcome else outcome),
