@@ -3,3 +3,7 @@
 
 class RecordingError(RuntimeError):
     """A recording that cannot be written, read or re-run; the message names the file."""
+
+
+class RecorderLost(RuntimeError):
+    """The recorder process of a run is gone (killed, crashed) while the run went on (``--record-lost stop``)."""

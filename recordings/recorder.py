@@ -14,11 +14,13 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import json
+import os
 import select
 import signal
 import subprocess
 import tempfile
 import threading
+import time
 from array import array
 from collections import Counter
 from pathlib import Path
@@ -27,13 +29,14 @@ from typing import Callable
 
 import tomli_w
 
-from zencosim.manager.bus.children import start_child
+from zencosim.manager.bus.children import exit_reason, process_state, start_child
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
+from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings import RecordingError
+from zencosim.recordings import RecorderLost, RecordingError
 from zencosim.recordings.layout import STATUS_TOPIC, ChannelSpec, channel_specs, run_metadata
 from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
 
@@ -42,6 +45,8 @@ FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
 PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
 BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
 F_SETPIPE_SZ = 1031  # Linux fcntl
+STOP_WAIT_S = 1.0  # a process whose pipe broke has this long to be reaped before its exit is described
+RECORD_LOST = ("stop", "continue")  # what a run does when its recorder process is gone (--record-lost)
 
 
 @contextlib.contextmanager
@@ -69,21 +74,50 @@ def _interrupts_deferred():
 
 
 class _Observer:
-    """One child process fed the tap's frames on its standard input: the recorder, or the live view."""
+    """One child process fed the tap's frames on its standard input: the recorder, or the live view.
+
+    Its input pipe is non-blocking: a write waits for room with ``select``, so that a process that takes
+    nothing for ``stall_s`` (frozen, or far behind) is said, while the run still waits for it (backpressure,
+    never a drop); a process that is gone raises ``BrokenPipeError``."""
 
     def __init__(self, module: str, what: str) -> None:
         self.what = what
         self.log = tempfile.TemporaryFile()
         self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log)
+        self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
         try:
             fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
         except OSError:
             pass  # the default capacity only means the tap blocks sooner
+        os.set_blocking(self.process.stdin.fileno(), False)
 
-    def write(self, header: bytes, payload: bytes) -> None:
-        self.process.stdin.write(header)
-        self.process.stdin.write(payload)
-        self.process.stdin.flush()
+    def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None]) -> None:
+        """Write ``parts`` whole; ``stalled(self, waited_s)`` every ``stall_s`` the pipe stays full, and
+        ``stalled(self, -waited_s)`` once it takes bytes again after that."""
+        fd = self.process.stdin.fileno()
+        stalls, since = 0, 0.0
+        for part in parts:
+            view = memoryview(part)
+            while view:
+                if not select.select([], [fd], [], stall_s)[1]:
+                    stalls += 1
+                    since = since or time.monotonic() - stall_s
+                    stalled(self, stalls * stall_s)
+                    continue
+                try:
+                    view = view[os.write(fd, view):]
+                except BlockingIOError:
+                    continue  # room for less than one pipe page: wait again
+        if stalls:
+            stalled(self, since - time.monotonic())
+
+    def ended(self) -> str:
+        """How the process ended (``"killed by SIGKILL"``), waiting for it a moment."""
+        try:
+            self.process.wait(STOP_WAIT_S)
+        except subprocess.TimeoutExpired:
+            return "its input is closed, although it runs"
+        return exit_reason(self.process.returncode)
 
     def event(self, timeout_s: float, doing: str) -> dict:
         """The process's next JSON line on standard output."""
@@ -115,14 +149,29 @@ class _Observer:
 class Recorder:
     """Records one run to ``path`` and/or shows it live in Rerun (``rerun``: ``spawn``, ``connect=ADDR`` or
     ``serve``, ``recordings.rerun_live``): create it, pass it to ``manager.run.execute``, read ``result``
-    (the recording's end record; None without a recording)."""
+    (the recording's end record; None without a recording).
+
+    A recorder process that is gone (killed, crashed) is said in one line naming it and the step the run
+    had reached; ``on_lost`` (``RECORD_LOST``) says what the run does then: ``stop`` raises
+    :class:`RecorderLost` (the run fails), ``continue`` goes on unrecorded. A live view that is gone
+    is said and left behind. One that takes nothing for the scene's ``manager.timeout`` is said
+    (``announce``) and waited for."""
 
     def __init__(self, path: str | Path | None, host_info: bool = False, rerun: str | None = None,
-                 linger: Callable[[dict], None] | None = None) -> None:
+                 linger: Callable[[dict], None] | None = None, on_lost: str = "stop",
+                 announce: Callable[[str], None] | None = None) -> None:
+        if on_lost not in RECORD_LOST:
+            raise ValueError(f"on_lost {on_lost!r}: expected one of {', '.join(RECORD_LOST)}")
         self.path = check_output_file(path, "recording") if path is not None else None
         self.host_info = host_info  # record the host's name and the scene's path (layout.run_metadata)
         self.rerun = rerun
         self.linger = linger  # called with what the live view said, once it has shown the whole run, before close
+        self.on_lost = on_lost
+        self.announce = announce or (lambda text: None)
+        self.lost: str | None = None  # why the recorder process is gone, when it is
+        self._stall_s = READY_TIMEOUT_S  # an observer that takes nothing for this long is said (manager.timeout)
+        self._step = 0  # the last step whose status went down the pipe
+        self._lost_at: tuple[int, dict[str, int]] = (0, {})  # the step and what was handed over when the recorder was lost
         self.result: dict | None = None
         self.live: dict | None = None  # what the live view said when it was ready (e.g. the web viewer's address)
         self.finished = False
@@ -142,6 +191,7 @@ class Recorder:
         """Start the recorder process and the live view, and wait until they are ready."""
         specs = channel_specs(plan, status)
         self._declare(specs, realtime)
+        self._stall_s = scene.manager.timeout
         channels = [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]
         metadata = run_metadata(scene, plan, bus, run_id, realtime, self.host_info)
         scene_toml = tomli_w.dumps(scene.resolved)
@@ -159,7 +209,10 @@ class Recorder:
         observer = _Observer(module, what)
         self._observers.append(observer)
         payload = json.dumps(start).encode()
-        observer.write(FRAME.pack(CONTROL, len(payload), time_ns()), payload)
+        try:
+            observer.write((FRAME.pack(CONTROL, len(payload), time_ns()), payload), self._stall_s, self._stalled)
+        except BrokenPipeError:
+            pass  # it exited at once: event() says why
         ready = observer.event(READY_TIMEOUT_S, "start")
         if ready["event"] != "ready":
             raise RecordingError(ready.get("reason", f"{what} failed to start"))
@@ -211,16 +264,24 @@ class Recorder:
         uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
         is sent whole and counted exactly once."""
         n = min(len(self._channels), len(self._messages))
+        if n and self._observers and all(observer.gone for observer in self._observers):  # recorded no more (--record-lost continue)
+            self._channels.clear()
+            self._messages.clear()
+            self._stamps.clear()
+            return
         if not n:
             return
         with _interrupts_deferred():
             channels = bytes(self._channels[:n])
             stamps = self._stamps[:channels.count(self._status)]
+            status = self._messages[channels.rfind(self._status)] if stamps else b""
+            step = HEADER.unpack_from(status)[4] if len(status) >= HEADER.size else self._step
             self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
                                                array("I", map(len, self._messages[:n])).tobytes(),
                                                array("q", stamps).tobytes(), *self._messages[:n])))
             for index in range(len(self._topics)):
                 self._tapped[index] += channels.count(index)
+            self._step = step
             self._channels.clear()
             self._messages.clear()
             self._stamps.clear()
@@ -237,7 +298,8 @@ class Recorder:
 
     def finish(self, outcome: str) -> dict | None:
         """Tell the recorder and the live view how the run ended and what the tap handed over; wait for the
-        file to be complete and return its end record (None without a recording)."""
+        file to be complete and return its end record (None without a recording; for a recorder that is gone,
+        what is known: the outcome says when it was lost, ``messages`` and ``lost`` are None)."""
         if self.finished:
             return self.result
         if not self._observers:
@@ -246,19 +308,33 @@ class Recorder:
         try:
             self.flush()
             self._write_frame(CONTROL, json.dumps({"outcome": outcome, "published": self.published}).encode())
-        except BrokenPipeError:
-            pass  # an observer is gone; its exit is reported below
+        except RecorderLost:
+            pass  # said in self.lost; the run has ended anyway
         for observer in self._observers:
-            if not observer.process.stdin.closed:
+            if observer.gone is None and not observer.process.stdin.closed:
                 try:
                     observer.process.stdin.close()
                 except BrokenPipeError:
                     pass
         for observer in self._observers:
-            end = observer.event(FINISH_TIMEOUT_S, "finish")
+            try:  # one that is gone may have finished before it went (SIGTERM): its end is on its output
+                end = observer.event(FINISH_TIMEOUT_S if observer.gone is None else STOP_WAIT_S, "finish")
+            except RecordingError:
+                if observer.process.poll() is None and observer.gone is None:
+                    raise  # it did not finish in time
+                if observer.gone is None:
+                    self._lose(observer, stop=False)  # it died after the last frame
+                continue
             if observer is self._recorder:
                 observer.process.wait()
                 self.result = {key: value for key, value in end.items() if key != "event"}
+        if self.result is None and self._recorder is not None and self._recorder.gone is not None:
+            step, published = self._lost_at
+            self.result = {"outcome": f"the recorder was lost at step {step} ({self._recorder.gone}); the run: "
+                                      + ("stopped for it" if self.lost in outcome else outcome),
+                           "path": str(self.path), "messages": None, "lost": None,
+                           "channels": {topic: {"published": count, "received": None, "lost": None}
+                                        for topic, count in published.items()}, "malformed": None}
         return self.result
 
     def close(self) -> None:
@@ -272,6 +348,33 @@ class Recorder:
                 observer.close()
 
     def _write_frame(self, kind: int, payload: bytes) -> None:
-        header = FRAME.pack(kind, len(payload), time_ns())
+        parts = (FRAME.pack(kind, len(payload), time_ns()), payload)
         for observer in self._observers:
-            observer.write(header, payload)
+            if observer.gone is None:
+                try:
+                    observer.write(parts, self._stall_s, self._stalled)
+                except BrokenPipeError:
+                    self._lose(observer)
+
+    def _lose(self, observer: _Observer, stop: bool = True) -> None:
+        """``observer``'s process is gone: say so; for the recorder under ``on_lost == "stop"`` (and ``stop``),
+        raise :class:`RecorderLost`."""
+        observer.gone = observer.ended()
+        if observer is not self._recorder:
+            self.announce(f"the {observer.what} is gone ({observer.gone}); the run goes on without it")
+            return
+        self._lost_at = (self._step, self.published)
+        self.lost = (f"the recorder of {self.path} is gone ({observer.gone}) at step {self._step}: the file ends with "
+                     f"its last chunk written, before that step ('zencosim inspect {self.path}' says where)")
+        if stop and self.on_lost == "stop":
+            raise RecorderLost(f"{self.lost}; with --record-lost continue the run goes on without it")
+        self.announce(f"{self.lost}; the run goes on unrecorded (--record-lost {self.on_lost})")
+
+    def _stalled(self, observer: _Observer, waited_s: float) -> None:
+        """``observer`` has taken nothing for ``waited_s`` (negative: it takes messages again after that long)."""
+        if waited_s < 0:
+            self.announce(f"the {observer.what} takes messages again after {-waited_s:.1f} s")
+        elif waited_s == self._stall_s:  # said once per stall
+            state = process_state(observer.process.pid) or "runs but takes nothing"
+            self.announce(f"the {observer.what} has taken nothing for {waited_s:g} s: its process {state}; "
+                          "the run waits for it (nothing is dropped)")

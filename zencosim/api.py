@@ -117,7 +117,8 @@ def run(scene: Scene | str | Path, bus: str = "inproc", *, record: str | Path | 
     or spill them to temporary files as the run goes, so that memory does not grow with the run's length
     (False); by default runs of up to ``KEEP_STEPS`` (100 000) macro-steps are held, longer ones spilled. A
     spilled run's signals read their files as they are used. Raises :class:`SceneError` for a scene that
-    cannot run and :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed.
+    cannot run, :class:`SubsystemFailure` or :class:`ProtocolError` for a run that failed, and
+    ``zencosim.recordings.RecorderLost`` when the recorder process of a recorded run is gone.
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)

@@ -13,6 +13,7 @@ import ctypes
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 
 def die_with_parent() -> None:
@@ -25,3 +26,30 @@ def start_child(module: str, arguments: list[str], **popen_options) -> subproces
     """Start ``python -P -m module arguments…`` as a child that ends with this process."""
     return subprocess.Popen([sys.executable, "-P", "-m", module, *arguments],
                             preexec_fn=die_with_parent if sys.platform.startswith("linux") else None, **popen_options)
+
+
+# the state letter of /proc/PID/stat (proc(5)) as a reason a process does not answer
+_STATES = {"T": "is frozen (process stopped, state T: SIGSTOP or a debugger)",
+           "t": "is frozen (process stopped by a tracer, state t)",
+           "D": "is stuck in the kernel (state D, uninterruptible wait)",
+           "Z": "has exited (state Z)"}
+
+
+def process_state(pid: int) -> str | None:
+    """Linux: why process ``pid`` does not answer, from its state in ``/proc/PID/stat`` ("is frozen (process
+    stopped, …)", "has exited", …); None when it runs or sleeps normally, or the state cannot be read."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except (OSError, IndexError):
+        return None
+    return _STATES.get(state)
+
+
+def exit_reason(returncode: int) -> str:
+    """``"killed by SIGKILL"`` or ``"exited with code 3"`` for a ``Popen.returncode``."""
+    if returncode < 0:
+        try:
+            return f"killed by {signal.Signals(-returncode).name}"
+        except ValueError:
+            return f"killed by signal {-returncode}"
+    return f"exited with code {returncode}"

@@ -12,11 +12,14 @@ import signal
 import time
 from collections.abc import Callable
 
-import zenoh
-
-from zencosim.manager.bus.security import remove_dictionaries, zenoh_reason
 from zencosim.manager.bus.signals import SignalNote
-from zencosim.manager.bus.zenoh_session import ZenohOptions, concrete_endpoint, session_config
+from zencosim.manager.bus.zenoh_session import (
+    SessionError,
+    ZenohOptions,
+    concrete_endpoint,
+    open_session,
+    session_config,
+)
 
 LOOK_S = 0.1  # how often the main thread looks for a signal
 
@@ -31,11 +34,9 @@ def serve_router(listen: list[str], connect: list[str], options: ZenohOptions,
     listen = [concrete_endpoint(endpoint) for endpoint in listen]
     signals = SignalNote(signal.SIGINT, signal.SIGTERM)
     try:
-        session = zenoh.open(session_config(listen, connect, options, mode="router"))
-    except zenoh.ZError as error:
-        raise RouterError(f"cannot start the router on {', '.join(listen)}: {zenoh_reason(error)}") from None
-    finally:
-        remove_dictionaries()
+        session = open_session(session_config(listen, connect, options, mode="router"), listen)
+    except SessionError as error:
+        raise RouterError(f"cannot start the router: {error}") from None
     with session:
         transport = "lowlatency" if options.lowlatency else "default"
         announce(f"zencosim router {session.zid()} listening on {', '.join(listen)} ({transport} transport); "

@@ -28,7 +28,8 @@ from typing import Callable
 import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
-from zencosim.manager.bus.children import start_child
+from zencosim.manager.bus.children import process_state, start_child
+from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
@@ -47,7 +48,7 @@ from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
 from zencosim.manager.scheme.replica import Replica, Tap
-from zencosim.manager.wire.protocol import Kind, encode, split_messages
+from zencosim.manager.wire.protocol import Kind, ProtocolError, encode, split_messages
 from zencosim.manager.wire.status import StatusReport
 
 ROUTER_WAIT_S = 10.0  # how long the manager waits for a --connect router to listen
@@ -89,11 +90,13 @@ class ZenohBus:
         self._joined = {name: threading.Event() for name in self.names}
         self._endpoints: dict[str, str] = {}  # where each subsystem process listens (for those started by hand)
         self._ready = {name: threading.Event() for name in self.names}
+        self._sources: dict[str, str] = {}  # the publisher of each subsystem's newest batch, when Zenoh gives it
         self._lost: list[str] = []
         self._started_at = time.monotonic()  # the last time a subsystem joined or became ready (start-up progress)
         self._driving = False
         self._session: zenoh.Session | None = None
         self._entities: list = []
+        self.dropped = DroppedMessages()  # what the manager took off the network and dropped (manager.bus.dropped)
 
     # -- start-up --------------------------------------------------------------------------------
     def __enter__(self) -> "ZenohBus":
@@ -274,13 +277,14 @@ class ZenohBus:
         ``tap`` sees every message of the manager's replica (a recorded run); ``keep``: its arrays in memory or
         spilled (``manager.run.execute``)."""
         scheme = make_scheme(self.scene, self.plan, False, None, progress, status, keep=keep)
-        self._replica = Replica(scheme, self.names, verify=True, tap=tap)
+        self._replica = Replica(scheme, self.names, tap=tap, on_drop=self._drop_reply)
         self._done = threading.Event()
         self._batches: queue.SimpleQueue = queue.SimpleQueue()  # (subsystem, batch of replies); None ends
         self._error: BaseException | None = None
         self._driving = True
         self._progress = (0, time.monotonic())
         self._heard = time.monotonic()  # when the last batch of replies arrived
+        self._following = False  # the follower is advancing the replica with a batch (or feeding the recorder)
         started, cpu_started = time.perf_counter(), time.process_time()
         start_unix_ns = time.time_ns() + START_DELAY_NS  # the hosts' clocks agree on it as far as they are synchronised
         if self.announce is not None:
@@ -306,6 +310,9 @@ class ZenohBus:
             raise self._error
         record = self._replica.result
         record.reported_timing = self._timing_reports()
+        record.dropped_messages = merge({"manager": self.dropped.report(),
+                                         **{name: checked(report.pop("dropped", {})) for name, report in
+                                            record.reported_timing.items()}})
         record.manager_cpu_s = time.process_time() - cpu_started
         return record, wall_s
 
@@ -322,9 +329,17 @@ class ZenohBus:
         return reports
 
     def _on_log(self, sample: zenoh.Sample) -> None:
-        """A batch of replies: handed to the follower thread (Zenoh's thread returns at once)."""
+        """A batch of replies: handed to the follower thread (Zenoh's thread returns at once); one on the key
+        of no subsystem of the run is dropped and counted."""
+        name = str(sample.key_expr).split("/")[-2]
+        if name not in self._publishers:
+            self.dropped.add(str(sample.key_expr), "no subsystem of this run publishes on this key", publisher(sample))
+            return
         self._heard = time.monotonic()
-        self._batches.put((str(sample.key_expr).split("/")[-2], sample.payload.to_bytes()))
+        source = publisher(sample)
+        if source is not None:
+            self._sources[name] = source
+        self._batches.put((name, sample.payload.to_bytes()))
 
     def _follow(self) -> None:
         """The follower thread: advance the manager's replica with every batch, at idle priority.
@@ -345,13 +360,24 @@ class ZenohBus:
             if item is None:
                 return
             name, batch = item
+            self._following = True
             with self._lock:
                 if self._driving and not self._done.is_set():
                     self._guarded(self._deliver_batch, name, batch)
+            self._following = False
 
     def _deliver_batch(self, name: str, batch: bytes) -> None:
-        for reply in split_messages(batch, f"subsystem {name}"):
+        try:
+            replies = split_messages(batch, f"subsystem {name}")
+        except ProtocolError as error:  # a malformed batch: none of it is taken
+            self.dropped.add(key(self.run_id, name, "log"), str(error), self._sources.get(name))
+            return
+        for reply in replies:
             self._replica.deliver(name, reply)
+
+    def _drop_reply(self, name: str, reason: str) -> None:
+        """The manager's replica dropped a reply of subsystem ``name`` (``manager.scheme.replica``)."""
+        self.dropped.add(key(self.run_id, name, "log"), reason, self._sources.get(name))
 
     def _guarded(self, action, *args) -> None:
         """Advance the manager's replica (under the lock); the end or any error finishes the run."""
@@ -369,19 +395,37 @@ class ZenohBus:
                 return self._settle(failure)
         if self._lost:
             name = self._lost[0]
-            return self._settle(SubsystemFailure(name, "its process is gone (liveliness token lost)"))
+            return self._settle(SubsystemFailure(name, self._why_gone(name)))
         # read without the lock, which the idle-priority follower may hold while it waits for a core
         steps, missing = self._replica.steps_done, self._replica.waiting_for()
         if steps != self._progress[0]:
             self._progress = (steps, time.monotonic())
-        # a stall is the subsystems' only when no batch arrives either (an idle-priority follower may lag)
-        elif missing and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s:
+        # a stall is the subsystems' only when no batch arrives either and the follower has taken every batch
+        # (an idle-priority follower may lag; one held up by a frozen recorder waits for it: recordings.recorder)
+        elif (missing and not self._following and self._batches.empty()
+              and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s):
             # every replica waits when one subsystem stalls: name the ones whose process does not respond
-            frozen = self._unresponsive()
+            frozen, dropped = self._unresponsive()
             name = frozen[0] if frozen else missing[0]
             return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
-                                          + ("; its process does not respond" if frozen else ""))
+                                          + (f"; its process {self._state(name) or 'does not respond'}" if frozen else "")
+                                          + (f"; messages dropped: {dropped}" if dropped else ""))
         return None
+
+    def _state(self, name: str) -> str | None:
+        """Why subsystem ``name``'s process does not answer, when the manager spawned it and its state says
+        (``manager.bus.children.process_state``: frozen, stuck, exited)."""
+        child = self.children.get(name)
+        return None if child is None else process_state(child.pid)
+
+    def _why_gone(self, name: str) -> str:
+        """The reason for a subsystem whose liveliness token is gone (its Zenoh session closed or expired)."""
+        if name not in self.children:
+            return "its liveliness token is gone: its process ended, or froze, or its host is unreachable"
+        state = self._state(name)
+        if state is not None:
+            return f"its process {state}, and its Zenoh session expired (liveliness token lost)"
+        return "its Zenoh session is gone (liveliness token lost) although its process runs"
 
     def _settle(self, failure: SubsystemFailure) -> SubsystemFailure:
         """Before a process that exited or left is blamed: let the follower take the replies
@@ -397,11 +441,22 @@ class ZenohBus:
             time.sleep(0.01)
         return self._exited(failure.subsystem) or failure
 
-    def _unresponsive(self) -> list[str]:
-        """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together)."""
+    def _unresponsive(self) -> tuple[list[str], str]:
+        """Subsystems that do not answer a description query within ``PROBE_TIMEOUT_S`` (queried together), and
+        the messages every process dropped (``manager.bus.dropped.describe``; the others' from their answers)."""
         pending = {name: self._session.get(key(self.run_id, name, "ctl"), timeout=PROBE_TIMEOUT_S)
                    for name in self.names}
-        return [name for name, replies in pending.items() if not any(reply.ok for reply in replies)]
+        frozen, reports = [], {"manager": self.dropped.report()}
+        for name, replies in pending.items():
+            answers = [reply.ok for reply in replies if reply.ok is not None]
+            if not answers:
+                frozen.append(name)
+                continue
+            try:
+                reports[name] = checked(json.loads(answers[0].payload.to_bytes()).get("dropped"))
+            except (ValueError, AttributeError):
+                pass  # not a description: nothing to add
+        return frozen, describe(merge(reports))
 
     # -- shutdown --------------------------------------------------------------------------------
     def close(self) -> None:
@@ -413,6 +468,8 @@ class ZenohBus:
                 publisher.put(encode(Kind.STOP, 0, 0))
         deadline = time.monotonic() + STOP_GRACE_S
         for child in self.children.values():
+            if child.poll() is None and (process_state(child.pid) or "").startswith("is frozen"):
+                child.kill()  # a stopped process cannot act on STOP or SIGTERM
             try:
                 child.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:

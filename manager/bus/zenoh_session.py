@@ -14,6 +14,7 @@ join as its clients (:func:`session_config`).
 from __future__ import annotations
 
 import json
+import re
 import secrets
 import socket
 import time
@@ -132,12 +133,25 @@ class SessionError(ValueError):
     """A Zenoh session that does not open with the settings given (exit status 2)."""
 
 
+class ListenError(SessionError):
+    """An endpoint this process cannot listen on (its port is taken, or the address is not this host's)."""
+
+
 def open_session(config: zenoh.Config, listen: list[str] = ()) -> zenoh.Session:
-    """``zenoh.open``, with Zenoh's reason in one line (a certificate file that a configuration names but that
-    is missing, an address that is not this host's, a port in use)."""
+    """``zenoh.open(config)``, with the reason in one line: a session that cannot listen on ``listen`` raises
+    :class:`ListenError` naming the endpoint and the operating system's reason, any other failure (a
+    certificate file that a configuration names but that is missing, ...) :class:`SessionError` with
+    Zenoh's reason (Zenoh's own message is a Rust trace)."""
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
+        text = str(error)
+        reason = re.search(r"([A-Za-z][^:\[\]]*?) \(os error \d+\)", text)
+        where = re.search(r"listener bound to (\S+?):? \[", text)
+        if where is not None or (listen and reason is not None):
+            endpoint = where.group(1) if where else ", ".join(listen)
+            raise ListenError(f"cannot listen on {endpoint}: "
+                              + (reason.group(1).lower() if reason else zenoh_reason(error))) from None
         where = f" listening on {', '.join(listen)}" if listen else ""
         raise SessionError(f"cannot open the Zenoh session{where}: {zenoh_reason(error)}") from None
     finally:

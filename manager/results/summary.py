@@ -219,6 +219,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         "timing": timing,
         "digest": digest(record),
         "overrides": list(scene.overrides),
+        "dropped_messages": record.dropped_messages or {},  # over Zenoh: per key (manager.bus.dropped)
     }
     spikes = residual_power_spikes(record, scene.manager.spikes)
     summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}

@@ -31,11 +31,13 @@ class SubsystemFailure(RuntimeError):
 
 class Exchange(NamedTuple):
     """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``; ``status``, when
-    the run reports it, is the manager's STATUS message of the macro-step that has just ended."""
+    the run reports it, is the manager's STATUS message of the macro-step that has just ended; ``step``, when
+    given, the step of the replies awaited (``manager.scheme.replica`` checks it for replies from the network)."""
 
     sends: dict[str, bytes]
     awaits: tuple[str, ...]
     status: bytes | None = None
+    step: int | None = None  # the step every awaited OUTPUT or ACK carries (a reply from the network is checked)
 
 
 class Corrector(Protocol):
@@ -79,6 +81,7 @@ class RunRecord:
     implicit: ImplicitRecord | None = None  # what the implicit scheme adds (manager.scheme.implicit)
     reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.bus.timing)
     manager_cpu_s: float | None = None  # over Zenoh: the manager's CPU time [s] while the run stepped
+    dropped_messages: dict[str, dict] | None = None  # over Zenoh: messages dropped per key (manager.bus.dropped.merge)
 
     @property
     def last_step(self) -> int:

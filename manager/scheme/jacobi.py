@@ -130,7 +130,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             late_window.array[tick - late_window.offset] = pacer.last_lateness_ns
         if tick == 0:
             first_release_ns = released_ns
-        replies = yield Exchange(sends, due_names[phase], step_status)
+        replies = yield Exchange(sends, due_names[phase], step_status, next_tick)
         for s in due[phase]:
             readers[s.index].commit(replies[s.name], next_tick)
         if next_tick >= p_window.end:
@@ -198,7 +198,7 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
                 w0[0, list(step.ready)] = input_polynomial(s, 0)[0, list(step.ready)]
             sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
         taken = [step.subsystem for step in round_ if step.subsystem in tracked]
-        replies = yield Exchange(sends, tuple(subs[i].name for i in taken))
+        replies = yield Exchange(sends, tuple(subs[i].name for i in taken), None, 0)
         for i in taken:
             readers[i].commit(replies[subs[i].name], 0)
 

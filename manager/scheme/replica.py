@@ -9,8 +9,15 @@ every command. So every process of a run runs the *same* scheme:
   one network hop instead of the two of a manager in the loop (manager → subsystem → manager);
 * the manager runs the replica that holds no subsystem: it monitors, records and checks, for every
   reply, that the subsystem executed exactly the command the manager's replica computed (CRC-32 in
-  the reply header). A replica that diverged (different software, different arithmetic) is named at
-  the first reply that shows it.
+  the reply header).
+
+A replica that takes replies from the network (``on_drop`` given) checks each one before the scheme
+takes it: a well-formed reply header, and the CRC-32 of the command it answers when this replica
+computed that command (the manager's replica, every replica of the implicit scheme), else the step the
+scheme awaits. A reply that fails is dropped and handed to ``on_drop(name, reason)`` (the bus counts it
+with its key) and the replica waits for the next one: a stray, replayed or garbled message does not end
+the run, and a subsystem whose replica diverged (different software, different arithmetic) sends only
+replies that fail, so the run stalls and the bus's timeout names it with what it dropped.
 
 A :class:`Tap` sees what a replica goes through: the commands of each exchange (``commands``, subsystem
 → message), the replies of each exchange when the scheme takes them (``replies``, in simulation order
@@ -25,7 +32,9 @@ from collections import deque
 from typing import Callable, Generator, Protocol
 
 from zencosim.manager.scheme.base import Exchange, RunRecord
-from zencosim.manager.wire.protocol import HEADER, ProtocolError, command_ref
+from zencosim.manager.wire.protocol import Kind, ProtocolError, command_ref, decode_header
+
+REPLY_KINDS = (Kind.OUTPUT, Kind.ACK, Kind.ERROR)
 
 
 class Tap(Protocol):
@@ -64,12 +73,12 @@ class Replica:
 
     def __init__(self, scheme: Generator[Exchange, dict[str, bytes], RunRecord], names: list[str],
                  local: dict | None = None, publish: Callable[[str, bytes], None] | None = None,
-                 verify: bool = False, tap: Tap | None = None) -> None:
+                 tap: Tap | None = None, on_drop: Callable[[str, str], None] | None = None) -> None:
         self.scheme = scheme
         self.local = local or {}
         self.publish = publish
-        self.verify = verify
         self.tap = tap
+        self.on_drop = on_drop
         self.replies: dict[str, deque[bytes]] = {name: deque() for name in names}
         self.expected: dict[str, deque[int]] = {name: deque() for name in names}
         self.request: Exchange | None = None
@@ -111,23 +120,28 @@ class Replica:
                 tap.status(self.request.status)
             tap.commands(self.request.sends)
         for name, command in self.request.sends.items():
-            if self.verify:
-                self.expected[name].append(command_ref(command))
             endpoint = self.local.get(name)
-            if endpoint is not None:
+            if endpoint is None:
+                if self.on_drop is not None:  # its reply comes from the network: it must carry this reference
+                    self.expected[name].append(command_ref(command))
+            else:
                 reply = endpoint.handle(command)
                 if self.publish is not None:
                     self.publish(name, reply)
                 self.replies[name].append(reply)
 
     def _advance(self) -> None:
-        while all(self.replies[name] for name in self.request.awaits):
+        screened = self.on_drop is not None
+        ready = _Screened(self) if screened else self.replies
+        # a list, not a generator: every awaited queue is screened, so that waiting_for() names the right ones
+        while all([ready[name] for name in self.request.awaits]):
             replies = {name: self.replies[name].popleft() for name in self.request.awaits}
+            if screened:
+                for name in replies:
+                    if self.expected[name]:
+                        self.expected[name].popleft()
             if self.tap is not None:
                 self.tap.replies(replies)
-            if self.verify:
-                for name, reply in replies.items():
-                    self._check(name, reply)
             try:
                 self.request = self.scheme.send(replies)
             except StopIteration as done:
@@ -137,10 +151,41 @@ class Replica:
             self.steps_done += 1
             self._execute()
 
-    def _check(self, name: str, reply: bytes) -> None:
-        expected = self.expected[name].popleft()
-        ref = HEADER.unpack_from(reply)[6] if len(reply) >= HEADER.size else None
-        if ref != expected:
-            raise ProtocolError(f"subsystem {name} executed a command that differs from the manager's "
-                                f"(reference {ref} instead of {expected}): its copy of the scheme diverged; "
-                                "run every process with the same zencosim, numpy and scene")
+    def fault(self, name: str, reply: bytes) -> str | None:
+        """Why the scheme must not take ``reply``, the next of subsystem ``name`` from the network (None: it may)."""
+        try:
+            kind, _, _, step, _, ref = decode_header(reply, f"subsystem {name}")
+        except ProtocolError as error:
+            return str(error)
+        if kind not in REPLY_KINDS:
+            return f"a {kind.name} message, which is no reply"
+        expected = self.expected[name]
+        if expected:
+            if ref != expected[0]:
+                return (f"answers another command than this replica computed (reference {ref} instead of "
+                        f"{expected[0]}): another process publishes here, or the subsystem's copy of the scheme "
+                        "diverged (run every process with the same zencosim, numpy and scene)")
+        elif self.request.step is not None and step != self.request.step and kind != Kind.ERROR:
+            return f"a {kind.name} for step {step}; the scheme awaits step {self.request.step}"
+        return None
+
+
+class _Screened:
+    """``replica.replies`` whose head replies that fail :meth:`Replica.fault` are dropped (``on_drop``) when
+    looked at: ``screened[name]`` is true once subsystem ``name``'s next reply may be taken."""
+
+    def __init__(self, replica: Replica) -> None:
+        self.replica = replica
+
+    def __getitem__(self, name: str) -> bool:
+        replica = self.replica
+        queue = replica.replies[name]
+        if name in replica.local:
+            return bool(queue)
+        while queue:
+            reason = replica.fault(name, queue[0])
+            if reason is None:
+                return True
+            queue.popleft()
+            replica.on_drop(name, reason)
+        return False

@@ -16,6 +16,8 @@ from typing import Callable
 
 import numpy as np
 
+from zencosim.manager.wire.text import printable
+
 VERSION = 2
 HEADER = struct.Struct("<BBHIqqI4x")
 
@@ -52,7 +54,8 @@ class Message:
     values: np.ndarray  # read-only view of the payload
 
     def text(self) -> str:
-        return self.values.tobytes().decode("utf-8", errors="replace")
+        """An ERROR's reason, its control characters escaped (``manager.wire.text``: it came from the network)."""
+        return printable(self.values.tobytes().decode("utf-8", errors="replace"))
 
 
 def encode(kind: Kind, step: int, time_ns: int, values: np.ndarray | None = None, rows: int = 0, ref: int = 0) -> bytes:

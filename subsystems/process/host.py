@@ -24,6 +24,7 @@ import time
 import zenoh
 
 from zencosim.manager.assembly import make_scheme, plan_scene, process_scope
+from zencosim.manager.bus.dropped import DroppedMessages, publisher
 from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.bus.timing import step_timing
@@ -41,17 +42,19 @@ from zencosim.manager.bus.zenoh_session import (
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.pacing import SPIN_SHARED_NS
 from zencosim.manager.scheme.replica import Replica
-from zencosim.manager.wire.protocol import Kind
+from zencosim.manager.wire.protocol import Kind, ProtocolError, decode_header
+from zencosim.manager.wire.text import printable
 
 
 class HostError(RuntimeError):
     """The subsystem process could not join a run."""
 
 
-def describe(scene: Scene, name: str, subsystem, listen: str | None) -> bytes:
-    """What the manager checks before a run (same scene, same ports), and where this process listens (None:
-    nowhere, a router's client)."""
+def describe(scene: Scene, name: str, subsystem, listen: str | None, dropped: dict | None = None) -> bytes:
+    """What the manager checks before a run (same scene, same ports), where this process listens (None:
+    nowhere, a router's client), and the messages it has dropped so far (``manager.bus.dropped``)."""
     return json.dumps({
+        "dropped": dropped or {},
         "subsystem": name,
         "listen": listen,
         "scene_digest": scene.digest,
@@ -90,7 +93,7 @@ EXIT_LIMIT_S = 10.0  # once stopped, the process has this long to leave the run 
 
 
 def _exit_now(name: str, reason: str) -> None:
-    print(f"subsystem {name}: {reason}; leaving the Zenoh session took over {EXIT_LIMIT_S:g} s, exiting now",
+    print(printable(f"subsystem {name}: {reason}; leaving the Zenoh session took over {EXIT_LIMIT_S:g} s, exiting now"),
           file=sys.stderr, flush=True)
     os._exit(1)
 
@@ -122,6 +125,7 @@ class _Host:
         self.received = 0  # replies taken from the network (its sources')
         self.cpu_s = [0.0, 0.0]  # this process's CPU time when the run started and when its replica finished
         self.last_sent = time.monotonic()
+        self.dropped = DroppedMessages()  # messages taken off the network and dropped (manager.bus.dropped)
 
     def stop(self, why: str) -> None:
         self.reasons.append(why)
@@ -159,15 +163,25 @@ class _Host:
                 self._guarded(self.replica.deliver, sender, data)
 
     def on_go(self, sample: zenoh.Sample) -> None:
-        go = json.loads(sample.payload.to_bytes())
+        """The start signal; anything else on ``manager/go``, or a second one, is dropped and counted."""
+        try:
+            go = json.loads(sample.payload.to_bytes())
+            start_unix_ns, realtime = int(go["start_unix_ns"]), bool(go["realtime"])
+        except (ValueError, KeyError, TypeError) as error:
+            self.dropped.add(str(sample.key_expr), f"not a start signal ({type(error).__name__}: {error})",
+                             publisher(sample))
+            return
         # the start on this process's monotonic clock (which paces; the wall clock may be stepped)
-        start_ns = time.perf_counter_ns() + (go["start_unix_ns"] - time.time_ns())
+        start_ns = time.perf_counter_ns() + (start_unix_ns - time.time_ns())
         with self.lock:
+            if self.replica is not None:
+                self.dropped.add(str(sample.key_expr), "a second start signal", publisher(sample))
+                return
             self.cpu_s[0] = time.process_time()
-            scheme = make_scheme(self.scene, self.plan, go["realtime"], start_ns, spin_ns=SPIN_SHARED_NS,
-                                 local=self.scope, cpu=self.plan.by_name(self.name).index % (os.cpu_count() or 1),
+            scheme = make_scheme(self.scene, self.plan, realtime, start_ns, spin_ns=SPIN_SHARED_NS, local=self.scope,
+                                 cpu=self.plan.by_name(self.name).index % (os.cpu_count() or 1),
                                  who=f"subsystem {self.name}")
-            self.replica = Replica(scheme, self.names, self.local, self.publish)
+            self.replica = Replica(scheme, self.names, self.local, self.publish, on_drop=self.drop_reply)
             self._guarded(self.replica.start)
             for sender, data in self.early:
                 self._guarded(self.replica.deliver, sender, data)
@@ -180,6 +194,7 @@ class _Host:
             report = step_timing(self.replica.result) if finished else None
             if report is not None:
                 report["replies_received"] = self.received
+                report["dropped"] = self.dropped.report()
                 report["cpu_s"] = self.cpu_s[1] - self.cpu_s[0]  # every thread of the process, while it stepped
         if report is None:
             query.reply_err(b"the run has not finished here")
@@ -196,7 +211,21 @@ class _Host:
             self.cpu_s[1] = self.cpu_s[1] or time.process_time()
             self.send_log()  # the last replies: the manager finishes the run once it has them
 
+    def drop_reply(self, sender: str, reason: str) -> None:
+        """The replica dropped a reply of ``sender`` from the network (``manager.scheme.replica``)."""
+        self.dropped.add(key(self.run_id, sender, "y"), reason)
+
     def on_control(self, sample: zenoh.Sample) -> None:
+        """STOP from the manager; anything else on ``<sub>/u`` is dropped and counted."""
+        data = sample.payload.to_bytes()
+        try:
+            kind = decode_header(data, "manager")[0]
+        except ProtocolError as error:
+            self.dropped.add(str(sample.key_expr), str(error), publisher(sample))
+            return
+        if kind != Kind.STOP:
+            self.dropped.add(str(sample.key_expr), f"a {kind.name} message; only STOP is sent here", publisher(sample))
+            return
         self.stop("stopped by the manager")
 
     def on_liveliness(self, sample: zenoh.Sample) -> None:
@@ -251,7 +280,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
             session.declare_subscriber(key(run_id, name, "u"), host.on_control),
             session.declare_subscriber(key(run_id, "manager", "go"), host.on_go),
             session.declare_queryable(key(run_id, name, "ctl"), lambda query: query.reply(
-                key(run_id, name, "ctl"), describe(scene, name, host.subsystem, listen))),
+                key(run_id, name, "ctl"), describe(scene, name, host.subsystem, listen, host.dropped.report()))),
             session.liveliness().declare_subscriber(key(run_id, "*", "alive"), host.on_liveliness, history=True),
             session.liveliness().declare_token(key(run_id, name, "alive")),
         ]
@@ -275,5 +304,5 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         host.replies.undeclare()
         host.log.undeclare()
     deadline_timer.cancel()
-    print(f"subsystem {name}: {host.reasons[0]}", file=sys.stderr)
+    print(printable(f"subsystem {name}: {host.reasons[0]}"), file=sys.stderr)
     return 0 if host.reasons[0] == "stopped by the manager" else 1

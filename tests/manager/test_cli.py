@@ -68,7 +68,7 @@ def test_bad_arguments_exit_2():
 def test_a_router_that_cannot_listen_says_where_in_one_line():
     result = zencosim("router", "--listen", "tcp/192.0.2.1:7447")  # TEST-NET-1: not an address of this host
     assert result.returncode == 1
-    assert "cannot start the router on tcp/192.0.2.1:7447" in result.stderr and "Traceback" not in result.stderr
+    assert "cannot start the router: cannot listen on tcp/192.0.2.1:7447" in result.stderr and "Traceback" not in result.stderr
 
 
 def test_docker_compose_is_a_run_through_its_router_with_valid_command_lines(tmp_path):

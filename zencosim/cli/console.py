@@ -6,6 +6,8 @@ import argparse
 from rich.console import Console
 from rich.markup import escape
 
+from zencosim.manager.wire.text import printable
+
 
 class UsageError(ValueError):
     """Arguments that do not fit together (exit status 2)."""
@@ -16,13 +18,13 @@ err = Console(stderr=True)
 
 
 def say(text: str) -> None:
-    """Print plain text (no markup, no highlighting) on standard output."""
-    out.print(escape(text), highlight=False, soft_wrap=True)
+    """Print plain text (no markup, no highlighting, control characters escaped) on standard output."""
+    out.print(escape(printable(text)), highlight=False, soft_wrap=True)
 
 
 def warn(text: str) -> None:
-    """Print plain text on standard error."""
-    err.print(escape(text), highlight=False, soft_wrap=True)
+    """Print plain text on standard error (as :func:`say`: errors and log tails hold text from the network)."""
+    err.print(escape(printable(text)), highlight=False, soft_wrap=True)
 
 
 def add_scene_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,9 +1,10 @@
 """The ``zencosim`` command line (also ``python -m zencosim``).
 
-Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error) or
-a recording did not verify (damaged, cut off or different; ``inspect``: damaged), 2 bad input (scene,
-overrides, arguments, recording file, output path, a missing optional dependency), 130 interrupted
-(SIGINT or SIGTERM).
+Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error; the
+recorder was lost under --record-lost stop) or a recording did not verify (damaged, cut off or different;
+``inspect``: damaged), 2 bad input (scene, overrides, arguments, recording file, output path, a missing
+optional dependency, a Zenoh session that cannot open: an endpoint to listen on that is taken, a
+certificate file missing), 130 interrupted (SIGINT or SIGTERM).
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from zencosim.manager.results.output_files import OutputFileError
 from zencosim.manager.scene.load import SceneError
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.wire.protocol import VERSION, ProtocolError
-from zencosim.recordings import RecordingError
+from zencosim.recordings import RecorderLost, RecordingError
 from zencosim.subsystems.process.host import HostError
 
 # the modules of zencosim.cli, each adds its parsers
@@ -32,7 +33,7 @@ COMMANDS = ("scenes", "run", "realtime", "analysis", "study", "recordings", "sub
 # instead of 0.85 s each, which 33 processes starting on 2 cores feel)
 SUBSYSTEM_ONLY = "subsystem"
 BAD_INPUT = (SceneError, RecordingError, OutputFileError, MissingExtra, UsageError, SecurityError, SessionError)  # exit status 2
-RUN_FAILED = (SubsystemFailure, ProtocolError, HostError, RouterError)  # exit status 1
+RUN_FAILED = (SubsystemFailure, ProtocolError, HostError, RouterError, RecorderLost)  # exit status 1
 
 
 def versions() -> str:

@@ -70,13 +70,15 @@ def _print_summary(summary: dict) -> None:
     row("digest", summary["digest"][:16] + "…")
     if "recording" in summary:
         recording = summary["recording"]
-        row("recording", f"{recording['path']}: {recording['messages']} messages, {recording['lost']} lost")
+        row("recording", _recording_text(recording).removeprefix("recording "))
     out.print(table)
     if "reference_note" in summary:
         out.print(summary["reference_note"])
 
 
 def _recording_text(result: dict) -> str:
+    if result["messages"] is None:  # the recorder process was lost (recordings.recorder.Recorder.finish)
+        return f"recording {result['path']}: incomplete ({result['outcome']})"
     lost = "unknown losses" if result["lost"] is None else f"{result['lost']} lost"
     return f"recording {result['path']}: {result['messages']} messages, {lost} ({result['outcome']})"
 
@@ -112,7 +114,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if record_path or args.rerun:
         from zencosim.recordings.recorder import Recorder
         recorder = Recorder(check_output_file(record_path, "recording") if record_path else None, args.record_host_info,
-                            args.rerun, _wait_while_serving if args.rerun == "serve" else None)
+                            args.rerun, _wait_while_serving if args.rerun == "serve" else None, args.record_lost, warn)
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
@@ -130,8 +132,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             record, wall_s = execute(scene, args.bus, True if args.realtime else None,
                                      lambda step: progress.update(task, completed=step), recorder=recorder,
                                      **bus_options)
-        finally:  # a run that did not complete prints no summary: say what its recording holds
-            if recorder is not None and recorder.result is not None and recorder.result["outcome"] != "completed":
+        finally:  # a run that did not complete prints no summary: say what its recording holds (a lost recorder is said)
+            if (recorder is not None and recorder.result is not None and recorder.result["outcome"] != "completed"
+                    and recorder.lost is None):
                 warn(_recording_text(recorder.result))
     summary = summarize_run(scene, record, args.bus, wall_s, recorder)
     if not args.quiet:
@@ -174,6 +177,9 @@ def add_parsers(commands) -> None:
     run.add_argument("--rerun", nargs="?", const="spawn", metavar="TARGET",
                      help="show the run live in Rerun: spawn (a viewer here, the default), connect=HOST:PORT (a "
                           "viewer or 'rerun --serve-grpc' there) or serve (the web viewer at http://127.0.0.1:9090)")
+    run.add_argument("--record-lost", choices=("stop", "continue"), default="stop",
+                     help="when the recorder process is gone (killed, crashed): stop the run (exit status 1, the "
+                          "default) or continue it unrecorded; either way one line names it (docs/recording.md)")
     run.add_argument("--record-host-info", action="store_true",
                      help="also record the host's name and the scene file's absolute path (left out by default)")
     add_security_arguments(run)

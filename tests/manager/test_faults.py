@@ -1,0 +1,188 @@
+"""Faults and stray traffic during real runs (real processes, real Zenoh on loopback): each is named in one
+line, never a traceback, and a stray or garbled message never changes a run's result.
+
+Every process a test starts is killed at its end (tests.conftest.processes). No assertion on wall-clock
+time: a test waits for what it needs to see (a line, a file, an answer), with generous limits.
+"""
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import socket
+import time
+
+import numpy as np
+import pytest
+import zenoh
+
+from tests.conftest import alive, children_of, cmdline, read_until, summary_of, wait_for
+from zencosim.manager.bus.zenoh_session import free_tcp_port, key, session_config, wait_for_listener
+from zencosim.manager.wire.protocol import Kind, encode, encode_error
+from zencosim.recordings.reader import read_recording
+
+pytestmark = pytest.mark.multiprocess
+
+
+def _child(manager_pid: int, marker: str) -> int | None:
+    """The child process of the manager whose command line contains ``marker``."""
+    return next((pid for pid in children_of(manager_pid) if marker in cmdline(pid)), None)
+
+
+def _joined(port: int, wait_s: float = 60.0) -> tuple[zenoh.Session, dict]:
+    """A session of the test linked to the manager listening on ``port`` and to every subsystem process of its run
+    (peers do not forward: a message for a subsystem must be published on a link to it), and the run's description."""
+    wait_for_listener(f"tcp/127.0.0.1:{port}", wait_s)
+    with zenoh.open(session_config(connect=[f"tcp/127.0.0.1:{port}"], mode="client")) as probe:
+        def described():
+            answers = [r.ok for r in probe.get("zencosim/*/manager/run", timeout=1.0) if r.ok is not None]
+            info = json.loads(answers[0].payload.to_bytes()) if answers else None
+            return info if info and not info["waiting_for"] else None
+        info = wait_for(described, wait_s, "the run to describe itself with every subsystem joined")
+    peers = [f"tcp/127.0.0.1:{port}", *info["endpoints"].values()]
+    return zenoh.open(session_config(connect=peers)), info
+
+
+def _run_with_stray_traffic(processes, tmp_path, inject) -> tuple[object, str, dict | None]:
+    """A real-time zenoh run of 5 s of two_mass_damped (so that it lasts while the test injects), with ``inject(session,
+    run_id)`` called once the run has started; (manager, its stderr, its summary or None)."""
+    port, summary = free_tcp_port(), tmp_path / "summary.json"
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--realtime", "--set", "manager.duration=5",
+                        "--set", "manager.timeout=3", "--listen", f"tcp/127.0.0.1:{port}", "--summary", str(summary))
+    session, info = _joined(port)
+    try:
+        read_until(manager.stderr, "starting", 60)
+        inject(session, info["run_id"])
+        assert manager.poll() is None, "the run ended before the stray messages were sent: inconclusive"
+        _, stderr = manager.communicate(timeout=120)
+    finally:
+        session.close()
+    return manager, stderr, json.loads(summary.read_text()) if summary.exists() else None
+
+
+@pytest.mark.timeout(240)
+def test_stray_and_garbled_messages_are_dropped_counted_and_leave_the_result_unchanged(processes, tmp_path):
+    garbage = bytes([0xEE]) + random.Random(14).randbytes(99)  # 100 random bytes (not protocol version 2)
+    replayed: list[bytes] = []
+
+    def inject(session: zenoh.Session, run_id: str) -> None:
+        tap = session.declare_subscriber(key(run_id, "S1", "log"), lambda sample: replayed.append(
+            sample.payload.to_bytes()))
+        wait_for(lambda: replayed, 30, "a batch of S1's replies to replay")
+        tap.undeclare()
+        session.put(key(run_id, "X", "log"), encode(Kind.OUTPUT, 1, 1_000_000, np.ones(2), ref=7))
+        session.put(key(run_id, "S1", "y"), garbage)  # S2 takes S1's replies from here
+        session.put(key(run_id, "S1", "log"), replayed[0])  # the manager takes them from here, in batches
+        session.put(key(run_id, "S1", "log"), garbage)
+
+    manager, stderr, summary = _run_with_stray_traffic(processes, tmp_path, inject)
+    assert manager.returncode == 0, stderr
+    assert "Traceback" not in stderr
+    assert summary["digest"] == summary_of("two_mass_damped", "manager.duration=5")["digest"]
+    dropped = summary["dropped_messages"]
+    run_id = next(iter(dropped)).split("/")[1]
+    on = {topic: dropped.get(key(run_id, *topic.split("/"))) for topic in ("X/log", "S1/y", "S1/log")}
+    assert on["X/log"] == {"count": 1, "reason": "no subsystem of this run publishes on this key", "publisher": None,
+                           "seen_by": ["manager"]}
+    assert on["S1/y"]["count"] == 1 and on["S1/y"]["seen_by"] == ["S2"]
+    assert "protocol version 238" in on["S1/y"]["reason"]
+    # the replayed batch: each of its replies (48 bytes) answers a command already answered, or its copy that
+    # arrived first did and the original is dropped; and the garbage, as one malformed batch or as its parts
+    assert on["S1/log"]["count"] >= len(replayed[0]) // 48 + 1 and on["S1/log"]["seen_by"] == ["manager"]
+
+
+@pytest.mark.timeout(240)
+def test_a_forged_error_fails_the_run_with_its_text_escaped(processes, tmp_path):
+    def inject(session: zenoh.Session, run_id: str) -> None:
+        # an ERROR on S1/y cannot be checked by S2, which does not compute S1's commands: it ends the run
+        for step in range(0, 5000, 50):
+            session.put(key(run_id, "S1", "y"), encode_error(step, 0, "\x1b]0;owned\x07\x1b[2Jgone"))
+
+    manager, stderr, _ = _run_with_stray_traffic(processes, tmp_path, inject)
+    assert manager.returncode == 1 and "Traceback" not in stderr
+    assert "subsystem S2:" in stderr and "subsystem S1: failed at step" in stderr
+    assert "\x1b" not in stderr and "\x07" not in stderr and "\\x1b]0;owned\\x07\\x1b[2Jgone" in stderr
+
+
+@pytest.mark.timeout(60)
+def test_an_occupied_listen_port_is_one_line(processes):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--listen", f"tcp/127.0.0.1:{port}")
+        _, stderr = manager.communicate(timeout=60)
+    assert manager.returncode == 2
+    assert stderr.strip() == f"error: cannot listen on tcp/127.0.0.1:{port}: address already in use"
+
+
+def _recorded_run(processes, mcap, bus: str, *options: str):
+    manager = processes("run", "two_mass_damped", "--bus", bus, "--record", str(mcap), *options)
+    recorder = wait_for(lambda: _child(manager.pid, "zencosim.recordings.recorder_process"), 60, "the recorder")
+    wait_for(lambda: mcap.exists() and mcap.stat().st_size > 50_000, 60, "the recording to grow")
+    assert manager.poll() is None, manager.communicate()
+    return manager, recorder
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("bus", ["inproc", "zenoh"])
+def test_a_killed_recorder_stops_the_run_in_one_line(processes, tmp_path, bus):
+    mcap = tmp_path / "killed.mcap"
+    manager, recorder = _recorded_run(processes, mcap, bus, "--quiet", "--set", "manager.duration=600")
+    os.kill(recorder, signal.SIGKILL)
+    _, stderr = manager.communicate(timeout=60)
+    assert manager.returncode == 1 and "Traceback" not in stderr, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"run failed: the recorder of {mcap} is gone (killed by SIGKILL) "
+                                                   "at step "), stderr
+    step = int(lines[0].split(" at step ")[1].split(":")[0])
+    recording = read_recording(mcap)  # cut off: what it holds ends before the step the run had reached
+    assert recording.truncated is not None and 0 < recording.last_step() <= step
+
+
+@pytest.mark.timeout(180)
+def test_a_killed_recorder_under_record_lost_continue_leaves_the_run_to_finish(processes, tmp_path):
+    mcap, summary = tmp_path / "killed.mcap", tmp_path / "summary.json"
+    manager, recorder = _recorded_run(processes, mcap, "zenoh", "--quiet", "--record-lost", "continue",
+                                      "--set", "manager.duration=20", "--summary", str(summary))
+    os.kill(recorder, signal.SIGKILL)
+    _, stderr = manager.communicate(timeout=150)
+    assert manager.returncode == 0, stderr
+    assert stderr.startswith(f"the recorder of {mcap} is gone (killed by SIGKILL) at step ") and "Traceback" not in stderr
+    assert "the run goes on unrecorded (--record-lost continue)" in stderr
+    result = json.loads(summary.read_text())
+    assert result["recording"]["outcome"].startswith("the recorder was lost at step ")
+    assert result["recording"]["outcome"].endswith("(killed by SIGKILL); the run: completed")
+    assert result["digest"] == summary_of("two_mass_damped", "manager.duration=20")["digest"]
+
+
+@pytest.mark.timeout(240)
+def test_a_frozen_recorder_holds_the_run_back_and_is_named_not_a_subsystem(processes, tmp_path):
+    """The recorder is stopped until the subsystems have finished and the manager has heard nothing from them
+    for longer than manager.timeout: the run waits for it, says so, and completes with nothing lost."""
+    mcap, port = tmp_path / "frozen.mcap", free_tcp_port()
+    manager, recorder = _recorded_run(processes, mcap, "zenoh", "--set", "manager.duration=20",
+                                      "--set", "manager.timeout=1", "--listen", f"tcp/127.0.0.1:{port}")
+    os.kill(recorder, signal.SIGSTOP)
+    try:
+        lines = read_until(manager.stderr, "has taken nothing for 1 s", 120)
+        wait_for_listener(f"tcp/127.0.0.1:{port}", 60)
+        with zenoh.open(session_config(connect=[f"tcp/127.0.0.1:{port}"], mode="client")) as session:
+            run_id = json.loads(next(r.ok for r in session.get("zencosim/*/manager/run", timeout=5.0)
+                                     if r.ok is not None).payload.to_bytes())["run_id"]
+            for name in ("S1", "S2"):  # finished: they answer with their timing
+                wait_for(lambda: any(r.ok for r in session.get(key(run_id, name, "timing"), timeout=1.0)), 120,
+                         f"{name} to finish")
+        time.sleep(3 * 1.0)  # longer than manager.timeout without a batch: what a subsystem stall would look like
+    finally:
+        if alive(recorder):
+            os.kill(recorder, signal.SIGCONT)
+    _, rest = manager.communicate(timeout=120)
+    stderr = "".join(lines) + rest
+    assert manager.returncode == 0, stderr
+    assert ("its process is frozen (process stopped, state T: SIGSTOP or a debugger); the run waits for it "
+            "(nothing is dropped)") in stderr
+    assert "did not answer" not in stderr and "takes messages again after" in stderr
+    recording = read_recording(mcap)
+    assert recording.truncated is None and recording.end["outcome"] == "completed" and recording.end["lost"] == 0
