@@ -10,6 +10,8 @@ from __future__ import annotations
 import time
 from typing import Callable, Protocol
 
+import numpy as np
+
 from zencosim.manager.analysis.monolithic import monolithic_unavailable
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
@@ -79,7 +81,8 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
         if bus == "inproc":
             scheme = make_scheme(scene, plan, realtime, None, progress, status)
             start = time.perf_counter()
-            record = run_in_process(scheme, plan, subsystems, tap)
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverging run: its summary says so
+                record = run_in_process(scheme, plan, subsystems, tap)
             wall_s = time.perf_counter() - start
         else:
             with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id,
@@ -115,5 +118,6 @@ def references(scene: Scene) -> tuple[dict, str | None]:
 def summarize_run(scene: Scene, record: RunRecord, bus: str, wall_s: float, recorder: RunRecorder | None = None) -> dict:
     """The summary of a run that ``execute`` returned (see ``manager.results.summary``), against the
     references the scene asks for."""
-    refs, note = references(scene)
-    return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)
+    with np.errstate(over="ignore", invalid="ignore"):  # the references and measures of a diverged run
+        refs, note = references(scene)
+        return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)

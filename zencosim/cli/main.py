@@ -2,7 +2,8 @@
 
 Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error) or
 a recording did not verify, 2 bad input (scene, overrides, arguments, recording file, output path,
-a missing optional dependency), 130 interrupted (SIGINT or SIGTERM).
+a missing optional dependency), 3 a run completed but diverged (a value not finite, or an implicit run's
+joint opened; its summary and tables are still written), 130 interrupted (SIGINT or SIGTERM).
 """
 from __future__ import annotations
 
