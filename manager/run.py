@@ -18,7 +18,12 @@ from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_bus import ZenohBus
 from zencosim.manager.bus.zenoh_session import ZenohOptions, new_run_id
 from zencosim.manager.plan.run_plan import Plan
-from zencosim.manager.results.reference import analytic_reference, monolithic_reference, solve_ivp_reference
+from zencosim.manager.results.reference import (
+    ReferenceFailed,
+    analytic_reference,
+    monolithic_reference,
+    solve_ivp_reference,
+)
 from zencosim.manager.results.summary import summarize
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord
@@ -108,7 +113,10 @@ def references(scene: Scene) -> tuple[dict, str | None]:
     if scene.outputs.reference == "none":
         return {}, None
     if scene.outputs.reference == "solve_ivp":
-        return {"solve_ivp": solve_ivp_reference(scene)}, None
+        try:
+            return {"solve_ivp": solve_ivp_reference(scene)}, None
+        except ReferenceFailed as error:
+            return {}, f"no reference: {error}"
     reason = monolithic_unavailable(scene)
     if reason:
         return {}, f"no analytic reference: {reason}"

@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import dataclasses
 
-from zencosim.manager.scene.load import Scene
+from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.models import model_class
+from zencosim.subsystems.params import Problem
 from zencosim.subsystems.ports import Attachments
 from zencosim.subsystems.subsystem import Subsystem
 
@@ -39,4 +40,9 @@ def build_subsystem(scene: Scene, name: str, attached: Attachments) -> Subsystem
     """The subsystem ``name`` of the scene with what is ``attached`` to it (``coupling_attachments`` and
     what a compensator adds), and only the effects the scene names."""
     settings = scene.subsystems[name].settings
-    return Subsystem(name, _model(scene, name, attached), INTEGRATORS[settings.integrator], settings.micro_step_ns)
+    try:
+        return Subsystem(name, _model(scene, name, attached), INTEGRATORS[settings.integrator], settings.micro_step_ns)
+    except SceneError:
+        raise
+    except (ValueError, ArithmeticError) as error:  # a model that cannot be built from these parameters says why
+        raise SceneError(scene.path, [Problem(f"subsystems.{name}", str(error))]) from None

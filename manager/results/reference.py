@@ -29,6 +29,10 @@ SOLVE_IVP_RTOL = 1e-10  # relative tolerance of the solve_ivp reference
 SOLVE_IVP_ATOL = 1e-10  # absolute tolerance, in the units of each state (m, m/s, rad, rad/s, Pa)
 
 
+class ReferenceFailed(RuntimeError):
+    """A reference that could not be computed for this scene (the run itself is not affected)."""
+
+
 @dataclass(frozen=True)
 class Reference:
     """Signals and energy of a reference on the base macro-step grid (``n_ticks + 1`` samples)."""
@@ -174,7 +178,7 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
     solution = solve_ivp(system.derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
                          rtol=rtol, atol=atol, first_step=t[1])
     if not solution.success:
-        raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
+        raise ReferenceFailed(f"the solve_ivp reference failed ({SOLVE_IVP_METHOD}: {solution.message})")
     samples = [system.outputs(tk, Z) for tk, Z in zip(t, solution.y.T)]
     signals = {name: np.array([y[sub][j] for y in samples]) for name, (sub, j) in system.plan.signals.items()}
     reporting = [s for s in system.plan.subsystems if s.energy_output is not None]
