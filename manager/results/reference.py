@@ -9,6 +9,7 @@ computed by the same output equations as in the co-simulation.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,10 @@ from zencosim.subsystems.integrators.base import state_derivative
 SOLVE_IVP_METHOD = "LSODA"
 SOLVE_IVP_RTOL = 1e-10  # relative tolerance of the solve_ivp reference
 SOLVE_IVP_ATOL = 1e-10  # absolute tolerance, in the units of each state (m, m/s, rad, rad/s, Pa)
+# evaluations of the coupled equations the reference may take: a floor plus so many per macro-step (the bundled
+# scenes take at most 5.6 per macro-step, nonlinear_oscillator_case1; a scene made absurdly stiff, e.g. a
+# stiffness of 1e308 N/m, would keep LSODA going for hours)
+SOLVE_IVP_EVALUATIONS = (100_000, 100)
 
 
 class ReferenceFailed(RuntimeError):
@@ -175,7 +180,16 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
     t = np.arange(n_ticks + 1) * (base * 1e-9)
     # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
     # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
-    solution = solve_ivp(system.derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
+    budget = SOLVE_IVP_EVALUATIONS[0] + SOLVE_IVP_EVALUATIONS[1] * n_ticks
+    evaluations = itertools.count(1)
+
+    def derivative(tk: float, Z: np.ndarray) -> np.ndarray:
+        if next(evaluations) > budget:
+            raise ReferenceFailed(f"the solve_ivp reference took more than {budget:,} evaluations of the coupled "
+                                  f"equations ({SOLVE_IVP_METHOD}, rtol {rtol:g}, atol {atol:g}): the scene is too stiff")
+        return system.derivative(tk, Z)
+
+    solution = solve_ivp(derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
                          rtol=rtol, atol=atol, first_step=t[1])
     if not solution.success:
         raise ReferenceFailed(f"the solve_ivp reference failed ({SOLVE_IVP_METHOD}: {solution.message})")
