@@ -72,8 +72,9 @@ def _print_summary(summary: dict) -> None:
     implicit = summary.get("implicit")
     if implicit is not None:
         row("implicit coupling", f"{implicit['method']}, {implicit['decomposition']}, k={implicit['k']}")
-        row("corrector runs mean / max", f"{implicit['corrector_runs']['mean']:.3g} / {implicit['corrector_runs']['max']}")
-        row("largest joint gap [m]", f"{implicit['max_gap']['position']:.3g}")
+        runs = implicit["corrector_runs"]
+        row("corrector runs mean / max", ("none" if runs["mean"] is None else f"{runs['mean']:.3g}") + f" / {runs['max']}")
+        row("largest joint gap [m]", _number(implicit["max_gap"]["position"]))
         if implicit["diverged_at_s"] is not None:
             row("DIVERGED at [s]", f"{implicit['diverged_at_s']:g}")
     row("active effects", ", ".join(summary["effects"]))
