@@ -120,7 +120,10 @@ def references(scene: Scene) -> tuple[dict, str | None]:
     reason = monolithic_unavailable(scene)
     if reason:
         return {}, f"no analytic reference: {reason}"
-    return {"analytic": analytic_reference(scene), "monolithic": monolithic_reference(scene)}, None
+    try:
+        return {"analytic": analytic_reference(scene), "monolithic": monolithic_reference(scene)}, None
+    except (ValueError, ArithmeticError) as error:  # e.g. masses 1e19 apart: the monolithic model is singular
+        return {}, f"no analytic reference: {error}"
 
 
 def summarize_run(scene: Scene, record: RunRecord, bus: str, wall_s: float, recorder: RunRecorder | None = None) -> dict:

@@ -185,7 +185,10 @@ def discrete_verdict(scene: Scene) -> dict | None:
     ``2 ln ρ / T`` and ``stable`` (ρ <= 1); None when the scene is not linear or corrects energy."""
     # imported here: the analysis needs scipy.optimize, which nothing else of a run's summary loads
     from zencosim.manager.analysis.scene_analysis import run_scheme
-    scheme = run_scheme(scene)
+    try:
+        scheme = run_scheme(scene)
+    except (ValueError, ArithmeticError):  # a transition matrix that cannot be built or decomposed (singular)
+        return None
     if scheme is None:
         return None
     return {"spectral_radius": scheme.spectral_radius, "growth_rate_per_s": scheme.growth_rate,
