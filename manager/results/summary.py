@@ -149,8 +149,8 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     }
     discrete = discrete_verdict(scene)
     summary["discrete"] = discrete
-    if discrete is not None:
-        summary["stable"] = discrete["stable"]
+    if discrete is not None:  # a run that overflowed (initial values near 1e308) is not stable whatever ρ is
+        summary["stable"] = discrete["stable"] and finite
     summary["stable_from"] = "measured energy growth" if discrete is None else "exact discrete spectral radius"
     summary["diverged"] = not finite
     summary["diverged_at_s"] = first_non_finite_time(record)
