@@ -187,7 +187,10 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
         if next(evaluations) > budget:
             raise ReferenceFailed(f"the solve_ivp reference took more than {budget:,} evaluations of the coupled "
                                   f"equations ({SOLVE_IVP_METHOD}, rtol {rtol:g}, atol {atol:g}): the scene is too stiff")
-        return system.derivative(tk, Z)
+        try:
+            return system.derivative(tk, Z)
+        except ArithmeticError as error:  # a trial state of LSODA beyond what a model's maths holds
+            raise ReferenceFailed(f"the solve_ivp reference failed at t = {tk:g} s: {error}") from None
 
     solution = solve_ivp(derivative, (0.0, t[-1]), system.z0, method=SOLVE_IVP_METHOD, t_eval=t,
                          rtol=rtol, atol=atol, first_step=t[1])
