@@ -10,13 +10,20 @@ from __future__ import annotations
 import time
 from typing import Callable, Protocol
 
+import numpy as np
+
 from zencosim.manager.analysis.monolithic import monolithic_unavailable
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_bus import ZenohBus
 from zencosim.manager.bus.zenoh_session import ZenohOptions, new_run_id
 from zencosim.manager.plan.run_plan import Plan
-from zencosim.manager.results.reference import analytic_reference, monolithic_reference, solve_ivp_reference
+from zencosim.manager.results.reference import (
+    ReferenceFailed,
+    analytic_reference,
+    monolithic_reference,
+    solve_ivp_reference,
+)
 from zencosim.manager.results.summary import summarize
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord
@@ -83,7 +90,8 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
         if bus == "inproc":
             scheme = make_scheme(scene, plan, realtime, None, progress, status, keep=keep, cpu=0)
             start = time.perf_counter()
-            record = run_in_process(scheme, plan, subsystems, tap)
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverging run: its summary says so
+                record = run_in_process(scheme, plan, subsystems, tap)
             wall_s = time.perf_counter() - start
         else:
             with ZenohBus(scene, plan, zenoh_options, listen, external, announce=announce, run_id=run_id,
@@ -111,16 +119,23 @@ def references(scene: Scene, keep: bool | None = None) -> tuple[dict, str | None
         return {}, None
     spill = spill_for(scene.manager.duration_ns // scene.manager.macro_step_ns, keep)
     if scene.outputs.reference == "solve_ivp":
-        return {"solve_ivp": solve_ivp_reference(scene, spill=spill)}, None
+        try:
+            return {"solve_ivp": solve_ivp_reference(scene, spill=spill)}, None
+        except ReferenceFailed as error:
+            return {}, f"no reference: {error}"
     reason = monolithic_unavailable(scene)
     if reason:
         return {}, f"no analytic reference: {reason}"
-    return {"analytic": analytic_reference(scene, spill), "monolithic": monolithic_reference(scene, spill)}, None
+    try:
+        return {"analytic": analytic_reference(scene, spill), "monolithic": monolithic_reference(scene, spill)}, None
+    except (ValueError, ArithmeticError) as error:  # e.g. masses 1e19 apart: the monolithic model is singular
+        return {}, f"no analytic reference: {error}"
 
 
 def summarize_run(scene: Scene, record: RunRecord, bus: str, wall_s: float, recorder: RunRecorder | None = None,
                   keep: bool | None = None) -> dict:
     """The summary of a run that ``execute`` returned (see ``manager.results.summary``), against the
     references the scene asks for (``keep`` as in ``execute``)."""
-    refs, note = references(scene, keep)
-    return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)
+    with np.errstate(over="ignore", invalid="ignore"):  # the references and measures of a diverged run
+        refs, note = references(scene, keep)
+        return summarize(scene, record, bus, wall_s, refs, note, None if recorder is None else recorder.result)

@@ -156,7 +156,13 @@ def compensate(scene: Scene, model: LinearModel, runtime_scheme: Callable[[dict[
     monolithic = monolithic_eigenstructure(model).poles
     targets, jacobian, previous = monolithic.copy(), np.eye(len(monolithic), dtype=complex), None
     for iteration in range(1, MAX_ITERATIONS + 1):
-        designed = design(scene, model, targets, architecture)
+        try:
+            designed = design(scene, model, targets, architecture)
+        except SceneError as error:
+            if previous is None:  # the monolithic poles themselves: the design's own reason
+                raise
+            raise _refuse(scene, _correction_failed(scene, iteration, monolithic, previous[1], targets,
+                                                    error.problems[0].reason)) from None
         added = attachments(scene, model, designed)
         scheme = runtime_scheme(added)
         poles = scheme.primary_poles(monolithic)
@@ -172,6 +178,21 @@ def compensate(scene: Scene, model: LinearModel, runtime_scheme: Callable[[dict[
         raise _refuse(scene, f"the compensated scheme is unstable: spectral radius {scheme.spectral_radius:.12g}, "
                       "expected <= 1")
     return Compensator(designed, added, scheme, monolithic, targets, poles, iteration)
+
+
+def _correction_failed(scene: Scene, iteration: int, monolithic: np.ndarray, discrete: np.ndarray,
+                       targets: np.ndarray, reason: str) -> str:
+    """Why the correction on the discrete scheme stopped: the design at the monolithic poles succeeded, the
+    runtime's discrete poles were far from them, and the shifted targets could not be assigned."""
+    def listed(poles: np.ndarray) -> str:
+        return ", ".join(f"{p.real:.4g}{p.imag:+.4g}j" for p in poles)
+    unpaired = not np.allclose(np.sort_complex(targets), np.sort_complex(targets.conj()), rtol=1e-9, atol=1e-9)
+    return (f"the compensator assigns the monolithic poles λ ({listed(monolithic)} 1/s) in the D(s) model, but the "
+            f"runtime's exact discrete poles ν with design {iteration - 1} are far from them (max |ν - λ| = {np.max(np.abs(discrete - monolithic)):.4g}"
+            f" 1/s at T_s = {scene.manager.macro_step:g} s), and design {iteration} of the correction on the discrete "
+            f"scheme asks for targets {listed(targets)} 1/s"
+            + (" that are no longer complex-conjugate pairs" if unpaired else "")
+            + f", which it cannot assign ({reason.split(': ', 1)[-1]}); a shorter macro-step brings ν closer to λ")
 
 
 def scene_compensator(scene: Scene, architecture: Architecture | None = None) -> Compensator:

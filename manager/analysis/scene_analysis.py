@@ -20,7 +20,7 @@ from zencosim.compensation.eigenstructure.modes import CosimEigenstructure, cosi
 from zencosim.compensation.eigenstructure.perturbation import cosimulated_stiffness
 from zencosim.manager.analysis import compensator
 from zencosim.manager.analysis.compensator import scene_compensator
-from zencosim.manager.analysis.discrete import DiscreteScheme, scene_scheme
+from zencosim.manager.analysis.discrete import DiscreteScheme, LinearSceneError, scene_scheme
 from zencosim.manager.analysis.monolithic import linear_model, linear_unavailable
 from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.scene.checks import check_compensation
@@ -121,9 +121,7 @@ def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order:
     model = linear_model(scene)
     interface = compensator.interface_of(scene)
     analysis = analyze(model, interface, pade_order)
-    plain = replace(scene, manager=replace(scene.manager, compensation="none"))
-    uncompensated = scene_scheme(plain, {name: build_subsystem(plain, name, attached)
-                                         for name, attached in coupling_attachments(plain).items()})
+    uncompensated = uncompensated_scheme(scene)
     result = SceneAnalysis(scene, model.dof_names, analysis, uncompensated,
                            Eigenpairs(*uncompensated.primary_eigenstructure(analysis.monolithic.poles)))
     problems = Problems()
@@ -143,6 +141,27 @@ def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order:
         compensated_model=compensated_model,
         compensated=Eigenpairs(*corrected.scheme.primary_eigenstructure(analysis.monolithic.poles)),
     )
+
+
+def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
+    """The exact discrete scheme of ``scene`` run without its compensator (``LinearSceneError``: not linear)."""
+    plain = replace(scene, manager=replace(scene.manager, compensation="none"))
+    return scene_scheme(plain, {name: build_subsystem(plain, name, attached)
+                                for name, attached in coupling_attachments(plain).items()})
+
+
+def run_scheme(scene: Scene) -> DiscreteScheme | None:
+    """The exact discrete scheme of the run ``scene`` describes — compensated when it asks for the compensator,
+    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix).
+    ``SceneError`` when the compensator cannot be designed."""
+    if linear_unavailable(scene) or scene.manager.corrects:
+        return None
+    try:
+        if scene.manager.compensation == "eigenstructure":
+            return scene_compensator(scene).scheme
+        return uncompensated_scheme(scene)
+    except LinearSceneError:  # a model whose public matrices are not its whole dynamics
+        return None
 
 
 def write_pole_map(result: SceneAnalysis, path: str) -> None:

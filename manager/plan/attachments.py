@@ -1,11 +1,13 @@
 """The subsystems a scene names, built with what its couplings attach to each of them."""
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 
-from zencosim.manager.scene.load import Scene
+from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.models import model_class
+from zencosim.subsystems.params import Problem
 from zencosim.subsystems.ports import Attachments
 from zencosim.subsystems.subsystem import Subsystem
 
@@ -25,18 +27,34 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
             continue
         if scene.subsystems[coupling.force_sub].traits.starts_at_rest:
             motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])
-            rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
+            with _model_problems(scene, coupling.motion_sub):
+                rest = dataclasses.replace(motion.rest_state(coupling.motion_point), point=coupling.force_point)
             result[coupling.force_sub] = result[coupling.force_sub] + Attachments(rest_states=(rest,))
     return result
 
 
+@contextlib.contextmanager
+def _model_problems(scene: Scene, name: str):
+    """A model that cannot be built from the scene's parameters says why (ValueError, an overflow): a scene
+    error naming the subsystem."""
+    try:
+        yield
+    except SceneError:
+        raise
+    except (ValueError, ArithmeticError) as error:
+        raise SceneError(scene.path, [Problem(f"subsystems.{name}", str(error))]) from None
+
+
 def _model(scene: Scene, name: str, attached: Attachments):
     sub = scene.subsystems[name]
-    return model_class(sub.settings.model)(sub.spec, attached)
+    with _model_problems(scene, name):
+        return model_class(sub.settings.model)(sub.spec, attached)
 
 
 def build_subsystem(scene: Scene, name: str, attached: Attachments) -> Subsystem:
     """The subsystem ``name`` of the scene with what is ``attached`` to it (``coupling_attachments`` and
     what a compensator adds), and only the effects the scene names."""
     settings = scene.subsystems[name].settings
-    return Subsystem(name, _model(scene, name, attached), INTEGRATORS[settings.integrator], settings.micro_step_ns)
+    model = _model(scene, name, attached)
+    with _model_problems(scene, name):
+        return Subsystem(name, model, INTEGRATORS[settings.integrator], settings.micro_step_ns)

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from zencosim.manager.plan.memory import memory_problem
 from zencosim.manager.scene.load import Scene, SceneError
-from zencosim.subsystems.params import Problems
+from zencosim.subsystems.params import Problem, Problems
 from zencosim.subsystems.ports import Port
 
 
@@ -145,8 +146,13 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     if problems:
         raise SceneError(scene.path, problems)
     signals = {p.name: (s.index, j) for s in plans for j, p in enumerate(s.outputs) if p.quantity != "energy"}
-    return Plan(tuple(plans), tuple(bonds), init_rounds, signals, scene.manager.macro_step_ns,
-                scene.manager.duration_ns // scene.manager.macro_step_ns)
+    manager = scene.manager
+    plan = Plan(tuple(plans), tuple(bonds), init_rounds, signals, manager.macro_step_ns,
+                manager.duration_ns // manager.macro_step_ns)
+    reason = memory_problem(plan, plan.n_ticks, manager.duration, manager.macro_step)
+    if reason:
+        raise SceneError(scene.path, [Problem("manager.duration", reason)])
+    return plan
 
 
 def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[InitStep, ...], ...]:

@@ -9,6 +9,7 @@ computed by the same output equations as in the co-simulation.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,14 @@ from zencosim.subsystems.integrators.base import state_derivative
 SOLVE_IVP_METHOD = "LSODA"
 SOLVE_IVP_RTOL = 1e-10  # relative tolerance of the solve_ivp reference
 SOLVE_IVP_ATOL = 1e-10  # absolute tolerance, in the units of each state (m, m/s, rad, rad/s, Pa)
+# evaluations of the coupled equations the reference may take: a floor plus so many per macro-step (the bundled
+# scenes take at most 5.6 per macro-step, nonlinear_oscillator_case1; a scene made absurdly stiff, e.g. a
+# stiffness of 1e308 N/m, would keep LSODA going for hours)
+SOLVE_IVP_EVALUATIONS = (100_000, 100)
+
+
+class ReferenceFailed(RuntimeError):
+    """A reference that could not be computed for this scene (the run itself is not affected)."""
 
 
 @dataclass(frozen=True)
@@ -201,6 +210,18 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
     step = base * 1e-9
     names = list(system.plan.signals)
     rows = _ReferenceRows(n_ticks, names, spill)
+    budget = SOLVE_IVP_EVALUATIONS[0] + SOLVE_IVP_EVALUATIONS[1] * n_ticks
+    evaluations = itertools.count(1)
+
+    def derivative(tk: float, Z: np.ndarray) -> np.ndarray:
+        if next(evaluations) > budget:
+            raise ReferenceFailed(f"the solve_ivp reference took more than {budget:,} evaluations of the coupled "
+                                  f"equations ({SOLVE_IVP_METHOD}, rtol {rtol:g}, atol {atol:g}): the scene is too stiff")
+        try:
+            return system.derivative(tk, Z)
+        except ArithmeticError as error:  # a trial state of LSODA beyond what a model's maths holds
+            raise ReferenceFailed(f"the solve_ivp reference failed at t = {tk:g} s: {error}") from None
+
     reporting = [s for s in system.plan.subsystems if s.energy_output is not None]
     block = max(n_ticks, 1) if spill is None else BLOCK_ROWS
     z = system.z0
@@ -209,10 +230,10 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
         t = np.arange(first, last + 1) * step
         # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
         # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
-        solution = solve_ivp(system.derivative, (t[0], t[-1]), z, method=SOLVE_IVP_METHOD, t_eval=t,
+        solution = solve_ivp(derivative, (t[0], t[-1]), z, method=SOLVE_IVP_METHOD, t_eval=t,
                              rtol=rtol, atol=atol, first_step=step)
         if not solution.success:
-            raise RuntimeError(f"scene {scene.name}: solve_ivp reference failed: {solution.message}")
+            raise ReferenceFailed(f"the solve_ivp reference failed ({SOLVE_IVP_METHOD}: {solution.message})")
         for k in range(0 if first == 0 else 1, len(t)):  # a block's first point is the last of the one before
             y = system.outputs(t[k], solution.y[:, k])
             rows.put(first + k, [*(y[sub][j] for sub, j in system.plan.signals.values()),

@@ -5,10 +5,15 @@ Definitions (docs/summary.md lists every key):
 * NRMS (paper 000 Eq. 42): ``sqrt(mean_k (x_k - x_ref,k)^2) / (max x_ref - min x_ref)`` over the
   signal's communication points. Reading taken: Eq. 42's ``/T`` is the number of samples (a root
   mean square), not the duration in seconds, which would make the error depend on the units of time.
-* stable: every recorded value is finite, an implicit run did not diverge, and the mechanical energy
-  does not grow exponentially: the least-squares slope of ``ln`` of the windowed energy maximum (20
-  windows over the run) over the second half of the run is below ``STABLE_GROWTH_RATE`` (energy
-  doubling time above 69 s). Meant for free or bounded-forcing runs.
+* diverged: a recorded value is not finite, or an implicit run diverged (``zencosim run`` then exits 3).
+* stable: for a linear scene without energy correction, the exact discrete verdict of ``zencosim analyze``
+  (spectral radius of the scheme the run executes, compensated or not, ρ <= 1: ``manager.analysis``); for
+  any other scene, the run did not diverge and the mechanical energy does not grow exponentially: the
+  least-squares slope of ``ln`` of the windowed energy maximum (20 windows over the run) over the second
+  half of the run is below ``STABLE_GROWTH_RATE`` (energy doubling time above 69 s; meant for free or
+  bounded-forcing runs). ``stable_from`` says which; the measured slope is reported in both cases.
+* strict JSON: every number that is not finite is null, and ``non_finite`` maps its dotted key to what it
+  was (``NaN``, ``Infinity``, ``-Infinity``).
 * digest: sha256 over every subsystem's output trajectory (scene order of subsystems, declared
   order of outputs, each as float64 little-endian over its communication points). Equal digests
   mean bit-identical runs.
@@ -221,9 +226,16 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         "overrides": list(scene.overrides),
         "dropped_messages": record.dropped_messages or {},  # over Zenoh: per key (manager.bus.dropped)
     }
+    discrete = discrete_verdict(scene)
+    summary["discrete"] = discrete
+    if discrete is not None:  # a run that overflowed (initial values near 1e308) is not stable whatever ρ is
+        summary["stable"] = discrete["stable"] and finite
+    summary["stable_from"] = "measured energy growth" if discrete is None else "exact discrete spectral radius"
+    summary["diverged"] = not finite
+    summary["diverged_at_s"] = first_non_finite_time(record)
     spikes = residual_power_spikes(record, scene.manager.spikes)
     summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}
-    summary["reliable"] = not any(spikes.values())
+    summary["reliable"] = not summary["diverged"] and summary["stable"] and not any(spikes.values())
     summary["correction"] = correction_summary(scene, record)
     if record.implicit is not None:
         summary["implicit"] = implicit_summary(scene, record)
@@ -231,7 +243,48 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         summary["reference_note"] = reference_note
     if recording is not None:
         summary["recording"] = recording  # the recorder's end record (recordings.writer)
+    non_finite: dict[str, str] = {}
+    summary = finite_or_null(summary, "", non_finite)
+    summary["non_finite"] = non_finite
     return summary
+
+
+def first_non_finite_time(record: RunRecord) -> float | None:
+    """The first time [s] at which a subsystem's output was not finite (None: every output stayed finite)."""
+    times = []
+    for sub, trajectory in zip(record.plan.subsystems, record.trajectories):
+        rows = np.flatnonzero(~np.isfinite(trajectory).all(axis=1))
+        if rows.size:
+            times.append(int(rows[0]) * sub.ratio * record.plan.base_step_ns * 1e-9)
+    return min(times, default=None)
+
+
+def discrete_verdict(scene: Scene) -> dict | None:
+    """``zencosim analyze``'s verdict on the scheme this scene runs: ``spectral_radius`` ρ, ``growth_rate_per_s``
+    ``2 ln ρ / T`` and ``stable`` (ρ <= 1); None when the scene is not linear or corrects energy."""
+    # imported here: the analysis needs scipy.optimize, which nothing else of a run's summary loads
+    from zencosim.manager.analysis.scene_analysis import run_scheme
+    try:
+        scheme = run_scheme(scene)
+    except (ValueError, ArithmeticError):  # a transition matrix that cannot be built or decomposed (singular)
+        return None
+    if scheme is None:
+        return None
+    return {"spectral_radius": scheme.spectral_radius, "growth_rate_per_s": scheme.growth_rate,
+            "stable": scheme.stable}
+
+
+def finite_or_null(value, key: str, non_finite: dict[str, str]):
+    """``value`` with every float that is not finite replaced by None, its dotted key and what it was recorded
+    in ``non_finite`` (JSON has no NaN or infinity: ``json.dumps`` would write tokens no other parser reads)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        non_finite[key] = "NaN" if math.isnan(value) else "Infinity" if value > 0 else "-Infinity"
+        return None
+    if isinstance(value, dict):
+        return {k: finite_or_null(v, f"{key}.{k}" if key else str(k), non_finite) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_null(v, f"{key}[{i}]", non_finite) for i, v in enumerate(value)]
+    return value
 
 
 def correction_summary(scene, record: RunRecord) -> dict | None:

@@ -6,6 +6,7 @@ every problem of a scene before it raises.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 from zencosim.compensation.implicit.coupling_laws import check_supported
@@ -63,19 +64,32 @@ def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, coupl
                      "'solve_ivp' (the subsystems integrated together, the joint held exactly) or 'none'")
 
 
+# times travel as signed 64-bit nanoseconds (docs/protocol.md): the longest time a scene can state [s]
+LONGEST_TIME_S = (2**63 - 1) * 1e-9
+
+
 def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
                   problems: Problems) -> None:
-    _whole_ns(manager.macro_step, "manager.macro_step", problems)
-    _whole_ns(manager.duration, "manager.duration", problems)
+    """Every time a whole number of nanoseconds, at least one macro-step period, communication steps that
+    micro-steps divide."""
+    before = len(problems)
+    times = [(manager.macro_step, "manager.macro_step"), (manager.duration, "manager.duration")]
+    times += [(s.settings.micro_step, f"subsystems.{s.name}.micro_step") for s in subsystems.values()]
+    for seconds, key in times:
+        _whole_ns(seconds, key, problems)
+    if len(problems) != before:
+        return
     base = manager.macro_step_ns
     ratios = [s.settings.comm_ratio for s in subsystems.values()] or [1]
     period = base * math.lcm(*ratios)
-    if manager.duration_ns % period:
+    if manager.duration_ns < period:
+        problems.add("manager.duration", f"expected at least one macro-step period, {period * 1e-9:g} s (the macro "
+                     f"step times the least common multiple of the communication ratios), got {manager.duration!r} s")
+    elif manager.duration_ns % period:
         problems.add("manager.duration", f"expected a multiple of {period * 1e-9:g} s (the macro step times the "
                      f"least common multiple of the communication ratios), got {manager.duration!r} s")
     for sub in subsystems.values():
         key = f"subsystems.{sub.name}.micro_step"
-        _whole_ns(sub.settings.micro_step, key, problems)
         comm = base * sub.settings.comm_ratio
         if comm % sub.settings.micro_step_ns:
             problems.add(key, f"expected a divisor of the communication step {comm * 1e-9:g} s, "
@@ -83,8 +97,44 @@ def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, S
 
 
 def _whole_ns(seconds: float, key: str, problems: Problems) -> None:
-    if abs(seconds * 1e9 - round(seconds * 1e9)) > 1e-3:
+    """A time of at least 1 ns and at most ``LONGEST_TIME_S``, a whole number of nanoseconds."""
+    if seconds > LONGEST_TIME_S:
+        problems.add(key, f"expected at most {LONGEST_TIME_S:.4g} s (times are counted in signed 64-bit "
+                     f"nanoseconds), got {seconds!r} s")
+    elif round(seconds * 1e9) < 1:
+        problems.add(key, f"expected at least 1 ns (times are counted in whole nanoseconds), got {seconds!r} s")
+    elif abs(seconds * 1e9 - round(seconds * 1e9)) > 1e-3:
         problems.add(key, f"expected a whole number of nanoseconds, got {seconds!r} s")
+
+
+# a subsystem's and a coupling's name is one segment of a Zenoh key (zencosim/<run>/<subsystem>/y) and of a dotted
+# scene key (subsystems.<name>, "<subsystem>.<point>"): letters, digits, "_" and "-", so no key wildcard ("*", "$"),
+# separator ("/", "."), hidden chunk ("@"), forbidden character ("?", "#"), space or control character
+NAME = re.compile(r"\w[\w-]*")
+# a signal's name may also hold "." (a rigid joint's signals are "<joint>.<variable>")
+SIGNAL_NAME = re.compile(r"\w[\w.-]*")
+
+
+def name_problem(name: str, pattern: re.Pattern = NAME) -> str | None:
+    """Why ``name`` cannot name a subsystem, coupling (``NAME``) or signal (``SIGNAL_NAME``); None when it can."""
+    allowed = "letters, digits, '_', '-'" + (" and '.'" if pattern is SIGNAL_NAME else "")
+    if pattern.fullmatch(name) is None:
+        return f"expected a name of {allowed}, starting with a letter, digit or '_', got {name!r}"
+    return None
+
+
+def check_names(subsystem_tables: dict, coupling_tables: dict, couplings: dict, problems: Problems) -> None:
+    """Subsystem and coupling names, and the signal names a coupling declares (see ``NAME``)."""
+    for section, names in (("subsystems", subsystem_tables), ("couplings", coupling_tables)):
+        for name in names:
+            reason = name_problem(name)
+            if reason:
+                problems.add(f"{section}.{name}", reason)
+    for coupling in couplings.values():
+        for signal in coupling.signals():
+            reason = name_problem(signal, SIGNAL_NAME)
+            if reason:
+                problems.add(f"couplings.{coupling.name}", f"signal: {reason}")
 
 
 def check_compensation(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],

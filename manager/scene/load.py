@@ -16,7 +16,13 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
-from zencosim.manager.scene.checks import check_compensation, check_couplings, check_scheme, check_timing
+from zencosim.manager.scene.checks import (
+    check_compensation,
+    check_couplings,
+    check_names,
+    check_scheme,
+    check_timing,
+)
 from zencosim.manager.scene.couplings import COUPLINGS
 from zencosim.manager.scene.overrides import apply_overrides
 from zencosim.manager.scene.settings import (
@@ -33,6 +39,7 @@ from zencosim.subsystems.models.external.python_model import ModelClassError
 from zencosim.subsystems.params import Problems, read_table
 
 SECTIONS = ("name", "description", "source", "manager", "outputs", "subsystems", "couplings")
+DEEPEST = 12  # tables and arrays nested deeper than this are refused (the bundled scenes go 5 deep)
 
 
 class SceneError(ValueError):
@@ -116,6 +123,9 @@ def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scen
         document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise SceneError(path, [_problem("scene", f"not valid TOML: {error}")]) from None
+    except RecursionError:  # tomllib parses nested arrays and tables recursively
+        raise SceneError(path, [_problem("scene", f"arrays or tables nested too deeply; expected at most "
+                                         f"{DEEPEST} levels")]) from None
     return scene_from_document(document, path, overrides)
 
 
@@ -123,11 +133,26 @@ def scene_from_document(document: dict, path: str, overrides: Sequence[str] = ()
                         ) -> Scene:
     """Override and validate a scene document; paths in it are relative to ``path``'s directory."""
     problems = Problems()
+    _refuse_deep(document, path)
     resolved = apply_overrides(document, overrides, problems)
+    _refuse_deep(resolved, path)
     scene = _validate(resolved, path, tuple(overrides), problems)
     if problems:
         raise SceneError(path, problems)
     return dataclasses.replace(scene, notes=notes)
+
+
+def _refuse_deep(document: dict, path: str) -> None:
+    """Raise a :class:`SceneError` naming the first value nested deeper than ``DEEPEST`` (found without
+    recursion: the checks after it copy and serialise the document recursively)."""
+    pending = [((), document)]
+    while pending:
+        keys, node = pending.pop()
+        if len(keys) > DEEPEST:
+            raise SceneError(path, [_problem(".".join(map(str, keys[:DEEPEST + 1])), f"nested too deeply; expected "
+                                             f"at most {DEEPEST} levels of arrays and tables")])
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        pending += [(keys + (key,), value) for key, value in items]
 
 
 def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Problems) -> Scene | None:
@@ -136,6 +161,9 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
     name = doc.get("name")
     if not isinstance(name, str) or not name:
         problems.add("name", "missing; expected the scene's name as a string")
+    for key in ("description", "source"):
+        if not isinstance(doc.get(key, ""), str):
+            problems.add(key, f"expected a string, got {type(doc[key]).__name__}")
     description = doc.get("description", "")
     manager = _read_manager(doc.get("manager"), problems)
     outputs = read_table(OutputSettings, doc.get("outputs", {}), "outputs", problems)
@@ -144,7 +172,9 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
         problems.add("subsystems", "expected at least one [subsystems.<name>] table")
         tables = {}
     subsystems = _read_subsystems(tables, Path(path).parent, problems)
-    couplings = _read_couplings(doc.get("couplings", {}), problems)
+    coupling_tables = doc.get("couplings", {})
+    couplings = _read_couplings(coupling_tables, problems)
+    check_names(tables, coupling_tables if isinstance(coupling_tables, dict) else {}, couplings, problems)
 
     if manager is not None:
         check_timing(manager, tables, subsystems, problems)
@@ -209,7 +239,7 @@ def _read_couplings(tables: Any, problems: Problems) -> dict[str, Any]:
     for coupling_name, table in tables.items():
         key = f"couplings.{coupling_name}"
         kind = table.get("type") if isinstance(table, dict) else None
-        if kind not in COUPLINGS:
+        if not isinstance(kind, str) or kind not in COUPLINGS:
             problems.add(f"{key}.type", f"expected one of {', '.join(sorted(COUPLINGS))}, got {kind!r}")
             continue
         coupling = COUPLINGS[kind].read(coupling_name, table, key, problems)

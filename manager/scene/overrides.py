@@ -18,13 +18,16 @@ def toml_value(value: object) -> str:
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Split ``a.b.c=value`` into a key path and a TOML value (a bare word is taken as a string)."""
     key, sep, raw = text.partition("=")
-    if not sep or not key.strip():
+    path = key.strip().split(".")
+    if not sep or not all(path):
         raise ValueError(f"--set {text!r}: expected key=value, e.g. manager.macro_step=0.004")
     try:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw.strip()
-    return key.strip().split("."), value
+    except RecursionError:  # tomllib parses nested arrays recursively
+        raise ValueError(f"--set {text[:40]!r}...: arrays nested too deeply") from None
+    return path, value
 
 
 def apply_overrides(document: dict, overrides: Sequence[str], problems: Problems) -> dict:

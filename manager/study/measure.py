@@ -23,10 +23,8 @@ import time
 
 import numpy as np
 
-from zencosim.manager.analysis.compensator import scene_compensator
-from zencosim.manager.analysis.discrete import scene_scheme
-from zencosim.manager.analysis.monolithic import linear_unavailable
-from zencosim.manager.assembly import build_subsystems, make_scheme, plan_scene
+from zencosim.manager.analysis.scene_analysis import run_scheme
+from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.summary import digest
@@ -37,18 +35,13 @@ from zencosim.manager.scheme.base import SubsystemFailure
 
 def predicted_stability(scene: Scene) -> tuple[bool | None, float | None]:
     """``zencosim analyze``'s verdict and spectral radius for the scene as it runs (compensated when it asks
-    for the compensator); ``(None, None)`` where there is none (not linear, energy correction);
+    for the compensator, ``run_scheme``); ``(None, None)`` where there is none (not linear, energy correction);
     ``(False, None)`` when the compensator cannot be designed."""
-    if linear_unavailable(scene) or scene.manager.corrects:
-        return None, None
     try:
-        if scene.manager.compensation == "eigenstructure":
-            scheme = scene_compensator(scene).scheme
-        else:
-            scheme = scene_scheme(scene, build_subsystems(scene))
+        scheme = run_scheme(scene)
     except SceneError:
         return False, None
-    return scheme.stable, scheme.spectral_radius
+    return (None, None) if scheme is None else (scheme.stable, scheme.spectral_radius)
 
 
 def _energy_error(summary: dict) -> float | None:

@@ -49,7 +49,7 @@ def read_effect(table: object, key: str, problems: Problems) -> object | None:
         problems.add(key, "expected a table with a 'type' key")
         return None
     kind = table.get("type")
-    if kind not in EFFECTS:
+    if not isinstance(kind, str) or kind not in EFFECTS:
         problems.add(f"{key}.type", f"expected one of {', '.join(sorted(EFFECTS))}, got {kind!r}")
         return None
     params = {k: v for k, v in table.items() if k not in ("type", "bodies")}

@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import zenoh
 
 from zencosim.manager.assembly import make_scheme, plan_scene, process_scope
@@ -202,9 +203,11 @@ class _Host:
             query.reply(key(self.run_id, self.name, "timing"), json.dumps(report).encode())
 
     def _guarded(self, action, *args) -> None:
-        """Run a replica action; an error here (a diverged or failed run) ends this process."""
+        """Run a replica action; an error here (a failed run) ends this process. A diverging run overflows: its
+        values become infinite or NaN without a warning, and the manager's summary reports it."""
         try:
-            action(*args)
+            with np.errstate(over="ignore", invalid="ignore"):
+                action(*args)
         except Exception as error:
             self.stop(f"{type(error).__name__}: {error}")
         if self.replica is not None and self.replica.finished:

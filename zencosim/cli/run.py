@@ -18,6 +18,8 @@ from zencosim.manager.results.tables import check_table_path, record_tables, wri
 from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import load_scene
 
+DIVERGED = 3  # exit status of a run whose values did not stay finite (zencosim.cli.main)
+
 
 def _print_summary(summary: dict) -> None:
     table = Table(title=f"{summary['scene']} on the {summary['bus']} bus: {summary['steps']} macro-steps of "
@@ -28,7 +30,15 @@ def _print_summary(summary: dict) -> None:
     def row(label: str, value: str) -> None:
         table.add_row(escape(label), escape(value))
 
-    row("stable", "yes" if summary["stable"] else "NO (energy grows)")
+    if summary["diverged"]:
+        at = summary["diverged_at_s"]
+        row("DIVERGED", "the implicit run's joint opened" if at is None else f"outputs not finite from t = {at:g} s")
+    discrete = summary["discrete"]
+    if discrete is None:
+        row("stable (measured energy growth)", "yes" if summary["stable"] else "NO (energy grows)")
+    else:
+        row("stable (exact discrete, as zencosim analyze)", f"{'yes' if summary['stable'] else 'NO'}: spectral radius "
+            f"{discrete['spectral_radius']:.12f}, energy growth 2 ln ρ / T = {discrete['growth_rate_per_s']:.4g} 1/s")
     for name, entry in summary["signals"].items():
         if entry.get("nrms") is not None:
             mono = entry.get("nrms_monolithic")
@@ -38,12 +48,13 @@ def _print_summary(summary: dict) -> None:
         row("energy", "not reported by any subsystem")
     else:
         of = f" ({', '.join(energy['subsystems'])} only)" if "subsystems" in energy else ""
-        row(f"energy initial / final [J]{of}", f"{energy['initial']:.6g} / {energy['final']:.6g}")
+        row(f"energy initial / final [J]{of}", f"{_number(energy['initial'])} / {_number(energy['final'])}")
         if "reference_final" in energy:
             row("energy final, reference [J]", f"{energy['reference_final']:.6g}")
-        row("energy growth rate [1/s]", f"{energy['growth_rate_per_s']:.3g}")
+        growth = energy["growth_rate_per_s"]
+        row("energy growth rate, measured [1/s]", "not finite" if growth is None else f"{growth:.3g}")
     for bond, value in summary["residual_energy"].items():
-        row(f"residual energy δE, bond {bond} [J]", f"{value:.6g}")
+        row(f"residual energy δE, bond {bond} [J]", _number(value))
     for bond, intervals in summary["residual_power_spikes"].items():
         if intervals:
             row(f"δP spikes, bond {bond} [s]", ", ".join(f"{i['start']:.3f}–{i['end']:.3f}" for i in intervals))
@@ -62,8 +73,9 @@ def _print_summary(summary: dict) -> None:
     implicit = summary.get("implicit")
     if implicit is not None:
         row("implicit coupling", f"{implicit['method']}, {implicit['decomposition']}, k={implicit['k']}")
-        row("corrector runs mean / max", f"{implicit['corrector_runs']['mean']:.3g} / {implicit['corrector_runs']['max']}")
-        row("largest joint gap [m]", f"{implicit['max_gap']['position']:.3g}")
+        runs = implicit["corrector_runs"]
+        row("corrector runs mean / max", ("none" if runs["mean"] is None else f"{runs['mean']:.3g}") + f" / {runs['max']}")
+        row("largest joint gap [m]", _number(implicit["max_gap"]["position"]))
         if implicit["diverged_at_s"] is not None:
             row("DIVERGED at [s]", f"{implicit['diverged_at_s']:g}")
     row("active effects", ", ".join(summary["effects"]))
@@ -74,6 +86,11 @@ def _print_summary(summary: dict) -> None:
     out.print(table)
     if "reference_note" in summary:
         out.print(summary["reference_note"])
+
+
+def _number(value: float | None) -> str:
+    """A summary's number; null in the summary is a value that was not finite (its ``non_finite`` says which)."""
+    return "not finite" if value is None else f"{value:.6g}"
 
 
 def _recording_text(result: dict) -> str:
@@ -145,6 +162,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         written = write_tables(record_tables(record), out_path)
         if not args.quiet:
             say(f"wrote {', '.join(map(str, written))}")
+    if summary["diverged"]:
+        at = summary["diverged_at_s"]
+        what = "the implicit run's joint opened" if at is None else f"outputs not finite from t = {at:g} s"
+        warn(f"the run diverged ({what}; the summary's non_finite lists the values written as null); "
+             f"exit status {DIVERGED}")
+        return DIVERGED
     return 0
 
 
