@@ -22,8 +22,12 @@ ONE_RUN = """
 import sys
 sys.path.insert(0, {benchmarks!r})
 from floor import floor_x2, parameters
-from zencosim.manager.run import execute
-from zencosim.manager.scene.load import load_scene
+if sys.argv[3] == "flat":  # a tree from before the package: manager is a top-level package
+    from manager.run import execute
+    from manager.scene import load_scene
+else:
+    from zencosim.manager.run import execute
+    from zencosim.manager.scene.load import load_scene
 scene = load_scene("two_mass_damped", [f"manager.duration={{int(sys.argv[2]) / 1000}}"])
 if sys.argv[1] == "floor":
     floor_x2(parameters(scene), int(sys.argv[2]))
@@ -32,16 +36,16 @@ else:
 """
 
 
-def instructions(what: str, steps: int, pythonpath: str) -> int:
+def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
     program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-                             sys.executable, "-c", program, what, str(steps)],
+                             sys.executable, "-c", program, what, str(steps), layout],
                             env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True, check=True)
     return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
 
 
-def per_step(what: str, pythonpath: str = "") -> float:
-    low, high = (instructions(what, n, pythonpath) for n in STEPS)
+def per_step(what: str, pythonpath: str = "", layout: str = "package") -> float:
+    low, high = (instructions(what, n, pythonpath, layout) for n in STEPS)
     return (high - low) / (STEPS[1] - STEPS[0])
 
 
@@ -57,10 +61,12 @@ def main() -> int:
     if args.tree:
         from bench_runtime import package_farm
         farm = package_farm(args.tree)
+        flat = farm == args.tree.resolve()
         try:
-            rows.append((f"in-process step, tree {args.tree}", per_step("run", str(farm))))
+            rows.append((f"in-process step, tree {args.tree}", per_step("run", str(farm), "flat" if flat else "package")))
         finally:
-            shutil.rmtree(farm)
+            if not flat:
+                shutil.rmtree(farm)
     for label, count in rows:
         print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)")
     return 0
