@@ -19,7 +19,7 @@ from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, d
 from zencosim.manager.study.measure import measure_zenoh, predicted_stability
 from zencosim.manager.study.workers import measure_tasks
 
-ZENOH_CHOICES = ("pareto", "all", "none")
+ZENOH_CHOICES = ("pareto", "answers", "all", "none")  # answers: the cheapest point meeting each of TARGETS
 BISECTION_TOLERANCE = 1e-3  # relative width at which the stability limit's bisection stops
 TARGETS = (0.01, 0.001)  # the NRMS targets the method table answers for
 
@@ -50,8 +50,9 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
 
     rows = [_row(p, entries[p.key], signal_name) for p in points]
     _mark_pareto(rows)
-    chosen = [r for r in rows
-              if r["failed"] is None and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]))]
+    answers = {_cheapest(rows, target) for target in TARGETS} if options.zenoh == "answers" else set()
+    chosen = [r for r in rows if r["failed"] is None
+              and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]) or r["key"] in answers)]
     for done, row in enumerate(chosen, 1):
         entry = entries[row["key"]]
         if entry.get("zenoh") is None or entry["zenoh"]["repeats"] != options.zenoh_repeats:
@@ -161,16 +162,22 @@ def _stability_limit(scene: Scene, members: list[dict], steps: list[float], stab
     return high
 
 
-def _answer(rows: list[dict], signal_name: str, target: float) -> dict:
-    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers."""
+def _cheapest(rows: list[dict], target: float) -> str | None:
+    """The key of the cheapest stable point with an error at most ``target`` (None: no point meets it)."""
     candidates = [r for r in rows if _cost(r) is not None]
     best = tradeoffs.cheapest([_cost(r) for r in candidates], [r["error"] for r in candidates],
                               [r["stable"] for r in candidates], target)
+    return None if best is None else candidates[best]["key"]
+
+
+def _answer(rows: list[dict], signal_name: str, target: float) -> dict:
+    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers."""
+    best = _cheapest(rows, target)
     if best is None:
         return {**dict.fromkeys(("point", "method", "macro_step", "error", "inproc_loop_cpu_per_s",
                                  "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s")),
                 "text": f"no point of the grid reaches {signal_name} NRMS ≤ {target * 100:g} % with a stable run"}
-    row = candidates[best]
+    row = next(r for r in rows if r["key"] == best)
     zenoh = row["zenoh"]
     over_zenoh = ("not measured over Zenoh" if zenoh is None
                   else f"{zenoh['loop_wall_per_s'] * 1e3:.3g} ms of wall time over Zenoh")
