@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from dataclasses import dataclass
 from importlib.metadata import version
 from typing import Callable
 
 from zencosim.manager.scene.load import Scene, load_scene
+from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.study import tradeoffs
 from zencosim.manager.study.cache import StudyCache
 from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
@@ -56,8 +58,14 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     for done, row in enumerate(chosen, 1):
         entry = entries[row["key"]]
         if entry.get("zenoh") is None or entry["zenoh"]["repeats"] != options.zenoh_repeats:
-            entry["zenoh"] = measure_zenoh(scene.path, tuple(row["overrides"]), options.zenoh_repeats)
-            cache.write(row["key"], entry)
+            try:
+                entry["zenoh"] = measure_zenoh(scene.path, tuple(row["overrides"]), options.zenoh_repeats)
+            except SubsystemFailure as error:  # e.g. a subsystem process that a loaded machine starts too late
+                warnings.warn(f"{scene.name}, {row['method']} at {row['macro_step']:g} s: not measured over Zenoh "
+                              f"({error}); the next run of the study tries again", stacklevel=1)
+                entry["zenoh"] = None
+            else:
+                cache.write(row["key"], entry)
         row["zenoh"] = entry["zenoh"]
         if progress is not None:
             progress("zenoh", done, len(chosen))
