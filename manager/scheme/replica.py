@@ -121,8 +121,13 @@ class Replica:
                 self.replies[name].append(reply)
 
     def _advance(self) -> None:
-        while all(self.replies[name] for name in self.request.awaits):
-            replies = {name: self.replies[name].popleft() for name in self.request.awaits}
+        waiting = self.replies
+        while True:
+            awaits = self.request.awaits
+            for name in awaits:
+                if not waiting[name]:
+                    return
+            replies = {name: waiting[name].popleft() for name in awaits}
             if self.tap is not None:
                 self.tap.replies(replies)
             if self.verify:
