@@ -5,7 +5,7 @@
 Wall time on a shared machine swings with what else runs; the number of instructions a step executes
 does not. Each figure is the difference of two runs under ``valgrind --tool=cachegrind`` (``STEPS``
 macro-steps apart) divided by the difference in steps, so start-up and imports cancel. ``--tree DIR``
-counts the in-process step of another source tree too (see bench_runtime.py). Needs valgrind.
+(repeatable) counts the in-process step of another source tree too (see bench_runtime.py). Needs valgrind.
 """
 from __future__ import annotations
 
@@ -51,19 +51,20 @@ def per_step(what: str, pythonpath: str = "", layout: str = "package") -> float:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tree", type=Path, help="also count the step of this source tree (before/after)")
+    parser.add_argument("--tree", type=Path, action="append", default=[],
+                        help="also count the step of this source tree (before/after; repeatable)")
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
         return 2
     floor = per_step("floor")
     rows = [("floor: the same arithmetic as one Python loop", floor), ("in-process step, this tree", per_step("run"))]
-    if args.tree:
+    for tree in args.tree:
         from bench_runtime import package_farm
-        farm = package_farm(args.tree)
-        flat = farm == args.tree.resolve()
+        farm = package_farm(tree)
+        flat = farm == tree.resolve()
         try:
-            rows.append((f"in-process step, tree {args.tree}", per_step("run", str(farm), "flat" if flat else "package")))
+            rows.append((f"in-process step, tree {tree}", per_step("run", str(farm), "flat" if flat else "package")))
         finally:
             if not flat:
                 shutil.rmtree(farm)
