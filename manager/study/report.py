@@ -195,6 +195,9 @@ def _plot_stability(study: dict, path: Path) -> None:
     if limits:
         axes.scatter([x for _, x in limits], [i for i, _ in limits], marker="|", s=300, color="C3",
                      label="stability limit (exact discrete analysis)")
+    for i, m in enumerate(methods):
+        if m["largest_stable_macro_step"] is None:
+            axes.text(0.0, i, " unstable at every step of the grid", va="center", fontsize=8, color="C3")
     labels = _labels(study)
     axes.set_yticks(range(len(methods)), [labels[m["method"]] for m in methods], fontsize=8)
     steps = [r["macro_step"] * 1e3 for r in study["points"]]
