@@ -40,7 +40,10 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
     program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
                              sys.executable, "-c", program, what, str(steps), layout],
-                            env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True, check=True)
+                            env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True)
+    if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
+        raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
+                         f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
     return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
 
 
@@ -58,18 +61,21 @@ def main() -> int:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
         return 2
     floor = per_step("floor")
-    rows = [("floor: the same arithmetic as one Python loop", floor), ("in-process step, this tree", per_step("run"))]
+
+    def show(label: str, count: float) -> None:  # as soon as it is counted: a later failure keeps it
+        print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)", flush=True)
+
+    show("floor: the same arithmetic as one Python loop", floor)
+    show("in-process step, this tree", per_step("run"))
     for tree in args.tree:
         from bench_runtime import package_farm
         farm = package_farm(tree)
         flat = farm == tree.resolve()
         try:
-            rows.append((f"in-process step, tree {tree}", per_step("run", str(farm), "flat" if flat else "package")))
+            show(f"in-process step, tree {tree}", per_step("run", str(farm), "flat" if flat else "package"))
         finally:
             if not flat:
                 shutil.rmtree(farm)
-    for label, count in rows:
-        print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)")
     return 0
 
 
