@@ -5,7 +5,7 @@
 Wall time on a shared machine swings with what else runs; the number of instructions a step executes
 does not. Each figure is the difference of two runs under ``valgrind --tool=cachegrind`` (``STEPS``
 macro-steps apart) divided by the difference in steps, so start-up and imports cancel. ``--tree DIR``
-counts the in-process step of another source tree too (see bench_runtime.py). Needs valgrind.
+(repeatable) counts the in-process step of another source tree too (see bench_runtime.py). Needs valgrind.
 """
 from __future__ import annotations
 
@@ -22,8 +22,12 @@ ONE_RUN = """
 import sys
 sys.path.insert(0, {benchmarks!r})
 from floor import floor_x2, parameters
-from zencosim.manager.run import execute
-from zencosim.manager.scene.load import load_scene
+if sys.argv[3] == "flat":  # a tree from before the package: manager is a top-level package
+    from manager.run import execute
+    from manager.scene import load_scene
+else:
+    from zencosim.manager.run import execute
+    from zencosim.manager.scene.load import load_scene
 scene = load_scene("two_mass_damped", [f"manager.duration={{int(sys.argv[2]) / 1000}}"])
 if sys.argv[1] == "floor":
     floor_x2(parameters(scene), int(sys.argv[2]))
@@ -32,37 +36,46 @@ else:
 """
 
 
-def instructions(what: str, steps: int, pythonpath: str) -> int:
+def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
     program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-                             sys.executable, "-c", program, what, str(steps)],
-                            env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True, check=True)
+                             sys.executable, "-c", program, what, str(steps), layout],
+                            env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True)
+    if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
+        raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
+                         f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
     return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
 
 
-def per_step(what: str, pythonpath: str = "") -> float:
-    low, high = (instructions(what, n, pythonpath) for n in STEPS)
+def per_step(what: str, pythonpath: str = "", layout: str = "package") -> float:
+    low, high = (instructions(what, n, pythonpath, layout) for n in STEPS)
     return (high - low) / (STEPS[1] - STEPS[0])
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tree", type=Path, help="also count the step of this source tree (before/after)")
+    parser.add_argument("--tree", type=Path, action="append", default=[],
+                        help="also count the step of this source tree (before/after; repeatable)")
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
         return 2
     floor = per_step("floor")
-    rows = [("floor: the same arithmetic as one Python loop", floor), ("in-process step, this tree", per_step("run"))]
-    if args.tree:
+
+    def show(label: str, count: float) -> None:  # as soon as it is counted: a later failure keeps it
+        print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)", flush=True)
+
+    show("floor: the same arithmetic as one Python loop", floor)
+    show("in-process step, this tree", per_step("run"))
+    for tree in args.tree:
         from bench_runtime import package_farm
-        farm = package_farm(args.tree)
+        farm = package_farm(tree)
+        flat = farm == tree.resolve()
         try:
-            rows.append((f"in-process step, tree {args.tree}", per_step("run", str(farm))))
+            show(f"in-process step, tree {tree}", per_step("run", str(farm), "flat" if flat else "package"))
         finally:
-            shutil.rmtree(farm)
-    for label, count in rows:
-        print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)")
+            if not flat:
+                shutil.rmtree(farm)
     return 0
 
 

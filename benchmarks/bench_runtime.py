@@ -44,15 +44,16 @@ from zencosim.manager.scene.load import load_scene
 SCENE = "two_mass_damped"
 
 
-def inprocess_step(repeats: int) -> dict:
+def inprocess_step(repeats: int, load=load_scene, run=execute) -> dict:
     """Medians over repeats of the in-process macro-step [µs] (wall and CPU time of the stepping loop), of the
-    floor measured just before each run, and of their ratio."""
-    scene = load_scene(SCENE)
+    floor measured just before each run, and of their ratio; ``load`` and ``run``: another tree's
+    ``load_scene`` and ``execute``."""
+    scene = load(SCENE)
     walls, cpus, floors, ratios = [], [], [], []
     for _ in range(repeats):
         floor_us = floor_step_s(scene, scene.manager.duration_ns // scene.manager.macro_step_ns) * 1e6
         cpu = time.process_time()
-        record, wall = execute(scene, "inproc")
+        record, wall = run(scene, "inproc")
         cpus.append((time.process_time() - cpu) / record.plan.n_ticks * 1e6)
         walls.append(wall / record.plan.n_ticks * 1e6)
         floors.append(floor_us)
@@ -63,7 +64,10 @@ def inprocess_step(repeats: int) -> dict:
 
 def package_farm(tree: Path) -> Path:
     """A folder to put on PYTHONPATH that imports the source tree ``tree`` as ``zencosim`` (its layer folders
-    inside the package, as setup.py installs them)."""
+    inside the package, as setup.py installs them). A tree from before the package (no ``zencosim`` folder:
+    ``manager`` and the others are top-level packages) is put on PYTHONPATH as it is."""
+    if not (tree / "zencosim").is_dir():
+        return tree.resolve()
     farm = Path(tempfile.mkdtemp(prefix="zencosim-tree-")) / "zencosim"
     farm.mkdir()
     for entry in (tree / "zencosim").iterdir():
@@ -76,16 +80,18 @@ def package_farm(tree: Path) -> Path:
 def compare_trees(tree: Path, repeats: int) -> dict:
     """The in-process step of this tree and of ``tree``, alternating, one fresh process per repeat each."""
     farm = package_farm(tree)
+    flat = ["--flat"] if farm == tree.resolve() else []
     runs = {"this": [], "other": []}
     try:
         for _ in range(repeats):
-            for which, path in (("other", str(farm)), ("this", "")):
+            for which, path, layout in (("other", str(farm), flat), ("this", "", [])):
                 env = {**os.environ, "PYTHONPATH": path}
-                out = subprocess.run([sys.executable, __file__, "--measure-inprocess"], env=env, capture_output=True,
-                                     text=True, check=True).stdout
+                out = subprocess.run([sys.executable, __file__, "--measure-inprocess", *layout], env=env,
+                                     capture_output=True, text=True, check=True).stdout
                 runs[which].append(json.loads(out))
     finally:
-        shutil.rmtree(farm)
+        if not flat:
+            shutil.rmtree(farm)
     return {which: {key: statistics.median(r[key] for r in measured) for key in measured[0]}
             for which, measured in runs.items()}
 
@@ -108,8 +114,15 @@ def main() -> None:
     parser.add_argument("--inprocess-only", action="store_true", help="only the in-process step and its floor")
     parser.add_argument("--tree", type=Path, help="also measure the in-process step of this source tree (before/after)")
     parser.add_argument("--measure-inprocess", action="store_true", help=argparse.SUPPRESS)  # one repeat, as JSON
+    parser.add_argument("--flat", action="store_true", help=argparse.SUPPRESS)  # ... of a tree before the package
     args = parser.parse_args()
     if args.measure_inprocess:
+        if args.flat:
+            import manager.run
+            import manager.scene
+            measured = inprocess_step(1, manager.scene.load_scene, manager.run.execute)
+            print(json.dumps({**measured, "package": str(Path(manager.__file__).parent)}))
+            return
         import zencosim
         print(json.dumps({**inprocess_step(1), "package": str(Path(zencosim.__file__).parent)}))
         return

@@ -82,7 +82,7 @@ class Subsystem:
             c = inputs.coefficients
             Phi_m, Psi = self._composed_step(span // h_ns, c.shape[0], h)
             z = self.z
-            np.add(Phi_m.dot(z), Psi.dot(c.ravel()), out=z)
+            np.add(Phi_m.dot(z), Psi.dot(c.ravel()), z)  # out=z, positional: no keyword parsing each step
             self.t_ns = t1_ns
             self.w = self._s[z.size:] = inputs.at(span * 1e-9)
             return self.model.outputs_of(t1_ns * 1e-9, self._s)

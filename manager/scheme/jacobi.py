@@ -83,7 +83,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
               if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
-    copied = [None if adjusters[s.index] else _copied_inputs(s) for s in subs]
+    copied = [None if adjusters[s.index] else _copied_inputs(s, readers) for s in subs]
+    unpack_inputs = [struct.Struct(f"<{len(s.inputs)}d").unpack_from for s in subs]  # a ZOH command's values
 
     def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
         order = s.order
@@ -101,6 +102,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     step_s = base * 1e-9
     step_status = None
     header = HEADER.pack
+    step_kind = int(Kind.STEP)
 
     for tick in range(n_ticks):
         phase = tick % period
@@ -108,9 +110,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for s in starting[phase]:
             segments = copied[s.index]
             if segments is not None:  # ZOH: the sources' newest values, as they arrived
-                payload = b"".join([readers[source].newest_bytes[start:end] for source, start, end in segments])
-                sends[s.name] = command = header(VERSION, Kind.STEP, 1, len(s.inputs), tick, tick * base, 0) + payload
-                sent[s.index] = (tick, [_float_rows(command, len(s.inputs))])
+                payload = b"".join([reader.newest_bytes[start:end] for reader, start, end in segments])
+                sends[s.name] = command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
+                sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
                 continue
             coefficients = input_polynomial(s, tick)
             sent[s.index] = (tick, coefficients.tolist())
@@ -159,10 +161,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 
-def _copied_inputs(s: SubsystemPlan) -> tuple[tuple[int, int, int], ...] | None:
+def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int, int], ...] | None:
     """For a subsystem with zero-order inputs, every input fed once: where its input values lie in its sources'
-    newest replies, as byte ranges ``(source, start, end)`` in input order, adjacent ranges merged (the
-    command's values are then these bytes, unchanged: a ZOH polynomial is the newest sample). None otherwise."""
+    newest replies, as byte ranges ``(reader of the source, start, end)`` in input order, adjacent ranges merged
+    (the command's values are then these bytes, unchanged: a ZOH polynomial is the newest sample). None otherwise."""
     if s.order != 0:
         return None
     where = {}
@@ -178,7 +180,7 @@ def _copied_inputs(s: SubsystemPlan) -> tuple[tuple[int, int, int], ...] | None:
             segments[-1][2] = start + 8
         else:
             segments.append([source, start, start + 8])
-    return tuple(map(tuple, segments))
+    return tuple((readers[source], start, end) for source, start, end in segments)
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
@@ -222,11 +224,6 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
                        and (phase + 1) % subs[bond.motion_side].ratio == 0
                        and {bond.force_side, bond.motion_side} & local) for phase in range(period)]
     return period, starting, partners_starting, due, due_names, bonds_due
-
-
-def _float_rows(command: bytes, n_inputs: int) -> tuple[float, ...]:
-    """The values of a one-row command (a ZOH polynomial) as floats."""
-    return struct.unpack_from(f"<{n_inputs}d", command, HEADER.size)
 
 
 def _bond_residual_power(readers: list[OutputReader], sent: list, bond, components, tick: int, step_s: float) -> float:

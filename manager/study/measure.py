@@ -95,18 +95,25 @@ def _per_simulated_second(scene: Scene, walls: list, cpus: list, loop_walls: lis
 
 
 class _CountingTap:
-    """A run recorder (``manager.run.RunRecorder``) that only counts the commands sent to subsystems."""
+    """A run recorder (``manager.run.RunRecorder``, a ``manager.scheme.replica.Tap``) that only counts the
+    commands sent to subsystems."""
 
     result = None
 
     def __init__(self) -> None:
-        self.commands = 0
+        self.sent = 0
 
     def start(self, *_args) -> None:
         pass
 
-    def tap(self, source: str, channel: str, message: bytes) -> None:
-        self.commands += channel == "commands"
+    def status(self, message: bytes) -> None:
+        pass
+
+    def commands(self, sends: dict[str, bytes]) -> None:
+        self.sent += len(sends)
+
+    def replies(self, replies: dict[str, bytes]) -> None:
+        pass
 
     def finish(self, outcome: str) -> dict:
         self.result = {"outcome": outcome}
@@ -122,7 +129,7 @@ def count_exchanges(scene: Scene) -> int:
     counter = _CountingTap()
     with np.errstate(all="ignore"):
         execute(scene, "inproc", recorder=counter)
-    return counter.commands
+    return counter.sent
 
 
 def measure_zenoh(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> dict:

@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 
 from zencosim.manager.results.output_files import OutputFileError
+from zencosim.manager.study.grid import method_label
 
 FILES = ("study.json", "study.csv", "study.md", "error_cost.png", "error_step.png", "stability.png")
 
@@ -69,6 +70,34 @@ def _write_csv(study: dict, path: Path) -> None:
         writer.writerows(rows)
 
 
+EXTRAPOLATION = {0: "ZOH", 1: "FOH", 2: "SOH"}  # extrapolation order as the papers name it
+MARKERS = "osD^vP*Xph<>"  # one per method, so that methods whose points coincide stay apart
+
+
+def plot_label(values: dict) -> str:
+    """A method as a plot's legend names it: ``FOH + compensator + energy correction``; settings other than the
+    papers' methods as ``key=value``."""
+    parts = []
+    for key, value in values.items():
+        if key == "manager.extrapolation":
+            parts.append(EXTRAPOLATION.get(value, f"extrapolation {value}"))
+        elif key == "manager.compensation":
+            parts += [] if value == "none" else ["compensator" if value == "eigenstructure" else f"{value} compensator"]
+        elif key == "manager.correction.enabled":
+            parts += ["energy correction"] if value else []
+        elif key == "manager.implicit.method":
+            parts.append(value)
+        else:
+            parts.append(method_label({key: value}))
+    return " + ".join(parts) or "as the scene"
+
+
+def _labels(study: dict) -> dict[str, str]:
+    """Method name → legend label (the full names when the short ones would not tell two methods apart)."""
+    labels = {m["method"]: plot_label(m["values"]) for m in study["methods"]}
+    return labels if len(set(labels.values())) == len(labels) else {name: name for name in labels}
+
+
 def _by_method(study: dict) -> dict[str, list[dict]]:
     methods = {m["method"]: [] for m in study["methods"]}
     for row in study["points"]:
@@ -76,19 +105,34 @@ def _by_method(study: dict) -> dict[str, list[dict]]:
     return methods
 
 
-def _figure():
+def _figure(height: float = 4.2):
     import matplotlib
     matplotlib.use("Agg")
     from matplotlib import pyplot
-    return pyplot, *pyplot.subplots(figsize=(7.5, 5.0))
+    return pyplot, *pyplot.subplots(figsize=(9.0, height))
 
 
-def _save(pyplot, figure, axes, path: Path) -> None:
+def _save(pyplot, figure, axes, path: Path, legend_outside: bool = True) -> None:
     axes.grid(True, which="both", linewidth=0.3)
-    axes.legend(fontsize=7)
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
+    if legend_outside:  # right of the axes: it covers no point
+        axes.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    else:
+        axes.legend(fontsize=8)
+    figure.savefig(path, dpi=90, bbox_inches="tight")
     pyplot.close(figure)
+
+
+def _plain_ticks(axis, at: list[float] | None = None) -> None:
+    """Tick labels of a logarithmic axis as plain numbers (20, 50, 100), not powers of ten: at ``at``, else at the
+    decades and their 2, 3 and 5 multiples."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+    if at is not None:
+        axis.set_major_locator(FixedLocator(at))
+        axis.set_minor_formatter(NullFormatter())
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    if at is None:
+        axis.set_minor_formatter(FuncFormatter(
+            lambda value, _: f"{value:g}" if round(value / 10 ** math.floor(math.log10(value))) in (2, 3, 5) else ""))
 
 
 def _cost_ms(row: dict) -> float | None:
@@ -97,33 +141,39 @@ def _cost_ms(row: dict) -> float | None:
 
 def _plot_error_cost(study: dict, path: Path) -> None:
     pyplot, figure, axes = _figure()
-    for color, (method, rows) in enumerate(_by_method(study).items()):
+    labels = _labels(study)
+    for i, (method, rows) in enumerate(_by_method(study).items()):
         shown = [r for r in rows if r["error"] is not None and _cost_ms(r)]
         if not shown:
             continue
-        axes.scatter([_cost_ms(r) for r in shown], [r["error"] for r in shown], s=14, color=f"C{color % 10}")
+        style = {"color": f"C{i % 10}", "marker": MARKERS[i % len(MARKERS)]}
+        axes.scatter([_cost_ms(r) for r in shown], [r["error"] for r in shown], s=22, **style)
         front = sorted((r for r in shown if r["pareto_in_method"]), key=_cost_ms)
-        axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], color=f"C{color % 10}", label=method)
+        axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], markersize=4.5, label=labels[method],
+                  **style)
     front = sorted((r for r in study["points"] if r["pareto"]), key=_cost_ms)
-    axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], "k--", linewidth=0.8, label="Pareto front of all")
-    axes.axhline(study["target"], color="grey", linewidth=0.8)
+    axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], "k--", linewidth=0.9, label="Pareto front of all")
+    axes.axhline(study["target"], color="grey", linewidth=0.8, label=f"target NRMS {study['target'] * 100:g} %")
     _log_log(axes, study, "CPU time of the in-process stepping loop per simulated second [ms]",
-             "error against cost (stable points; lines: Pareto front per method)")
+             "error against cost (stable points; lines: each method's Pareto front)")
+    _plain_ticks(axes.xaxis)
     _save(pyplot, figure, axes, path)
 
 
 def _plot_error_step(study: dict, path: Path) -> None:
     pyplot, figure, axes = _figure()
     orders = {m["method"]: m["order"] for m in study["methods"]}
-    for color, (method, rows) in enumerate(_by_method(study).items()):
+    labels = _labels(study)
+    for i, (method, rows) in enumerate(_by_method(study).items()):
         shown = sorted((r for r in rows if r["error"] is not None), key=lambda r: r["macro_step"])
         if not shown:
             continue
         order = orders[method]
-        label = f"{method} (order {order:.2f})" if order is not None else method
-        axes.plot([r["macro_step"] * 1e3 for r in shown], [r["error"] for r in shown], "o-", markersize=3,
-                  color=f"C{color % 10}", label=label)
+        label = f"{labels[method]} (order {order:.2f})" if order is not None else labels[method]
+        axes.plot([r["macro_step"] * 1e3 for r in shown], [r["error"] for r in shown], markersize=4.5,
+                  color=f"C{i % 10}", marker=MARKERS[i % len(MARKERS)], label=label)
     _log_log(axes, study, "macro-step [ms]", "error against macro-step (stable points), fitted order")
+    _plain_ticks(axes.xaxis, sorted({r["macro_step"] * 1e3 for r in study["points"]}))
     _save(pyplot, figure, axes, path)
 
 
@@ -137,16 +187,21 @@ def _log_log(axes, study: dict, xlabel: str, title: str) -> None:
 
 
 def _plot_stability(study: dict, path: Path) -> None:
-    pyplot, figure, axes = _figure()
     methods = study["methods"]
+    pyplot, figure, axes = _figure(1.2 + 0.32 * len(methods))
     largest = [(m["largest_stable_macro_step"] or 0.0) * 1e3 for m in methods]
     axes.barh(range(len(methods)), largest, color="C0", label="largest stable macro-step of the grid")
     limits = [(i, m["stability_limit"] * 1e3) for i, m in enumerate(methods) if m["stability_limit"] is not None]
     if limits:
         axes.scatter([x for _, x in limits], [i for i, _ in limits], marker="|", s=300, color="C3",
                      label="stability limit (exact discrete analysis)")
-    axes.set_yticks(range(len(methods)), [m["method"] for m in methods], fontsize=7)
-    axes.set_xlabel("macro-step [ms]")
+    for i, m in enumerate(methods):
+        if m["largest_stable_macro_step"] is None:
+            axes.text(0.0, i, " unstable at every step of the grid", va="center", fontsize=8, color="C3")
+    labels = _labels(study)
+    axes.set_yticks(range(len(methods)), [labels[m["method"]] for m in methods], fontsize=8)
+    steps = [r["macro_step"] * 1e3 for r in study["points"]]
+    axes.set_xlabel(f"macro-step [ms] (the grid: {min(steps):g} to {max(steps):g} ms)")
     axes.set_title(f"{study['scene']}: largest stable macro-step per method")
     _save(pyplot, figure, axes, path)
 

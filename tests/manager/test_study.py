@@ -13,8 +13,10 @@ from hypothesis import strategies as st
 from tests.conftest import REPO, alive, children_of, wait_for
 from tests.manager.test_cli import zencosim
 from zencosim.manager.analysis.scene_analysis import analyze_scene
+from zencosim.manager.assembly import plan_scene
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.study.grid import merge_axes, parse_axis
+from zencosim.manager.study.measure import count_exchanges
 from zencosim.manager.study.report import FILES, write_report
 from zencosim.manager.study.study import StudyOptions, run_study
 from zencosim.manager.study.tradeoffs import pareto_front
@@ -156,6 +158,16 @@ def test_the_report_files_exist_and_the_json_keys_are_the_documented_ones(tmp_pa
     markdown = (tmp_path / "study.md").read_text()
     assert report["answer"]["text"] in markdown and "![error against cost](error_cost.png)" in markdown
     assert len((tmp_path / "study.csv").read_text().splitlines()) == len(report["points"]) + 1
+
+
+@pytest.mark.parametrize("scene, duration", [("two_mass_damped", "0.01"), ("hydraulic_crane", "0.1")])
+def test_the_exchanges_counted_are_the_commands_the_plan_sends(scene, duration):
+    # a subsystem gets one STEP per communication step (the crane's arm every 40 base steps) and one INIT per
+    # initialisation round it takes part in: the count a Zenoh point reports beside its cost
+    loaded = load_scene(scene, [f"manager.duration={duration}"])
+    plan, _ = plan_scene(loaded)
+    steps = sum(plan.n_ticks // s.ratio for s in plan.subsystems)
+    assert count_exchanges(loaded) == steps + sum(len(r) for r in plan.init_rounds)
 
 
 finite = st.floats(min_value=1e-9, max_value=1e9, allow_nan=False)
