@@ -8,11 +8,13 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
 
 import zencosim
+from zencosim.manager.bus.backlog import Backlog
 from zencosim.manager.results.reference import analytic_reference, solve_ivp_reference
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.window import BLOCK_ROWS, RowWindow, Spill, read_rows, row_blocks
@@ -61,6 +63,19 @@ def test_a_spilled_window_gives_the_array_written_and_reads_columns_from_its_fil
     column = spilled[::3, 1]  # a view: read from the file, not through the mapping
     assert read_rows(column, 5, 2000).tobytes() == expected[::3, 1][5:2000].tobytes()
     assert np.concatenate([block for _, block in row_blocks(column)]).tobytes() == expected[::3, 1].tobytes()
+
+
+def test_the_backlog_of_a_lagging_manager_replica_keeps_order_and_spills_beyond_its_memory_bound():
+    backlog = Backlog(memory_bytes=1000)
+    sent = [(f"S{i % 3}", bytes([i % 251]) * (10 + i)) for i in range(300)]  # ~48 kB: most go to the file
+    producer = threading.Thread(target=lambda: [backlog.put(item) for item in (*sent, None)])
+    producer.start()
+    taken = []
+    while (item := backlog.get()) is not None:
+        taken.append(item)
+        assert backlog._held <= 1000
+    producer.join()
+    assert taken == sent and backlog._file is not None
 
 
 @pytest.mark.slow
