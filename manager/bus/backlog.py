@@ -13,7 +13,7 @@ import struct
 import tempfile
 import threading
 
-MEMORY_BYTES = 8 * 1024 * 1024  # batches held in memory before newer ones go to the file
+MEMORY_BYTES = 1024 * 1024  # batches held in memory before newer ones go to the file
 _RECORD = struct.Struct("<HI")  # length of the subsystem's name, of the batch
 _IN_FILE = object()  # the token of a batch in the file
 
