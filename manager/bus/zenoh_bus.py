@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import subprocess
 import tempfile
 import threading
@@ -28,6 +27,7 @@ from typing import Callable
 import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
+from zencosim.manager.bus.backlog import Backlog
 from zencosim.manager.bus.children import process_state, start_child
 from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
@@ -279,7 +279,7 @@ class ZenohBus:
         scheme = make_scheme(self.scene, self.plan, False, None, progress, status, keep=keep)
         self._replica = Replica(scheme, self.names, tap=tap, on_drop=self._drop_reply)
         self._done = threading.Event()
-        self._batches: queue.SimpleQueue = queue.SimpleQueue()  # (subsystem, batch of replies); None ends
+        self._batches = Backlog()  # (subsystem, batch of replies); None ends
         self._error: BaseException | None = None
         self._driving = True
         self._progress = (0, time.monotonic())
@@ -348,8 +348,9 @@ class ZenohBus:
         two_mass_damped); run at normal priority on a machine with fewer free cores than processes, its
         bursts preempt a subsystem on the critical path. SCHED_IDLE (Linux; ignored elsewhere) gives
         the core to the subsystems whenever they want it; the follower still gets the time they wait
-        for the network, and if it fell behind, the subsystems' batches would wait (backpressure),
-        never be lost. Measured on two_mass_damped over Zenoh: docs/protocol.md."""
+        for the network, and if it falls behind, the subsystems' batches wait for it, never lost: in memory up
+        to a bound, then on disk (``manager.bus.backlog``). Measured on two_mass_damped over Zenoh:
+        docs/protocol.md."""
         if hasattr(os, "SCHED_IDLE"):
             try:
                 os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
