@@ -45,7 +45,7 @@ def outcome(argv: list[str]) -> str:
             return f"exit {main(argv)}"
         except SystemExit as stop:
             return f"exit {stop.code}"
-        except BaseException as error:  # noqa: BLE001 - what escapes is the finding
+        except Exception as error:  # noqa: BLE001 - what escapes is the finding (Ctrl-C and SIGTERM still stop this)
             frame = traceback.extract_tb(error.__traceback__)[-1]
             return f"traceback {type(error).__name__} ({Path(frame.filename).name}:{frame.lineno})"
 
