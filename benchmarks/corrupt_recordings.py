@@ -86,21 +86,24 @@ def main_() -> None:
     rng = random.Random(args.seed)
     copies = [(n, KINDS[n % len(KINDS)], rng.randrange(1 << 40), rng.randrange(1 << 40)) for n in range(args.copies)]
     started = time.perf_counter()
-    with multiprocessing.get_context("fork").Pool(args.jobs, initializer=_given, initargs=(intact, directory)) as pool:
-        results = pool.map(_check, copies, chunksize=4)
     counts = {command: Counter() for command in ("inspect", "verify")}
     tracebacks = {command: Counter() for command in ("inspect", "verify")}
     unchanged = 0
-    for same, outcomes in results:
-        unchanged += same
-        for command, result in outcomes.items():
-            if result.startswith("traceback"):
-                counts[command]["traceback"] += 1
-                tracebacks[command][result.removeprefix("traceback ")] += 1
-            elif result == "exit 0":
-                counts[command]["exit 0, intact copy" if same else "exit 0, damaged copy (false pass)"] += 1
-            else:
-                counts[command][result] += 1
+    with multiprocessing.get_context("fork").Pool(args.jobs, initializer=_given, initargs=(intact, directory)) as pool:
+        for done, (same, outcomes) in enumerate(pool.imap(_check, copies), 1):
+            unchanged += same
+            for command, result in outcomes.items():
+                if result.startswith("traceback"):
+                    counts[command]["traceback"] += 1
+                    tracebacks[command][result.removeprefix("traceback ")] += 1
+                elif result == "exit 0":
+                    counts[command]["exit 0, intact copy" if same else "exit 0, damaged copy (false pass)"] += 1
+                else:
+                    counts[command][result] += 1
+            if done % 30 == 0 and done < len(copies):
+                print(f"  after {done} copies: " + "; ".join(
+                    f"{command} " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())) for command, c in counts.items()),
+                    flush=True)
     print(f"{args.copies} damaged copies (seed {args.seed}; {unchanged} of them byte-identical to the intact file), "
           f"{time.perf_counter() - started:.0f} s")
     for command in counts:
