@@ -1,7 +1,7 @@
 """The ``zencosim`` command line (also ``python -m zencosim``).
 
 Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error) or
-a recording did not verify (damaged, cut off or different; ``inspect``: damaged), 2 bad input (scene,
+a recording did not verify (damaged, cut off or different; ``inspect``: damaged or cut off), 2 bad input (scene,
 overrides, arguments, recording file, output path, a missing optional dependency), 130 interrupted
 (SIGINT or SIGTERM).
 """
