@@ -9,13 +9,14 @@ pass* is exit status 0 on a copy whose bytes differ from the intact file. Then a
 (a 10-step run whose embedded scene, digest updated, claims ``manager.duration = 1e7`` s) goes through
 ``replay --verify`` in a subprocess limited to 2 GiB of address space.
 
-    python benchmarks/corrupt_recordings.py [--copies 330] [--seed 14]
+    python benchmarks/corrupt_recordings.py [--copies 330] [--seed 14] [--jobs 2]
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
 import io
+import multiprocessing
 import random
 import resource
 import subprocess
@@ -44,15 +45,37 @@ def outcome(argv: list[str]) -> str:
             return f"exit {main(argv)}"
         except SystemExit as stop:
             return f"exit {stop.code}"
-        except BaseException as error:  # noqa: BLE001 - what escapes is the finding
+        except Exception as error:  # noqa: BLE001 - what escapes is the finding (Ctrl-C and SIGTERM still stop this)
             frame = traceback.extract_tb(error.__traceback__)[-1]
             return f"traceback {type(error).__name__} ({Path(frame.filename).name}:{frame.lineno})"
+
+
+_intact = b""
+_directory = Path()
+
+
+def _given(intact: bytes, directory: Path) -> None:
+    global _intact, _directory
+    _intact, _directory = intact, directory
+
+
+def _check(copy: tuple[int, str, int, int]) -> tuple[bool, dict[str, str]]:
+    """Whether damaged copy ``n`` is byte-identical to the intact file, and each command's outcome on it."""
+    n, kind, a, b = copy
+    data = corrupt(_intact, kind, a, b)
+    path = _directory / f"damaged{n}.mcap"
+    path.write_bytes(data)
+    outcomes = {command: outcome(argv) for command, argv in (("inspect", ["inspect", str(path)]),
+                                                             ("verify", ["replay", str(path), "--verify"]))}
+    path.unlink()
+    return data == _intact, outcomes
 
 
 def main_() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--copies", type=int, default=330)
     parser.add_argument("--seed", type=int, default=14)
+    parser.add_argument("--jobs", type=int, default=2, help="processes checking copies in parallel")
     args = parser.parse_args()
     directory = Path(tempfile.mkdtemp(prefix="corrupt_recordings_"))
     intact_path = directory / "run.mcap"
@@ -61,25 +84,26 @@ def main_() -> None:
     print(f"recording: {intact_path}, {len(intact)} bytes, "
           f"{sum(len(c.messages) for c in read_recording(intact_path).channels.values())} messages")
     rng = random.Random(args.seed)
+    copies = [(n, KINDS[n % len(KINDS)], rng.randrange(1 << 40), rng.randrange(1 << 40)) for n in range(args.copies)]
+    started = time.perf_counter()
     counts = {command: Counter() for command in ("inspect", "verify")}
     tracebacks = {command: Counter() for command in ("inspect", "verify")}
     unchanged = 0
-    started = time.perf_counter()
-    copy = directory / "damaged.mcap"
-    for n in range(args.copies):
-        kind = KINDS[n % len(KINDS)]
-        data = corrupt(intact, kind, rng.randrange(1 << 40), rng.randrange(1 << 40))
-        unchanged += data == intact
-        copy.write_bytes(data)
-        for command, argv in (("inspect", ["inspect", str(copy)]), ("verify", ["replay", str(copy), "--verify"])):
-            result = outcome(argv)
-            if result.startswith("traceback"):
-                counts[command]["traceback"] += 1
-                tracebacks[command][result.removeprefix("traceback ")] += 1
-            elif result == "exit 0":
-                counts[command]["exit 0, intact copy" if data == intact else "exit 0, damaged copy (false pass)"] += 1
-            else:
-                counts[command][result] += 1
+    with multiprocessing.get_context("fork").Pool(args.jobs, initializer=_given, initargs=(intact, directory)) as pool:
+        for done, (same, outcomes) in enumerate(pool.imap(_check, copies), 1):
+            unchanged += same
+            for command, result in outcomes.items():
+                if result.startswith("traceback"):
+                    counts[command]["traceback"] += 1
+                    tracebacks[command][result.removeprefix("traceback ")] += 1
+                elif result == "exit 0":
+                    counts[command]["exit 0, intact copy" if same else "exit 0, damaged copy (false pass)"] += 1
+                else:
+                    counts[command][result] += 1
+            if done % 30 == 0 and done < len(copies):
+                print(f"  after {done} copies: " + "; ".join(
+                    f"{command} " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())) for command, c in counts.items()),
+                    flush=True)
     print(f"{args.copies} damaged copies (seed {args.seed}; {unchanged} of them byte-identical to the intact file), "
           f"{time.perf_counter() - started:.0f} s")
     for command in counts:

@@ -90,7 +90,8 @@ class _Comparer:
         message = decode(wire, topic)
         index = self.cursor[topic]
         if index >= len(messages):
-            self.exhausted = f"{topic} has no message after step {messages[-1].step if messages else 'none'}"
+            self.exhausted = (f"{topic} has no message after step {messages[-1].step}" if messages
+                              else f"the recording holds no message of {topic}")
             raise _Stop
         self.cursor[topic] = index + 1
         recorded = messages[index]

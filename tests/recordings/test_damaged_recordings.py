@@ -120,4 +120,4 @@ def test_a_small_file_claiming_a_huge_run_allocates_nothing_of_it(tmp_path):
     finally:
         tracemalloc.stop()
     assert peak < 64 << 20, peak
-    assert not result.passed and result.completed_run and "has no message" in result.note, result
+    assert not result.passed and result.completed_run and "holds no message" in result.note, result

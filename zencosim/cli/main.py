@@ -2,7 +2,7 @@
 
 Exit status: 0 success, 1 a run failed (a subsystem died, stopped answering or reported an error; the
 recorder was lost under --record-lost stop) or a recording did not verify (damaged, cut off or different;
-``inspect``: damaged), 2 bad input (scene, overrides, arguments, recording file, output path, a missing
+``inspect``: damaged or cut off), 2 bad input (scene, overrides, arguments, recording file, output path, a missing
 optional dependency, a Zenoh session that cannot open: an endpoint to listen on that is taken, a
 certificate file missing), 3 a run completed but diverged (a value not finite, or an implicit run's joint
 opened; its summary and tables are still written), 130 interrupted (SIGINT or SIGTERM).

@@ -73,7 +73,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         say(f"incomplete: {info['truncated']}")
     for damage in info["damage"]:
         say(f"damaged: {damage}")
-    return 1 if info["damage"] else 0
+    return 0 if info["complete"] and not info["damage"] else 1
 
 
 def cmd_export(args: argparse.Namespace) -> int:
