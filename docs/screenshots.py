@@ -7,8 +7,13 @@ serves the file with the web viewer (``rerun --serve-web``) and photographs it w
 (Debian's ``chromium``: ``apt-get install chromium``; not needed by the tests). Chromium runs without a
 GPU, sandbox or network (WebGL through its software renderer) in a new, empty profile, and is driven
 over the DevTools protocol on a pipe (``--remote-debugging-pipe``: JSON messages ended by a NUL byte),
-so no websocket library is needed: the picture is taken once the viewer has had ``SETTLE_S`` to load
-the recording.
+so no websocket library is needed. The viewer loads the recording and draws it in software, which
+takes minutes on a busy machine: the page is photographed every ``POLL_S`` and the picture kept once
+two in a row are the same (the view has settled), after at most ``LOAD_TIMEOUT_S``.
+
+The Rerun server and Chromium each start a process group of their own (``rerun`` from rerun-sdk is a
+Python launcher that starts the viewer's binary; Chromium starts its helpers), and the whole group is
+ended, also when a picture fails.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ import base64
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -29,7 +35,9 @@ SCENES = {  # picture → scene and overrides
     "hydraulic_crane": ("hydraulic_crane", []),
 }
 WINDOW = (1600, 1000)  # [px]
-SETTLE_S = 90.0  # [s] the viewer loads its WebAssembly and the recording within this time (software rendering)
+POLL_S = 15.0  # [s] between two pictures of the page
+LOAD_TIMEOUT_S = 900.0  # [s] the viewer has settled within this time (software rendering on a busy machine)
+STOP_TIMEOUT_S = 10.0  # [s] a process group ended with SIGTERM is killed after this
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--enable-unsafe-swiftshader", "--hide-scrollbars")  # WebGL in software: the viewer needs it
@@ -56,6 +64,22 @@ def _wait_listening(port: int, timeout_s: float = 30.0) -> None:
     raise RuntimeError(f"nothing listens on port {port} after {timeout_s} s")
 
 
+def _stop(process: subprocess.Popen) -> None:
+    """End ``process`` and every process of its group (it leads one: ``start_new_session``)."""
+    try:
+        os.killpg(process.pid, signal.SIGTERM)
+        process.wait(STOP_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    except ProcessLookupError:
+        process.wait()
+    try:  # what the leader left behind
+        os.killpg(process.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def _pipes_at_3_and_4(commands: int, results: int) -> None:
     """In the child: the DevTools pipe's ends where Chromium expects them (it reads 3, writes 4)."""
     commands, results = os.dup(commands), os.dup(results)  # above 4, so that the first dup2 cannot close the other
@@ -72,7 +96,7 @@ class DevTools:
         self.process = subprocess.Popen(
             [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={WINDOW[0]},{WINDOW[1]}",
              "--remote-debugging-pipe", "about:blank"],
-            pass_fds=(3, 4), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            pass_fds=(3, 4), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
             preexec_fn=lambda: _pipes_at_3_and_4(commands_read, results_write))
         os.close(commands_read)
         os.close(results_write)
@@ -99,8 +123,7 @@ class DevTools:
                 return answer["result"]
 
     def close(self) -> None:
-        self.process.terminate()
-        self.process.wait()
+        _stop(self.process)
         os.close(self._commands)
         os.close(self._results)
 
@@ -110,7 +133,7 @@ def photograph(rrd: Path, png: Path, chromium: str) -> None:
     rerun = Path(sys.executable).with_name("rerun")
     web, grpc = _free_port(), _free_port()
     server = subprocess.Popen([str(rerun), "--serve-web", "--web-viewer-port", str(web), "--port", str(grpc), str(rrd)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         _wait_listening(web)
         _wait_listening(grpc)
@@ -124,14 +147,24 @@ def photograph(rrd: Path, png: Path, chromium: str) -> None:
                 browser.call("Emulation.setDeviceMetricsOverride", session, width=WINDOW[0], height=WINDOW[1],
                              deviceScaleFactor=1, mobile=False)
                 browser.call("Page.navigate", session, url=url)
-                time.sleep(SETTLE_S)
-                shot = browser.call("Page.captureScreenshot", session, format="png")
-                png.write_bytes(base64.b64decode(shot["data"]))
+                png.write_bytes(_settled(browser, session))
             finally:
                 browser.close()
     finally:
-        server.terminate()
-        server.wait()
+        _stop(server)
+
+
+def _settled(browser: DevTools, session: str) -> bytes:
+    """The page's picture once two taken ``POLL_S`` apart are the same."""
+    deadline = time.monotonic() + LOAD_TIMEOUT_S
+    previous = None
+    while time.monotonic() < deadline:
+        time.sleep(POLL_S)
+        shot = base64.b64decode(browser.call("Page.captureScreenshot", session, format="png")["data"])
+        if shot == previous:
+            return shot
+        previous = shot
+    raise RuntimeError(f"the viewer was still changing after {LOAD_TIMEOUT_S:g} s")
 
 
 def main() -> None:

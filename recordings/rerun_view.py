@@ -45,6 +45,8 @@ PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 1
 PLOTTED = {"outputs": Kind.OUTPUT, "inputs": Kind.STEP, "status": Kind.STATUS}  # the messages a channel plots
 EVENTS = "/events"
 MECHANISM = "/mechanism"
+WIDE = 3.0  # a mechanism this many times wider than high is drawn in a strip across the top
+TIMING_RANGE = 3.0  # the step-timing panel opens on 0 … this × the 99th percentile
 
 
 def _path(*parts: str) -> str:
@@ -116,6 +118,7 @@ class RunView:
         self._shapes: dict[str, tuple[str, list, tuple, list, list, list]] = {}
         self._labelled: set[str] = set()
         self.extent: np.ndarray | None = None  # [x min, x max, y min, y max] of the mechanism so far [m]
+        self.timing_p99 = 0.0  # the highest 99th percentile of a step-timing series in a fed batch so far [µs]
 
     def start(self) -> None:
         """Log each series' name, colour and unit (static); call once the stream's sinks are set."""
@@ -141,6 +144,10 @@ class RunView:
             for step, row in zip(steps.tolist(), values):
                 self.mechanism.output(spec.source, step, row)
         self._columns.setdefault(topic, []).append((steps, times, values))
+        for series in self.series[topic]:
+            if series.root == STEP_TIMING[0] and np.isfinite(values[:, series.column]).any():
+                p99 = np.nanpercentile(values[:, series.column], 99) * series.scale
+                self.timing_p99 = max(self.timing_p99, float(p99))
         if spec.role == "status":
             for j, name in enumerate(spec.names):
                 if name.startswith("delta_p."):
@@ -281,24 +288,37 @@ def ordered_commands(channels: dict[str, list[bytes]]) -> list[tuple[str, bytes]
 
 def blueprint(view: RunView, highlight: tuple[float, float] | None = None) -> rrb.Blueprint:
     """The mechanism and the events beside one time-series panel per quantity and unit, the whole run in
-    view on the ``sim_time`` timeline; ``highlight`` [s] is selected on the time panel."""
+    view on the ``sim_time`` timeline; ``highlight`` [s] is selected on the time panel.
+
+    A mechanism that moves along a line (more than ``WIDE`` times wider than high) gets a strip across
+    the top instead of a square at the left. The step-timing panel opens on 0 to ``TIMING_RANGE`` times
+    the 99th percentile, so that a step the machine's load delayed a thousandfold does not flatten the
+    others (zoom out, or double-click, to see it)."""
     whole_run = rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.infinite(),
                                      end=rrb.TimeRangeBoundary.infinite())
+    timing = rrb.ScalarAxis(range=(0.0, TIMING_RANGE * view.timing_p99)) if view.timing_p99 > 0 else None
     plots = [rrb.TimeSeriesView(origin=_path(root), name=title, time_ranges=[whole_run],
-                                plot_legend=rrb.PlotLegend(visible=True))
+                                plot_legend=rrb.PlotLegend(visible=True),
+                                axis_y=timing if root == STEP_TIMING[0] else None)
              for root, title in view.panels().items()]
-    left = [rrb.TextLogView(origin=EVENTS, name="events")]
+    events = rrb.TextLogView(origin=EVENTS, name="events")
+    mechanism, wide = None, False
     if view.mechanism is not None and view.mechanism.drawn:
         bounds = None
         if view.extent is not None:  # what the mechanism covered, with a margin; y down as Rerun draws it
             x0, x1, y0, y1 = view.extent
             margin = 0.1 * max(x1 - x0, y1 - y0, 1.0)
             bounds = rrb.VisualBounds2D(x_range=[x0 - margin, x1 + margin], y_range=[-y1 - margin, -y0 + margin])
-        left.insert(0, rrb.Spatial2DView(origin=MECHANISM, name="mechanism [m]", visual_bounds=bounds))
+            wide = x1 - x0 > WIDE * (y1 - y0)
+        mechanism = rrb.Spatial2DView(origin=MECHANISM, name="mechanism [m]", visual_bounds=bounds)
+    if wide:
+        layout = rrb.Vertical(mechanism, rrb.Horizontal(events, rrb.Grid(*plots, grid_columns=3), column_shares=[1, 4]),
+                              row_shares=[1, 3])
+    else:
+        left = [mechanism, events] if mechanism is not None else [events]
+        layout = rrb.Horizontal(rrb.Vertical(*left, row_shares=[3, 1][:len(left)]), rrb.Grid(*plots, grid_columns=2),
+                                column_shares=[2, 3])
     selection = None if highlight is None else rr.AbsoluteTimeRange(
         start=np.timedelta64(round(highlight[0] * 1e9), "ns"), end=np.timedelta64(round(highlight[1] * 1e9), "ns"))
-    return rrb.Blueprint(
-        rrb.Horizontal(rrb.Vertical(*left, row_shares=[3, 1][:len(left)]), rrb.Grid(*plots, grid_columns=2),
-                       column_shares=[2, 3]),
-        rrb.TimePanel(timeline="sim_time", time_selection=selection, state="expanded"),
-        collapse_panels=True)
+    return rrb.Blueprint(layout, rrb.TimePanel(timeline="sim_time", time_selection=selection, state="expanded"),
+                         collapse_panels=True)
