@@ -14,12 +14,14 @@ file never passes, whatever its messages.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.wire.protocol import Kind, decode
 from zencosim.manager.wire.status import StatusReport
@@ -129,15 +131,25 @@ class _Comparer:
         raise _Stop
 
 
+def _cut_to(scene: Scene, steps: int) -> Scene:
+    """``scene`` lasting at most ``steps`` macro-steps (rounded up to whole periods of its communication
+    ratios): the re-run is planned for what the file holds, so a duration the file claims sizes nothing."""
+    period = math.lcm(*(s.settings.comm_ratio for s in scene.subsystems.values()))
+    ticks = -(-steps // period) * period
+    if ticks * scene.manager.macro_step_ns >= scene.manager.duration_ns:
+        return scene
+    return replace(scene, manager=replace(scene.manager, duration=ticks * scene.manager.macro_step_ns * 1e-9))
+
+
 def verify(recording: Recording) -> Verification:
     """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run."""
-    scene = recording.scene()
+    held = len(recording.channels[STATUS_TOPIC].messages) if STATUS_TOPIC in recording.channels else 0
+    scene = _cut_to(recording.scene(), held + 1)
     try:
         plan, subsystems = plan_scene(scene)
     except (ValueError, TypeError, KeyError, AttributeError, IndexError, ArithmeticError, RecursionError) as error:
         raise RecordingError(f"{recording.path}: its scene cannot be planned ({type(error).__name__}: {error})"
                              f"{recording.damage_note()}") from None
-    held = len(recording.channels[STATUS_TOPIC].messages) if STATUS_TOPIC in recording.channels else 0
     plan = replace(plan, n_ticks=min(plan.n_ticks, held + 1))  # the re-run ends once it has passed the recording
     status = StatusReport(plan, realtime=False)
     expected = {spec.topic: spec for spec in channel_specs(plan, status)}

@@ -22,8 +22,9 @@ def test_the_probe_paces_every_rate_and_applies_the_budget_to_what_it_measured(t
     assert set(report) == {"scene", "overrides", "bus", "duration_s", "budget", "rates", "highest_rate_hz"}
     by_rate = {entry["rate_hz"]: entry for entry in report["rates"]}
     assert sorted(by_rate) == [100.0, 250.0, 300.0]
-    # 300 Hz: a 3.33 ms step that the scene's 1 ms micro-step does not divide; reported, not run
-    assert by_rate[300.0]["steps"] is None and "micro_step" in by_rate[300.0]["error"]
+    # 300 Hz: a 3.33… ms step, not a whole number of nanoseconds (nor divided by the 1 ms micro-step); reported
+    # with the scene's reason, not run
+    assert by_rate[300.0]["steps"] is None and "macro_step" in by_rate[300.0]["error"]
     for rate in (100.0, 250.0):
         entry = by_rate[rate]
         assert entry["error"] is None and entry["steps"] == round(0.2 * rate)
