@@ -19,6 +19,7 @@ import secrets
 import socket
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import zenoh
 
@@ -79,8 +80,31 @@ def concrete_endpoint(endpoint: str) -> str:
     return endpoint
 
 
+LISTEN_PORTS_FROM = 20000  # ports handed out to listen on start here, below the kernel's ephemeral range
+
+
+def _ephemeral_low() -> int:
+    """The lowest port the kernel gives outgoing connections (Linux ``ip_local_port_range``; 32768 elsewhere)."""
+    try:
+        return int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32768
+
+
 def free_tcp_port(host: str = "127.0.0.1") -> int:
-    """A TCP port that is free right now on ``host``."""
+    """A TCP port that is free right now on ``host`` and stays free for a child to listen on: chosen below
+    the kernel's ephemeral range, which outgoing connections draw from (a port the kernel hands out as free
+    may be taken by another process's connection before the child binds it: 33 subsystems starting at
+    once saw it). At random in that range, tried until one binds; the kernel's choice if none does."""
+    low = _ephemeral_low()
+    for _ in range(64):
+        port = secrets.SystemRandom().randrange(LISTEN_PORTS_FROM, max(low, LISTEN_PORTS_FROM + 1))
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind((host, port))
+            except OSError:
+                continue
+            return port
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind((host, 0))
         return probe.getsockname()[1]
