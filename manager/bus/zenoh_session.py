@@ -81,6 +81,7 @@ def concrete_endpoint(endpoint: str) -> str:
 
 
 LISTEN_PORTS_FROM = 20000  # ports handed out to listen on start here, below the kernel's ephemeral range
+_handed_out: set[int] = set()  # ports this process handed out: never twice (the children of one run bind later)
 
 
 def _ephemeral_low() -> int:
@@ -95,16 +96,20 @@ def free_tcp_port(host: str = "127.0.0.1") -> int:
     """A TCP port that is free right now on ``host`` and stays free for a child to listen on: chosen below
     the kernel's ephemeral range, which outgoing connections draw from (a port the kernel hands out as free
     may be taken by another process's connection before the child binds it: 33 subsystems starting at
-    once saw it). At random in that range, tried until one binds; the kernel's choice if none does."""
+    once saw it). At random in that range and not handed out by this process before (the children of a run
+    bind theirs only when they start), tried until one binds; the kernel's choice if none does."""
     low = _ephemeral_low()
     for _ in range(64):
         port = secrets.SystemRandom().randrange(LISTEN_PORTS_FROM, max(low, LISTEN_PORTS_FROM + 1))
+        if port in _handed_out:
+            continue
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
             try:
                 probe.bind((host, port))
             except OSError:
                 continue
-            return port
+        _handed_out.add(port)
+        return port
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind((host, 0))
         return probe.getsockname()[1]
