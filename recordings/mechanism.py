@@ -11,10 +11,16 @@ the force side's output ``f``), scaled so that the largest force seen so far is 
 
 Both the replay and the live view feed the commands step by step (each subsystem's in its order) and
 the recorded outputs of the couplings' force sides; a subsystem whose
-model cannot be built here (an FMU file that is missing) or has no ``sketch`` is not drawn.
+model cannot be built here (an FMU file that is missing) or has no ``sketch`` is not drawn. Every
+command is executed (the state needs them all), but only every ``every``-th step is sketched: the replay
+draws every step, the live view a frame per ``LIVE_FRAME_NS`` of simulated time (what a viewer can
+show while the run goes; the frames it draws are the replay's, bit for bit, because the arrows' scale
+is the largest force of every step so far, drawn or not).
 """
 from __future__ import annotations
 
+import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +32,7 @@ from zencosim.manager.wire.protocol import HEADER, Kind
 from zencosim.subsystems.sketch import LANE, Sketch
 
 ARROW = 0.5 * LANE  # [m] length of the largest coupling-force arrow
+LIVE_FRAME_NS = 10_000_000  # [ns] of simulated time between two frames of the live view (100 per simulated second)
 
 
 @dataclass
@@ -42,8 +49,12 @@ class Frame:
 class Mechanism:
     """Copies of a run's drawable subsystems; :meth:`command` executes one of their commands."""
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, scene: Scene, frame_ns: int | None = None) -> None:
+        """``frame_ns``: sketch a frame per this much simulated time [ns] (whole communication points of
+        every subsystem); None: every step."""
         plan, subsystems = plan_scene(scene)
+        common = math.lcm(*(s.ratio for s in plan.subsystems))  # steps at which every subsystem reports
+        self.every = common * max(1, round((frame_ns or 0) / (common * plan.base_step_ns)))
         drawable = [s.name for s in plan.subsystems if hasattr(subsystems[s.name].model, "sketch")]
         self._endpoints = endpoints(plan, subsystems, drawable)
         self._subsystems = subsystems
@@ -65,8 +76,8 @@ class Mechanism:
         self._force_sides = {force[0] for *_, force in self._couplings if force is not None}
         self._pending: dict[int, Frame] = {}
         self._latest: dict[str, int] = {}  # the last step each drawn subsystem reported
-        self._outputs: dict[tuple[str, int], np.ndarray] = {}
-        self._largest_force = 0.0
+        self._outputs: dict[str, deque[tuple[int, np.ndarray]]] = {name: deque() for name in self._force_sides}
+        self._largest_force = 0.0  # of every step up to the last frame completed [N]
 
     def command(self, name: str, wire: bytes) -> list[Frame]:
         """Execute a command of subsystem ``name`` (ignored when it is not drawn); return the frames that this
@@ -79,10 +90,11 @@ class Mechanism:
         _, kind, _, _, step, time_ns, _ = HEADER.unpack_from(reply)
         if kind != Kind.OUTPUT:
             return []
-        subsystem = self._subsystems[name]
-        sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
-        _translate(sketch, self._offsets[name])
-        self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
+        if step % self.every == 0:
+            subsystem = self._subsystems[name]
+            sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
+            _translate(sketch, self._offsets[name])
+            self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
         self._latest[name] = step
         if len(self._latest) < len(self._endpoints):
             return []
@@ -92,7 +104,7 @@ class Mechanism:
     def output(self, name: str, step: int, values: np.ndarray) -> None:
         """A recorded OUTPUT of subsystem ``name`` (drawn or not): the force of its couplings at ``step``."""
         if name in self._force_sides:
-            self._outputs[name, step] = values
+            self._outputs[name].append((step, values))
 
     def finish(self) -> list[Frame]:
         """The frames still pending, in order."""
@@ -102,6 +114,7 @@ class Mechanism:
         """The frame at ``step`` with its couplings: a line where both sides are drawn, an arrow where the
         motion side is drawn and the force side's output is known."""
         frame = self._pending.pop(step)
+        forces = self._forces_until(step)
         for name, (sub_a, point_a), (sub_b, point_b), force in self._couplings:
             if sub_b not in frame.sketches:
                 continue
@@ -110,17 +123,29 @@ class Mechanism:
             if sub_a in frame.sketches:
                 line = np.array([frame.sketches[sub_a].anchors[point_a].position, b.position])
             arrow = None
-            outputs = None if force is None else self._outputs.get((force[0], step))
+            outputs = None if force is None else forces.get(force[0])
             if outputs is not None:
                 f = outputs[list(force[1])]
                 vector = -(f[0] * np.array(b.direction) if f.size == 1 else f[:2])
-                self._largest_force = max(self._largest_force, float(np.hypot(*vector)))
                 scale = ARROW / self._largest_force if self._largest_force > 0 else 0.0
                 arrow = (np.array(b.position), vector * scale)
             frame.couplings[name] = (line, arrow)
-            if force is not None:
-                self._outputs.pop((force[0], step), None)
         return frame
+
+    def _forces_until(self, step: int) -> dict[str, np.ndarray]:
+        """Take the force sides' outputs up to ``step`` into the largest force so far (the magnitude of a
+        coupling's force: along its point's unit direction, or in the plane); return those at ``step``."""
+        at = {}
+        force_outputs = [force for *_, force in self._couplings if force is not None]
+        for source, queue in self._outputs.items():
+            while queue and queue[0][0] <= step:
+                reported, values = queue.popleft()
+                for _, outputs in (force for force in force_outputs if force[0] == source):
+                    f = values[list(outputs)]
+                    self._largest_force = max(self._largest_force, float(abs(f[0]) if f.size == 1 else np.hypot(*f[:2])))
+                if reported == step:
+                    at[source] = values
+        return at
 
 
 def _translate(sketch: Sketch, offset: np.ndarray) -> None:

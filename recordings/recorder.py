@@ -1,8 +1,8 @@
 """The manager's handle on a recorder process (recordings.recorder_process) and a live view
 (recordings.rerun_live): the observers of a run.
 
-``start`` spawns each process (it dies with the manager), sends it the run's description and waits
-until it is ready; ``tap`` (on the manager's replica, in process or following a Zenoh run) hands it
+``start`` spawns each process (it dies with the manager, and runs at idle priority: it takes the CPU
+time the run leaves), sends it the run's description and waits until it is ready; ``tap`` (on the manager's replica, in process or following a Zenoh run) hands it
 every message through a pipe — the tap only appends the message and its channel to two lists, and
 every ``BATCH_MESSAGES`` messages (after every step of a real-time run) they go down the pipe as one
 frame, to every observer, so validation, encoding and compression (and the live view) run in the other
@@ -73,6 +73,19 @@ def _interrupts_deferred():
                 signal.raise_signal(arrived.signum)
 
 
+def _lowest_priority(pid: int) -> None:
+    """Process ``pid`` takes the CPU time the run leaves: SCHED_IDLE (Linux: any other task that wakes up
+    preempts it, and it still gets a small share of a busy CPU, so it cannot starve), else nice 19; where
+    neither is allowed it competes with the run as an equal. Backpressure, not priority, keeps every message."""
+    try:
+        os.sched_setscheduler(pid, os.SCHED_IDLE, os.sched_param(0))
+    except (OSError, AttributeError):
+        try:
+            os.setpriority(os.PRIO_PROCESS, pid, 19)
+        except (OSError, AttributeError):
+            pass
+
+
 class _Observer:
     """One child process fed the tap's frames on its standard input: the recorder, or the live view.
 
@@ -85,6 +98,7 @@ class _Observer:
         self.log = tempfile.TemporaryFile()
         self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log)
         self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
+        _lowest_priority(self.process.pid)
         try:
             fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
         except OSError:

@@ -8,7 +8,8 @@ Its standard input carries the frames of ``recordings.recorder_process`` (START 
 stepping loop nothing more than a recording does: the decoding and logging run here, on the other
 core. Each channel's messages go to ``recordings.rerun_view.RunView`` in order, as the replay feeds
 a recording's, so the live view and the replay of the run's recording log the same values; the
-mechanism is re-executed from the commands. What arrives is sent at most ``FRAME_RATE`` times a
+mechanism is re-executed from the commands and drawn every ``LIVE_FRAME_NS`` of simulated time (the
+replay draws every step: the live view's frames are some of the replay's). What arrives is sent at most ``FRAME_RATE`` times a
 second (the viewer's frame rate): a batch of many steps goes as one ``send_columns`` per series.
 
 ``serve`` keeps the gRPC server and the web viewer up after the run, until the process is ended
@@ -29,6 +30,7 @@ from zencosim.manager.wire.protocol import HEADER
 from zencosim.recordings import RecordingError
 from zencosim.recordings.encoding import wire_headers
 from zencosim.recordings.layout import SCENE_ATTACHMENT, ChannelSpec
+from zencosim.recordings.mechanism import LIVE_FRAME_NS
 from zencosim.recordings.recorder_process import CONTROL, NO_END, FrameReader, announce, observe, split_batch
 from zencosim.recordings.rerun_sinks import serve_web, spawn_viewer, viewer_url
 from zencosim.recordings.rerun_view import APPLICATION, PLOTTED, RunView, blueprint
@@ -61,7 +63,7 @@ def main() -> int:
     except (RecordingError, SceneError) as error:
         announce({"event": "error", "reason": str(error)})
         return 2
-    view = RunView(stream, specs, scene)
+    view = RunView(stream, specs, scene, LIVE_FRAME_NS)
     if sinks:
         stream.set_sinks(*sinks, default_blueprint=blueprint(view))
     else:

@@ -100,9 +100,11 @@ class RunView:
     """Logs a run to ``stream``: feed each channel's messages in order (:meth:`feed`), then :meth:`finish`.
 
     ``scene`` (None when the recording's scene no longer loads) gives the mechanism and the spike
-    detector's parameters."""
+    detector's parameters; ``frame_ns``, how much simulated time between two frames of the mechanism
+    (``recordings.mechanism.Mechanism``; None: every step)."""
 
-    def __init__(self, stream: rr.RecordingStream, specs: list[ChannelSpec], scene: Scene | None) -> None:
+    def __init__(self, stream: rr.RecordingStream, specs: list[ChannelSpec], scene: Scene | None,
+                 frame_ns: int | None = None) -> None:
         self.stream = stream
         sources = list(dict.fromkeys(s.source for s in specs if s.source != "manager"))
         self.series: dict[str, list[Series]] = {
@@ -110,7 +112,7 @@ class RunView:
                                   if spec.source in sources else PALETTE[7]) for spec in specs}
         self.specs = {spec.topic: spec for spec in specs}
         self.scene = scene
-        self.mechanism = Mechanism(scene) if scene is not None else None
+        self.mechanism = Mechanism(scene, frame_ns) if scene is not None else None
         self._columns: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._residual: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}  # bond → (times [ns], δP) of the status
         self._colors = {source: PALETTE[i % len(PALETTE)] for i, source in enumerate(sources)}

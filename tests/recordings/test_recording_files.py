@@ -149,6 +149,27 @@ def test_verification_passes_then_names_the_first_difference(recorded):
     assert result.divergence.recorded == "301"
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling priorities")
+def test_the_recorder_runs_at_idle_priority_and_still_records_every_message(tmp_path):
+    """The recorder takes the CPU time the run leaves (SCHED_IDLE), and backpressure keeps every message."""
+    path = tmp_path / "nice.mcap"
+    scene = load_scene("two_mass_damped", ["manager.duration=0.5"])
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, realtime=False)
+    recorder = Recorder(path)
+    try:
+        recorder.start(scene, plan, status, "inproc", "nice", realtime=False)
+        assert [os.sched_getscheduler(pid) for pid in recorder.pids] == [os.SCHED_IDLE]
+        record = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
+                         endpoints(plan, subsystems), tap=recorder).run()
+        end = recorder.finish("completed")
+    finally:
+        recorder.close()
+    assert end["lost"] == 0 and end["messages"] == sum(recorder.published.values())
+    _, _, outputs = read_recording(path).channels["S2/y"].table(Kind.OUTPUT)
+    assert outputs.tobytes() == record.trajectories[1].tobytes()
+
+
 def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_path):
     path = tmp_path / "killed.mcap"
     scene = load_scene("two_mass_damped", ["manager.duration=0.5"])

@@ -1,6 +1,7 @@
 """A run shown live in Rerun (``zencosim run --rerun connect=…``) over Zenoh: a headless Rerun gRPC server
-started here (``rerun --serve-grpc --save``) receives every series and every frame of the mechanism, the
-same values as the replay of the same run's recording."""
+started here (``rerun --serve-grpc --save``) receives every series, the same values as the replay of the
+same run's recording, and a frame of the mechanism per ``LIVE_FRAME_NS`` of simulated time, each the
+replay's frame at that time."""
 from __future__ import annotations
 
 import os
@@ -18,6 +19,7 @@ import pytest
 from tests.conftest import wait_for
 from tests.recordings.test_rerun_view import _columns
 from zencosim.manager.bus.zenoh_session import free_tcp_port
+from zencosim.recordings.mechanism import LIVE_FRAME_NS
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.filterwarnings("ignore:RRD file has no footer")]
 
@@ -65,6 +67,10 @@ def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, t
     assert set(shown) == set(expected)
     assert {"/positions/S2/x2", "/residual_power/c", "/mechanism/S2/bodies", "/mechanism/forces/c"} <= set(shown)
     for entity, rows in expected.items():
-        assert shown[entity] == rows, entity  # every time, every value, bit for bit
+        if entity.startswith("/mechanism/"):  # a frame per LIVE_FRAME_NS of simulated time, each the replay's
+            assert sorted(shown[entity]) == list(range(0, 1_000_000_001, LIVE_FRAME_NS)), entity
+            assert shown[entity] == {t: rows[t] for t in shown[entity]}, entity
+        else:
+            assert shown[entity] == rows, entity  # every time, every value, bit for bit
     assert len(expected["/positions/S2/x2"]) == 1001 and len(expected["/mechanism/S1/bodies"]) == 1001
     assert np.all(np.diff(sorted(expected["/residual_power/c"])) == 1_000_000)
