@@ -1,11 +1,15 @@
 """Instructions per in-process macro-step of two_mass_damped and of its plain-Python floor, counted by valgrind.
 
-    python benchmarks/bench_instructions.py [--tree DIR]
+    python benchmarks/bench_instructions.py [--tree DIR] [--recording]
 
 Wall time on a shared machine swings with what else runs; the number of instructions a step executes
 does not. Each figure is the difference of two runs under ``valgrind --tool=cachegrind`` (``STEPS``
-macro-steps apart) divided by the difference in steps, so start-up and imports cancel. ``--tree DIR``
-(repeatable) counts the in-process step of another source tree too (see bench_runtime.py). Needs valgrind.
+macro-steps apart) divided by the difference in steps, so start-up and imports cancel. numpy's BLAS
+runs on one thread (``OPENBLAS_NUM_THREADS=1``): its idle worker threads spin for a while after each
+call, and their instructions made two counts of the same run differ by a third. ``--tree DIR``
+(repeatable) counts the in-process step of another source tree too (see bench_runtime.py).
+``--recording`` counts what recording adds to the stepping loop: the loop alone, with the manager's
+status, and with the status and the recorder's tap (its frames dropped: no recorder process). Needs valgrind.
 """
 from __future__ import annotations
 
@@ -31,8 +35,11 @@ else:
 scene = load_scene("two_mass_damped", [f"manager.duration={{int(sys.argv[2]) / 1000}}"])
 if sys.argv[1] == "floor":
     floor_x2(parameters(scene), int(sys.argv[2]))
-else:
+elif sys.argv[1] == "run":
     execute(scene, "inproc")
+else:  # the stepping loop: "plain", with the "status", with the status and the "tap"
+    from bench_recording import stepping_loop
+    stepping_loop(scene, sys.argv[1])
 """
 
 
@@ -40,7 +47,8 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
     program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
                              sys.executable, "-c", program, what, str(steps), layout],
-                            env={**os.environ, "PYTHONPATH": pythonpath}, capture_output=True, text=True)
+                            env={**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1",
+                                 "OMP_NUM_THREADS": "1"}, capture_output=True, text=True)
     if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
         raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
                          f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
@@ -56,6 +64,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tree", type=Path, action="append", default=[],
                         help="also count the step of this source tree (before/after; repeatable)")
+    parser.add_argument("--recording", action="store_true", help="also count the step with the status and the tap")
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
@@ -66,7 +75,14 @@ def main() -> int:
         print(f"{label:60} {count:10.0f} instructions per macro-step  ({count / floor:.1f}x the floor)", flush=True)
 
     show("floor: the same arithmetic as one Python loop", floor)
-    show("in-process step, this tree", per_step("run"))
+    run = per_step("run")
+    show("in-process step, this tree", run)
+    if args.recording:
+        plain = per_step("plain")
+        show("stepping loop alone", plain)
+        for what, label in (("status", "stepping loop with the status"), ("tap", "stepping loop with status and tap")):
+            count = per_step(what)
+            show(f"{label} (+{100 * (count / plain - 1):.1f} %)", count)
     for tree in args.tree:
         from bench_runtime import package_farm
         farm = package_farm(tree)

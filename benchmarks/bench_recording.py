@@ -92,6 +92,15 @@ class _NullRecorder(Recorder):
         pass
 
 
+def stepping_loop(scene, what: str) -> None:
+    """One in-process run of ``scene``'s stepping loop: ``plain``, with the ``status``, or with the status and
+    the ``tap`` (bench_instructions.py counts its instructions)."""
+    plan, subsystems = plan_scene(scene)
+    status = None if what == "plain" else StatusReport(plan, False)
+    Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems], endpoints(plan, subsystems),
+            tap=_NullRecorder(plan, status) if what == "tap" else None).run()
+
+
 def stepping_loop_cost(repeats: int) -> dict:
     """CPU µs per macro-step of the in-process run: plain, with the status, with status and tap. The three
     run one after the other in each repeat (in turn first), and the overhead is the median over repeats of

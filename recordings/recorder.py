@@ -192,12 +192,13 @@ class Recorder:
         self._observers: list[_Observer] = []
         self._recorder: _Observer | None = None
         self._index: dict[tuple[str, str], int] = {}  # (source, channel) → channel index
-        self._indices: dict[tuple[tuple[str, ...], str], bytes] = {}  # (sources, channel) → their channel indices
         self._topics: list[str] = []
         self._status = -1  # index of the status channel
         self._channels = bytearray()  # the batch being tapped: channel index of each message
         self._messages: list[bytes] = []  # and the messages
         self._stamps: list[int] = []  # wall clock [ns] at each status message of the batch
+        self.commands = self._adder("commands")  # the Tap's, twice per step on the stepping loop
+        self.replies = self._adder("y")
         self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
         self._paced = False  # a real-time run: the tap hands each step over at once
 
@@ -236,11 +237,13 @@ class Recorder:
         if len(specs) > 255:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
         self._paced = realtime
-        self._index = {tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)}
+        self._index.clear()
+        self._index.update({tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)})
         self._topics = [spec.topic for spec in specs]
         self._status = self._topics.index(STATUS_TOPIC)
 
-    # the Tap of a replica (manager.scheme.replica): one call per exchange, a few list operations each
+    # the Tap of a replica (manager.scheme.replica): one call per exchange, a few list operations each;
+    # ``commands`` and ``replies`` are closures (``_adder``)
     def status(self, message: bytes) -> None:
         """The status after a macro-step: it opens a step, so a batch handed over here holds whole steps."""
         if self._paced or len(self._messages) >= BATCH_MESSAGES:
@@ -249,26 +252,26 @@ class Recorder:
         self._channels.append(self._status)
         self._messages.append(message)
 
-    def commands(self, sends: dict[str, bytes]) -> None:
-        self._add(sends, "commands")
+    def _adder(self, channel: str) -> Callable[[dict[str, bytes]], None]:
+        """The tap of every subsystem's channel ``channel``: it adds the messages of a dict (subsystem →
+        message) to the batch. A closure over the batch, without attribute lookups or a nested call."""
+        index, found, channels, batch = self._index, {}, self._channels, self._messages
 
-    def replies(self, replies: dict[str, bytes]) -> None:
-        self._add(replies, "y")
-
-    def _add(self, messages: dict[str, bytes], channel: str) -> None:
-        names = tuple(messages)
-        indices = self._indices.get((names, channel))
-        if indices is None:
-            indices = self._indices[names, channel] = bytes(self._index[name, channel] for name in names)
-        self._channels += indices
-        self._messages += messages.values()
+        def add(messages: dict[str, bytes]) -> None:
+            names = tuple(messages)
+            indices = found.get(names)
+            if indices is None:
+                indices = found[names] = bytes(index[name, channel] for name in names)
+            channels.extend(indices)
+            batch.extend(messages.values())
+        return add
 
     def tap(self, source: str, channel: str, data: bytes) -> None:
         """One message of channel ``<source>/<channel>`` (the tap of ``manager.scheme.replica.PerMessage``)."""
         if (source, channel) == ("manager", "status"):
             self.status(data)
         else:
-            self._add({source: data}, channel)
+            (self.commands if channel == "commands" else self.replies)({source: data})
 
     def flush(self) -> None:
         """Hand what the tap holds to the recorder process now.
