@@ -5,6 +5,7 @@ The recorder is a real process fed by the in-process bus's tap.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import signal
@@ -149,43 +150,40 @@ def test_verification_passes_then_names_the_first_difference(recorded):
     assert result.divergence.recorded == "301"
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling priorities")
-def test_the_recorder_runs_at_idle_priority_and_still_records_every_message(tmp_path):
-    """The recorder takes the CPU time the run leaves (SCHED_IDLE), and backpressure keeps every message."""
-    path = tmp_path / "nice.mcap"
+@contextlib.contextmanager
+def _recording_half_a_second(path, run_id: str):
+    """A recorder of ``path`` that has been fed half a second of two_mass_damped in process, and the run's record;
+    the recorder is closed after the block."""
     scene = load_scene("two_mass_damped", ["manager.duration=0.5"])
     plan, subsystems = plan_scene(scene)
     status = StatusReport(plan, realtime=False)
     recorder = Recorder(path)
     try:
-        recorder.start(scene, plan, status, "inproc", "nice", realtime=False)
-        assert [os.sched_getscheduler(pid) for pid in recorder.pids] == [os.SCHED_IDLE]
-        record = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                         endpoints(plan, subsystems), tap=recorder).run()
-        end = recorder.finish("completed")
+        recorder.start(scene, plan, status, "inproc", run_id, realtime=False)
+        yield recorder, Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
+                                endpoints(plan, subsystems), tap=recorder).run()
     finally:
         recorder.close()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling priorities")
+def test_the_recorder_runs_at_idle_priority_and_still_records_every_message(tmp_path):
+    """The recorder takes the CPU time the run leaves (SCHED_IDLE), and backpressure keeps every message."""
+    with _recording_half_a_second(tmp_path / "idle.mcap", "idle") as (recorder, record):
+        assert [os.sched_getscheduler(pid) for pid in recorder.pids] == [os.SCHED_IDLE]
+        end = recorder.finish("completed")
     assert end["lost"] == 0 and end["messages"] == sum(recorder.published.values())
-    _, _, outputs = read_recording(path).channels["S2/y"].table(Kind.OUTPUT)
+    _, _, outputs = read_recording(tmp_path / "idle.mcap").channels["S2/y"].table(Kind.OUTPUT)
     assert outputs.tobytes() == record.trajectories[1].tobytes()
 
 
 def test_a_killed_recorder_leaves_every_message_it_had_for_half_a_second(tmp_path):
     path = tmp_path / "killed.mcap"
-    scene = load_scene("two_mass_damped", ["manager.duration=0.5"])
-    plan, subsystems = plan_scene(scene)
-    status = StatusReport(plan, realtime=False)
-    recorder = Recorder(path)
-    try:
-        recorder.start(scene, plan, status, "inproc", "killed", realtime=False)
-        record = Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                         endpoints(plan, subsystems), tap=recorder).run()
+    with _recording_half_a_second(path, "killed") as (recorder, record):
         recorder.flush()
         time.sleep(FLUSH_INTERVAL_S + 2 * IDLE_S + 0.5)  # the idle recorder writes its open chunk out
         recorder_pid = next(pid for pid in children_of(os.getpid()) if "zencosim.recordings.recorder_process" in cmdline(pid))
         os.kill(recorder_pid, signal.SIGKILL)
-    finally:
-        recorder.close()
     recording = read_recording(path)
     assert recording.truncated is not None and recording.end is None  # no footer, no end record
     assert {t: len(c.messages) for t, c in recording.channels.items()} == dict(recorder.published)
