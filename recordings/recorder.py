@@ -19,6 +19,7 @@ import select
 import signal
 import subprocess
 import tempfile
+import termios
 import threading
 import time
 from array import array
@@ -44,7 +45,7 @@ READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
 FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
 PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
 BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
-F_SETPIPE_SZ = 1031  # Linux fcntl
+F_SETPIPE_SZ, F_GETPIPE_SZ = 1031, 1032  # Linux fcntl
 STOP_WAIT_S = 1.0  # a process whose pipe broke has this long to be reaped before its exit is described
 RECORD_LOST = ("stop", "continue")  # what a run does when its recorder process is gone (--record-lost)
 
@@ -91,10 +92,14 @@ class _Observer:
 
     Its input pipe is non-blocking: a write waits for room with ``select``, so that a process that takes
     nothing for ``stall_s`` (frozen, or far behind) is said, while the run still waits for it (backpressure,
-    never a drop); a process that is gone raises ``BrokenPipeError``."""
+    never a drop); a process that is gone raises ``BrokenPipeError``. A ``lossy`` observer (the live view:
+    a viewer must not slow the run it shows) is not waited for with a batch: one that finds its pipe
+    holding unread bytes and without room for the whole frame is skipped and counted."""
 
-    def __init__(self, module: str, what: str) -> None:
+    def __init__(self, module: str, what: str, lossy: bool = False) -> None:
         self.what = what
+        self.lossy = lossy
+        self.skipped = [0, 0]  # batches skipped, and the macro-steps they held
         self.log = tempfile.TemporaryFile()
         self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log)
         self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
@@ -105,10 +110,16 @@ class _Observer:
             pass  # the default capacity only means the tap blocks sooner
         os.set_blocking(self.process.stdin.fileno(), False)
 
-    def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None]) -> None:
+    def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None],
+              steps: int | None = None) -> None:
         """Write ``parts`` whole; ``stalled(self, waited_s)`` every ``stall_s`` the pipe stays full, and
-        ``stalled(self, -waited_s)`` once it takes bytes again after that."""
+        ``stalled(self, -waited_s)`` once it takes bytes again after that. ``steps``: the frame is a batch of
+        that many macro-steps, which a lossy observer without room skips."""
         fd = self.process.stdin.fileno()
+        if steps is not None and self.lossy and not self._room_for(fd, sum(map(len, parts))):
+            self.skipped[0] += 1
+            self.skipped[1] += steps
+            return
         stalls, since = 0, 0.0
         for part in parts:
             view = memoryview(part)
@@ -124,6 +135,18 @@ class _Observer:
                     continue  # room for less than one pipe page: wait again
         if stalls:
             stalled(self, since - time.monotonic())
+
+    @staticmethod
+    def _room_for(fd: int, size: int) -> bool:
+        """Whether pipe ``fd`` takes ``size`` bytes now; an empty pipe always does (a frame larger than the
+        pipe is then written as its reader takes it)."""
+        unread = array("i", [0])
+        try:
+            fcntl.ioctl(fd, termios.FIONREAD, unread)
+            capacity = fcntl.fcntl(fd, F_GETPIPE_SZ)
+        except OSError:
+            return True  # cannot tell: wait for room
+        return unread[0] == 0 or capacity - unread[0] >= size
 
     def ended(self) -> str:
         """How the process ended (``"killed by SIGKILL"``), waiting for it a moment."""
@@ -191,6 +214,7 @@ class Recorder:
         self.finished = False
         self._observers: list[_Observer] = []
         self._recorder: _Observer | None = None
+        self._live: _Observer | None = None
         self._index: dict[tuple[str, str], int] = {}  # (source, channel) → channel index
         self._topics: list[str] = []
         self._status = -1  # index of the status channel
@@ -215,13 +239,13 @@ class Recorder:
                 "zencosim.recordings.recorder_process", f"recorder of {self.path}",
                 {"path": str(self.path.resolve()), "metadata": metadata, "scene_toml": scene_toml, "channels": channels})
         if self.rerun is not None:
-            _, self.live = self._start("zencosim.recordings.rerun_live", f"live view ({self.rerun})",
-                                       {"target": self.rerun, "metadata": metadata, "scene_toml": scene_toml,
-                                        "channels": channels})
+            self._live, self.live = self._start("zencosim.recordings.rerun_live", f"live view ({self.rerun})",
+                                                {"target": self.rerun, "metadata": metadata, "scene_toml": scene_toml,
+                                                 "channels": channels}, lossy=True)
 
-    def _start(self, module: str, what: str, start: dict) -> tuple[_Observer, dict]:
+    def _start(self, module: str, what: str, start: dict, lossy: bool = False) -> tuple[_Observer, dict]:
         """An observer process given its START frame, once it is ready; and what it said then."""
-        observer = _Observer(module, what)
+        observer = _Observer(module, what, lossy)
         self._observers.append(observer)
         payload = json.dumps(start).encode()
         try:
@@ -273,8 +297,9 @@ class Recorder:
         else:
             (self.commands if channel == "commands" else self.replies)({source: data})
 
-    def flush(self) -> None:
-        """Hand what the tap holds to the recorder process now.
+    def flush(self, last: bool = False) -> None:
+        """Hand what the tap holds to the recorder process now (``last``: the run's last batch, which the live
+        view is not skipped for, so that it shows how the run ended).
 
         SIGINT and SIGTERM end a run by an exception wherever it is (``cli.main``): one that cut a
         ``tap`` short leaves a channel index (or a stamp) without its message, which is dropped here,
@@ -295,7 +320,8 @@ class Recorder:
             step = HEADER.unpack_from(status)[4] if len(status) >= HEADER.size else self._step
             self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
                                                array("I", map(len, self._messages[:n])).tobytes(),
-                                               array("q", stamps).tobytes(), *self._messages[:n])))
+                                               array("q", stamps).tobytes(), *self._messages[:n])),
+                              None if last else step - self._step)
             for index in range(len(self._topics)):
                 self._tapped[index] += channels.count(index)
             self._step = step
@@ -307,6 +333,11 @@ class Recorder:
     def pids(self) -> list[int]:
         """The process ids of the recorder and the live view, as started."""
         return [observer.process.pid for observer in self._observers]
+
+    @property
+    def live_skipped(self) -> tuple[int, int]:
+        """The batches, and the macro-steps they held, not sent to the live view because it had fallen behind."""
+        return tuple(self._live.skipped) if self._live is not None else (0, 0)
 
     @property
     def published(self) -> dict[str, int]:
@@ -323,7 +354,11 @@ class Recorder:
             raise RecordingError("the recorder was never started")
         self.finished = True
         try:
-            self.flush()
+            self.flush(last=True)
+            if self._live is not None and self._live.skipped[0]:
+                batches, steps = self._live.skipped
+                self.announce(f"the live view fell behind the run: {batches} batches ({steps} macro-steps) were not sent "
+                              "to it" + ("; the recording holds every step" if self._recorder is not None else ""))
             self._write_frame(CONTROL, json.dumps({"outcome": outcome, "published": self.published}).encode())
         except RecorderLost:
             pass  # said in self.lost; the run has ended anyway
@@ -364,12 +399,14 @@ class Recorder:
             for observer in self._observers:
                 observer.close()
 
-    def _write_frame(self, kind: int, payload: bytes) -> None:
+    def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
+        """Send a frame to every observer (``steps``: a batch of that many macro-steps, which the live view
+        may skip)."""
         parts = (FRAME.pack(kind, len(payload), time_ns()), payload)
         for observer in self._observers:
             if observer.gone is None:
                 try:
-                    observer.write(parts, self._stall_s, self._stalled)
+                    observer.write(parts, self._stall_s, self._stalled, steps)
                 except BrokenPipeError:
                     self._lose(observer)
 

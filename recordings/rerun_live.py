@@ -12,6 +12,9 @@ mechanism is re-executed from the commands and drawn every ``LIVE_FRAME_NS`` of 
 replay draws every step: the live view's frames are some of the replay's). What arrives is sent at most ``FRAME_RATE`` times a
 second (the viewer's frame rate): a batch of many steps goes as one ``send_columns`` per series.
 
+The manager does not wait for this view: a batch for which its pipe has no room is not sent
+(``recordings.recorder``), and the view says the gap on its timeline and stops the mechanism there.
+
 ``serve`` keeps the gRPC server and the web viewer up after the run, until the process is ended
 (the command line waits for Ctrl-C). Standard output gets one JSON line when ready (with the web
 viewer's address for ``serve``) and one when finished.
@@ -71,7 +74,7 @@ def main() -> int:
     stream.send_recording_name(f"{info['scene']} run {info['run_id']} (live)")
     view.start()
     announce({"event": "ready", "where": where})
-    outcome, last_step = follow(frames, view, specs)
+    outcome, last_step = follow(frames, view, specs, int(info["macro_step_ns"]))
     events, flagged = view.events(outcome, last_step, int(info["steps"]), int(info["macro_step_ns"]))
     view.last_frames()
     view.finish(events)
@@ -85,11 +88,15 @@ def main() -> int:
     return 0
 
 
-def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec]) -> tuple[str, int]:
+def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_step_ns: int) -> tuple[str, int]:
     """Feed the view every batch until END; return the run's outcome and its last reported step. A batch
     is read with numpy (``recordings.encoding.wire_headers``): each channel's plotted messages become
-    arrays at once; only the commands of drawn subsystems are taken one by one, for the mechanism."""
+    arrays at once; only the commands of drawn subsystems are taken one by one, for the mechanism. A
+    batch holds whole steps, each opened by its status: one whose first status is not the step after the
+    last one seen follows batches the manager skipped (this view fell behind, ``recordings.recorder``),
+    which the view says on its timeline."""
     drawn = set(view.mechanism.drawn) if view.mechanism is not None else set()
+    status = next(i for i, spec in enumerate(specs) if spec.role == "status")
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
@@ -98,6 +105,10 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec]) -> tupl
         channels, sizes, _, messages = split_batch(data)
         raw = np.frombuffer(messages, dtype=np.uint8)
         starts, heads, valid = wire_headers(sizes, raw)
+        statuses = np.flatnonzero(valid & (channels == status))
+        if statuses.size and int(heads["step"][statuses[0]]) > last_step + 1:
+            view.gap(last_step, int(heads["step"][statuses[0]]), macro_step_ns)
+            drawn = set()
         for index, spec in enumerate(specs):
             width = len(spec.names)
             chosen = np.flatnonzero(valid & (channels == index) & (heads["kind"] == PLOTTED[spec.role])

@@ -241,6 +241,15 @@ class RunView:
             times.clear()
             kept.clear()
 
+    def gap(self, last_step: int, next_step: int, macro_step_ns: int) -> None:
+        """The live view fell behind: the steps between ``last_step`` and ``next_step`` did not reach it. Said on
+        the timeline; the mechanism stops there (its copies would need every command)."""
+        self.stream.set_time("sim_time", duration=np.timedelta64(last_step * macro_step_ns, "ns"))
+        self.stream.log(EVENTS, rr.TextLog(f"the live view fell behind the run: steps {last_step + 1}–{next_step - 1} "
+                                           "are not shown, and the mechanism stops here (the replay of a recording "
+                                           "shows both)", level="WARN"))
+        self.mechanism = None
+
     def events(self, outcome: str, last_step: int, steps: int, macro_step_ns: int
                ) -> tuple[list[tuple[int, str, str]], list[tuple[float, float]]]:
         """The events of what was fed — (time [ns], level, text) of every flagged residual-power spike and of

@@ -4,6 +4,7 @@ same run's recording, and a frame of the mechanism per ``LIVE_FRAME_NS`` of simu
 replay's frame at that time."""
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -18,8 +19,14 @@ import pytest
 
 from tests.conftest import wait_for
 from tests.recordings.test_rerun_view import _columns
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.bus.zenoh_session import free_tcp_port
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.mechanism import LIVE_FRAME_NS
+from zencosim.recordings.recorder import Recorder
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.filterwarnings("ignore:RRD file has no footer")]
 
@@ -41,17 +48,15 @@ def _logged(rrd: Path) -> dict[str, dict[int, bytes]]:
     return found
 
 
-def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, tmp_path):
+@contextlib.contextmanager
+def _sink(rrd: Path):
+    """A headless Rerun gRPC server that saves what it receives to ``rrd`` once the block ends; its address."""
     port = free_tcp_port()
-    live, replayed, mcap = tmp_path / "live.rrd", tmp_path / "replay.rrd", tmp_path / "run.mcap"
-    sink = subprocess.Popen([str(RERUN), "--serve-grpc", "--port", str(port), "--save", str(live)],
+    sink = subprocess.Popen([str(RERUN), "--serve-grpc", "--port", str(port), "--save", str(rrd)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     try:
-        wait_for(lambda: live.exists(), 30, "the Rerun sink to listen")
-        run = processes("run", "two_mass_damped", "--bus", "zenoh", "--set", "manager.duration=1.0", "--quiet",
-                        "--record", str(mcap), "--rerun", f"connect=127.0.0.1:{port}")
-        _, stderr = run.communicate(timeout=120)
-        assert run.returncode == 0, stderr
+        wait_for(lambda: rrd.exists(), 30, "the Rerun sink to listen")
+        yield f"127.0.0.1:{port}"
     finally:
         os.killpg(sink.pid, signal.SIGINT)  # the sink writes what it received and exits
         try:
@@ -59,6 +64,15 @@ def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, t
         except subprocess.TimeoutExpired:
             os.killpg(sink.pid, signal.SIGKILL)
             sink.wait()
+
+
+def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, tmp_path):
+    live, replayed, mcap = tmp_path / "live.rrd", tmp_path / "replay.rrd", tmp_path / "run.mcap"
+    with _sink(live) as address:
+        run = processes("run", "two_mass_damped", "--bus", "zenoh", "--set", "manager.duration=1.0", "--quiet",
+                        "--record", str(mcap), "--rerun", f"connect={address}")
+        _, stderr = run.communicate(timeout=120)
+        assert run.returncode == 0, stderr
     replay = processes("replay", str(mcap), "--rrd", str(replayed))
     _, stderr = replay.communicate(timeout=120)
     assert replay.returncode == 0, stderr
@@ -74,3 +88,53 @@ def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, t
             assert shown[entity] == rows, entity  # every time, every value, bit for bit
     assert len(expected["/positions/S2/x2"]) == 1001 and len(expected["/mechanism/S1/bodies"]) == 1001
     assert np.all(np.diff(sorted(expected["/residual_power/c"])) == 1_000_000)
+
+
+def test_a_live_view_that_falls_behind_is_skipped_not_waited_for(tmp_path):
+    """The live view is frozen (SIGSTOP) once ready, for a recorded in-process run of 30 000 steps: its pipe
+    fills, and the batches after that are skipped instead of waited for (a wait longer than the scene's
+    timeout fails the test), while the recording still gets every message. Thawed, the view says the gap
+    on its timeline and draws no mechanism after it."""
+    from rerun.chunk import RrdReader
+    said: list[str] = []
+
+    def announce(text: str) -> None:
+        said.append(text)
+        assert "has taken nothing" not in text, text  # the run waited for an observer
+
+    scene = load_scene("two_mass_damped", ["manager.duration=30", "manager.timeout=2"])
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, realtime=False)
+    live, mcap = tmp_path / "live.rrd", tmp_path / "run.mcap"
+    with _sink(live) as address:
+        recorder = Recorder(mcap, rerun=f"connect={address}", announce=announce)
+        try:
+            recorder.start(scene, plan, status, "inproc", "behind", realtime=False)
+            view = recorder.pids[1]
+            os.kill(view, signal.SIGSTOP)
+            try:
+                Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
+                        endpoints(plan, subsystems), tap=recorder).run()
+            finally:
+                os.kill(view, signal.SIGCONT)
+            end = recorder.finish("completed")
+        finally:
+            recorder.close()
+    assert end["lost"] == 0 and end["messages"] == sum(recorder.published.values())
+    behind = [text for text in said if text.startswith("the live view fell behind the run")]
+    assert len(behind) == 1 and "the recording holds every step" in behind[0], said
+    batches, steps = recorder.live_skipped
+    assert batches > 0 and f"{batches} batches ({steps} macro-steps)" in behind[0]
+    shown = _columns(RrdReader(live).stream())
+    events = [text for texts in shown["/events"]["TextLog:text"].to_pylist() if texts for text in texts]
+    gap = [text for text in events if "the live view fell behind the run" in text]
+    assert len(gap) == 1, events
+    first, last = (int(step) for step in gap[0].split("steps ")[1].split(" ")[0].split("–"))
+    power = shown["/residual_power/c"]  # from the status, which opens each step of a batch
+    times = sorted(power.filter(pc.is_valid(power["sim_time"]))["sim_time"].cast(pa.int64()).to_pylist())
+    assert times[:first - 1] == [step * 1_000_000 for step in range(1, first)]  # every step before the gap
+    assert not any(first * 1_000_000 <= t <= last * 1_000_000 for t in times)
+    assert times[first - 1:] == [step * 1_000_000 for step in range(last + 1, 30_001)]  # and every step after it
+    bodies = shown["/mechanism/S2/bodies"]
+    drawn = bodies.filter(pc.is_valid(bodies["sim_time"]))["sim_time"].cast(pa.int64()).to_pylist()
+    assert drawn and max(drawn) < first * 1_000_000

@@ -31,7 +31,7 @@ class CapturingRecorder(Recorder):
         self.frames: list[bytes] = []
         self.during_write = lambda: None
 
-    def _write_frame(self, kind: int, payload: bytes) -> None:
+    def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
         self.during_write()
         self.frames.append(payload)
 
