@@ -102,7 +102,7 @@ def test_a_live_view_that_falls_behind_is_skipped_not_waited_for(tmp_path):
         said.append(text)
         assert "has taken nothing" not in text, text  # the run waited for an observer
 
-    scene = load_scene("two_mass_damped", ["manager.duration=30", "manager.timeout=2"])
+    scene = load_scene("two_mass_damped", ["manager.duration=30", "manager.timeout=10"])
     plan, subsystems = plan_scene(scene)
     status = StatusReport(plan, realtime=False)
     live, mcap = tmp_path / "live.rrd", tmp_path / "run.mcap"
