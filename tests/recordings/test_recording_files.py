@@ -170,7 +170,8 @@ def _recording_half_a_second(path, run_id: str):
 def test_the_recorder_runs_at_idle_priority_and_still_records_every_message(tmp_path):
     """The recorder takes the CPU time the run leaves (SCHED_IDLE), and backpressure keeps every message."""
     with _recording_half_a_second(tmp_path / "idle.mcap", "idle") as (recorder, record):
-        assert [os.sched_getscheduler(pid) for pid in recorder.pids] == [os.SCHED_IDLE]
+        (pid,) = recorder.pids  # SCHED_IDLE; where the system refuses it, nice 19 (recordings.recorder)
+        assert os.sched_getscheduler(pid) == os.SCHED_IDLE or os.getpriority(os.PRIO_PROCESS, pid) == 19
         end = recorder.finish("completed")
     assert end["lost"] == 0 and end["messages"] == sum(recorder.published.values())
     _, _, outputs = read_recording(tmp_path / "idle.mcap").channels["S2/y"].table(Kind.OUTPUT)
