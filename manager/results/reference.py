@@ -61,9 +61,7 @@ class _ReferenceRows:
     def put(self, tick: int, values) -> None:
         """The signals' values at ``tick``, then the energy."""
         for window, value in zip(self.windows, values):
-            if tick >= window.end:
-                window.advance(tick)
-            window.array[tick - window.offset] = value
+            window.put(tick, value)
 
     def finish(self, kind: str) -> Reference:
         arrays = [window.finish() for window in self.windows]

@@ -168,10 +168,7 @@ class _JointExchanges:
 
     def corrector(self, tick: int, e: np.ndarray, targets: tuple[SubsystemPlan, ...]):
         """Outputs of ``targets`` at T_{N+1} from the state saved at T_N, corrector value ``e`` (Eq. 11)."""
-        history = self.history
-        if tick + 1 >= history.end:
-            history.advance(tick + 1)
-        history.array[tick + 1 - history.offset] = e
+        self.history.put(tick + 1, e)
         yield from self.control(Kind.RESTORE, tick, targets)
         return (yield from self.run(tick, targets, tick + 1, -self.base))
 
@@ -267,13 +264,9 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
         yield from exchanges.control(Kind.SAVE, tick, subs, step_status)
         step_status = None  # reported
         released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
-        for window, row in ((send_time, tick), (corrector_runs, tick), (late_window, tick),
-                            *((path, tick + 1) for path in traj)):
-            if window is not None and row >= window.end:
-                window.advance(row)
-        send_time.array[tick - send_time.offset] = released_ns
+        send_time.put(tick, released_ns)
         if late_window is not None:
-            late_window.array[tick - late_window.offset] = pacer.last_lateness_ns
+            late_window.put(tick, pacer.last_lateness_ns)
         if tick == 0:
             first_release_ns = released_ns
         predicted = yield from exchanges.run(tick, subs, tick, 0)
@@ -289,11 +282,11 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
 
         e_new = corrected_coupling(joint.method, joint.decomposition, newest_first, y_predicted, sensitivity)
         corrected, e_new, runs = yield from exchanges.corrected(tick, e_new, sensitivity)
-        corrector_runs.array[tick - corrector_runs.offset] = runs
+        corrector_runs.put(tick, runs)
         if joint.method.projects_states:
             corrected.update((yield from exchanges.project(side_outputs(corrected), corrected, tick + 1)))
         for s, y in corrected.items():
-            traj[s].array[tick + 1 - traj[s].offset] = y
+            traj[s].put(tick + 1, y)
         if status is not None:
             step_status = status.encode(tick + 1, (tick + 1) * base, no_bonds, no_bonds, first_release_ns,
                                         released_ns, time.perf_counter_ns(),

@@ -123,13 +123,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
         released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
-        if tick >= send_window.end:
-            send_window.advance(tick)
-        send_window.array[tick - send_window.offset] = released_ns
+        send_window.put(tick, released_ns)
         if late_window is not None:
-            if tick >= late_window.end:
-                late_window.advance(tick)
-            late_window.array[tick - late_window.offset] = pacer.last_lateness_ns
+            late_window.put(tick, pacer.last_lateness_ns)
         if tick == 0:
             first_release_ns = released_ns
         replies = yield Exchange(sends, due_names[phase], step_status, next_tick)

@@ -70,6 +70,13 @@ class RowWindow:
             self.offset += moved
             self.end += moved
 
+    def put(self, index: int, value) -> None:
+        """Write row ``index`` (in the window, or at most one block past its end), advancing the window first
+        when it lies past the end."""
+        if index >= self.end:
+            self.advance(index)
+        self.array[index - self.offset] = value
+
     def row(self, index: int) -> np.ndarray:
         """Row ``index`` of the window (one of its newest ``history`` rows, or a later one)."""
         return self.array[index - self.offset]

@@ -59,9 +59,7 @@ def test_a_spilled_window_gives_the_array_written_and_reads_columns_from_its_fil
     expected[:written] = values[:written]
     window = RowWindow(rows, 3, float, np.nan, history, Spill(), "test")
     for row in range(written):
-        if row >= window.end:
-            window.advance(row)
-        window.array[row - window.offset] = values[row]
+        window.put(row, values[row])
         assert np.array_equal(window.row(max(row - history + 1, 0)), values[max(row - history + 1, 0)])
     spilled = window.finish()
     assert isinstance(spilled, np.memmap) and spilled.tobytes() == expected.tobytes()
