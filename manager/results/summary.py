@@ -180,11 +180,6 @@ def energy_balance(record: RunRecord, reference: Reference | None, finite: bool)
     return balance
 
 
-def all_finite(arrays) -> bool:
-    """Every value of every array finite (read in blocks)."""
-    return all(np.isfinite(values).all() for array in arrays for _, values in row_blocks(array))
-
-
 def last_finite(values: np.ndarray) -> float:
     """The last finite value of a 1-D array (read in blocks; NaN where none is)."""
     last = math.nan
@@ -198,7 +193,8 @@ def last_finite(values: np.ndarray) -> float:
 def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, references: dict[str, Reference],
               reference_note: str | None = None, recording: dict | None = None) -> dict:
     plan = record.plan
-    finite = all_finite(record.trajectories) and (record.implicit is None or record.implicit.diverged_at is None)
+    diverged_at_s = first_non_finite_time(record)
+    finite = diverged_at_s is None and (record.implicit is None or record.implicit.diverged_at is None)
     reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
     signals = signal_accuracy(scene, record, references, reference, finite)
     energy_summary = energy_balance(record, reference, finite)
@@ -232,7 +228,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         summary["stable"] = discrete["stable"] and finite
     summary["stable_from"] = "measured energy growth" if discrete is None else "exact discrete spectral radius"
     summary["diverged"] = not finite
-    summary["diverged_at_s"] = first_non_finite_time(record)
+    summary["diverged_at_s"] = diverged_at_s
     spikes = residual_power_spikes(record, scene.manager.spikes)
     summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}
     summary["reliable"] = not summary["diverged"] and summary["stable"] and not any(spikes.values())
@@ -250,12 +246,16 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
 
 
 def first_non_finite_time(record: RunRecord) -> float | None:
-    """The first time [s] at which a subsystem's output was not finite (None: every output stayed finite)."""
+    """The first time [s] at which a subsystem's output was not finite (None: every output stayed finite); each
+    trajectory read in blocks (``manager.scheme.window.row_blocks``: a long run's spilled array is read from its
+    file, not through its mapping, so none of it stays resident)."""
     times = []
     for sub, trajectory in zip(record.plan.subsystems, record.trajectories):
-        rows = np.flatnonzero(~np.isfinite(trajectory).all(axis=1))
-        if rows.size:
-            times.append(int(rows[0]) * sub.ratio * record.plan.base_step_ns * 1e-9)
+        for first, rows in row_blocks(trajectory):
+            bad = np.flatnonzero(~np.isfinite(rows).all(axis=1))
+            if bad.size:
+                times.append(int(first + bad[0]) * sub.ratio * record.plan.base_step_ns * 1e-9)
+                break
     return min(times, default=None)
 
 
