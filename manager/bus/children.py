@@ -10,6 +10,7 @@ that none is orphaned.
 from __future__ import annotations
 
 import ctypes
+import os
 import signal
 import subprocess
 import sys
@@ -35,14 +36,30 @@ _STATES = {"T": "is frozen (process stopped, state T: SIGSTOP or a debugger)",
            "Z": "has exited (state Z)"}
 
 
+def _stat_fields(pid: int) -> list[str]:
+    """The fields of ``/proc/PID/stat`` after the process's name (proc(5): the state first, then its parent, …);
+    empty where they cannot be read (not Linux, or the process is gone)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+    except OSError:
+        return []
+
+
 def process_state(pid: int) -> str | None:
     """Linux: why process ``pid`` does not answer, from its state in ``/proc/PID/stat`` ("is frozen (process
     stopped, …)", "has exited", …); None when it runs or sleeps normally, or the state cannot be read."""
+    fields = _stat_fields(pid)
+    return _STATES.get(fields[0]) if fields else None
+
+
+def cpu_time_s(pid: int) -> float:
+    """The CPU time [s] process ``pid`` has used so far (user and system, ``/proc/PID/stat``; 0 where it cannot
+    be read)."""
+    fields = _stat_fields(pid)
     try:
-        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
-    except (OSError, IndexError):
-        return None
-    return _STATES.get(state)
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (IndexError, ValueError):
+        return 0.0
 
 
 def exit_reason(returncode: int) -> str:

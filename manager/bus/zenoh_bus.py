@@ -28,7 +28,7 @@ import zenoh
 
 from zencosim.manager.assembly import make_scheme, process_scope
 from zencosim.manager.bus.backlog import Backlog
-from zencosim.manager.bus.children import process_state, start_child
+from zencosim.manager.bus.children import cpu_time_s, process_state, start_child
 from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.zenoh_session import (
@@ -229,14 +229,14 @@ class ZenohBus:
         than one, but each uses CPU; one waiting for a link that never comes does not); for one started by
         hand, the wait since it began."""
         waited_from = time.monotonic()
-        working_from, cpu_mark = waited_from, _cpu_s(self.children.get(name))
+        working_from, cpu_mark = waited_from, cpu_time_s(self.children[name].pid) if name in self.children else 0.0
         while not event.wait(0.05):
             failure = next(filter(None, map(self._exited, self.names)), None)
             if failure:
                 raise failure
             now = time.monotonic()
             if name in self.children and now - working_from >= 1.0:
-                cpu = _cpu_s(self.children[name])
+                cpu = cpu_time_s(self.children[name].pid)
                 if cpu - cpu_mark >= STARTUP_CPU_S:
                     working_from, cpu_mark = now, cpu
             since = waited_from if name in self.external else max(waited_from, self._started_at, working_from)
@@ -489,14 +489,3 @@ class ZenohBus:
             self._session.close()
             self._session = None
         self._logs.cleanup()
-
-
-def _cpu_s(child: subprocess.Popen | None) -> float:
-    """The CPU time [s] ``child`` has used so far (Linux ``/proc``; 0 elsewhere or once it is gone)."""
-    if child is None:
-        return 0.0
-    try:
-        fields = Path(f"/proc/{child.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (OSError, IndexError, ValueError):
-        return 0.0

@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from hypothesis import strategies as st
 
 from tests.conftest import wait_for
 from zencosim.manager.assembly import build_subsystems
-from zencosim.manager.bus.children import exit_reason, process_state
+from zencosim.manager.bus.children import cpu_time_s, exit_reason, process_state
 from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge
 from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.plan.run_plan import compile_plan
@@ -179,6 +180,22 @@ def test_a_stopped_process_is_named_frozen_and_a_running_one_is_not():
         sleeper.kill()
         sleeper.wait()
     assert exit_reason(sleeper.returncode) == "killed by SIGKILL" and exit_reason(3) == "exited with code 3"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
+def test_the_cpu_time_of_a_process_is_read_from_proc_and_a_gone_one_has_none():
+    """What start-up counts as progress (manager.bus.zenoh_bus): a busy child's CPU time grows past 0.1 s; a
+    sleeping one's stays near 0; a process that is gone reads as 0 (no error)."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    sleeper = subprocess.Popen(["sleep", "60"])
+    try:
+        assert wait_for(lambda: cpu_time_s(busy.pid) >= 0.1, 60, "the busy child to use 0.1 s of CPU")
+        assert cpu_time_s(sleeper.pid) < 0.1
+    finally:
+        for child in (busy, sleeper):
+            child.kill()
+            child.wait()
+    assert cpu_time_s(busy.pid) == 0.0 and process_state(busy.pid) is None
 
 
 def test_the_drops_of_every_process_are_merged_per_key_and_said_in_one_sentence():
