@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from zencosim.manager.scheme.base import RunRecord
-from zencosim.manager.scheme.window import read_rows, row_blocks
+from zencosim.manager.scheme.window import read_rows, row_blocks, spilled
 
 # lower edges [ns] of the bins of a long run's step statistics: 1 ns to ~1000 s, each 0.1 % wider than the last
 HISTOGRAM_EDGES_NS = np.unique(np.round(np.geomspace(1.0, 1e12, int(np.log(1e12) / np.log(1.001)) + 1)))
@@ -18,7 +18,7 @@ def _percentiles_us(values_ns: np.ndarray) -> dict[str, float]:
     """Median, 99th percentile and maximum [µs]: exact for an array in memory; for a long run's spilled array
     (``manager.scheme.window``) read in blocks into a histogram whose bins are 0.1 % wide (``HISTOGRAM_EDGES_NS``),
     so the percentiles are within 0.1 % (and 1 ns) of the exact ones and the maximum is exact."""
-    if not isinstance(values_ns, np.memmap):
+    if not spilled(values_ns):
         return {"median": float(np.median(values_ns)) * 1e-3, "p99": float(np.percentile(values_ns, 99)) * 1e-3,
                 "max": float(np.max(values_ns)) * 1e-3}
     return _histogram_percentiles_us(block for _, block in row_blocks(values_ns))
@@ -47,7 +47,7 @@ def step_timing(record: RunRecord) -> dict:
     timing = {}
     releases = record.send_time_ns
     if len(releases) > 1:
-        if isinstance(releases, np.memmap):  # a long run's, read in blocks (its steps: differences across blocks)
+        if spilled(releases):  # a long run's, read in blocks (its steps: differences across blocks)
             per_step = _histogram_percentiles_us(np.diff(read_rows(releases, max(first - 1, 0), first + len(block)))
                                                  for first, block in row_blocks(releases))
         else:

@@ -107,7 +107,7 @@ def row_blocks(array: np.ndarray, start: int = 0, stop: int | None = None,
     :func:`read_rows` reads it; an array held in memory in one block (a view: it costs nothing, and sums over
     it are numpy's, as they were before runs could spill)."""
     stop = len(array) if stop is None else stop
-    if _spilled_base(array) is None:
+    if not spilled(array):
         if stop > start:
             yield start, array[start:stop]
         return
@@ -126,6 +126,11 @@ def read_rows(array: np.ndarray, start: int, stop: int) -> np.ndarray:
     base_low, _ = byte_bounds(mapped)
     data = os.pread(mapped.spill_file.fileno(), high - low, mapped.offset + low - base_low)
     return np.ndarray(view.shape, view.dtype, buffer=data, strides=view.strides).copy()
+
+
+def spilled(array: np.ndarray) -> bool:
+    """Whether ``array`` is a spilled array (``RowWindow.finish``) or a view of one: read it in blocks."""
+    return _spilled_base(array) is not None
 
 
 def _spilled_base(array: np.ndarray) -> np.memmap | None:
