@@ -104,11 +104,16 @@ class _Observer:
         self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log)
         self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
         _lowest_priority(self.process.pid)
+        fd = self.process.stdin.fileno()
         try:
-            fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
+            fcntl.fcntl(fd, F_SETPIPE_SZ, PIPE_BYTES)
         except OSError:
             pass  # the default capacity only means the tap blocks sooner
-        os.set_blocking(self.process.stdin.fileno(), False)
+        try:
+            self.capacity: int | None = fcntl.fcntl(fd, F_GETPIPE_SZ)  # [bytes] of its pipe
+        except OSError:
+            self.capacity = None  # cannot tell: a lossy observer is waited for like any other
+        os.set_blocking(fd, False)
 
     def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None],
               steps: int | None = None) -> None:
@@ -116,7 +121,7 @@ class _Observer:
         ``stalled(self, -waited_s)`` once it takes bytes again after that. ``steps``: the frame is a batch of
         that many macro-steps, which a lossy observer without room skips."""
         fd = self.process.stdin.fileno()
-        if steps is not None and self.lossy and not self._room_for(fd, sum(map(len, parts))):
+        if steps is not None and self.lossy and not self._room_for(sum(map(len, parts))):
             self.skipped[0] += 1
             self.skipped[1] += steps
             return
@@ -136,17 +141,15 @@ class _Observer:
         if stalls:
             stalled(self, since - time.monotonic())
 
-    @staticmethod
-    def _room_for(fd: int, size: int) -> bool:
-        """Whether pipe ``fd`` takes ``size`` bytes now; an empty pipe always does (a frame larger than the
-        pipe is then written as its reader takes it)."""
+    def _room_for(self, size: int) -> bool:
+        """Whether the pipe takes ``size`` bytes now; an empty pipe always does (a frame larger than the pipe
+        is then written as its reader takes it)."""
         unread = array("i", [0])
         try:
-            fcntl.ioctl(fd, termios.FIONREAD, unread)
-            capacity = fcntl.fcntl(fd, F_GETPIPE_SZ)
+            fcntl.ioctl(self.process.stdin.fileno(), termios.FIONREAD, unread)
         except OSError:
             return True  # cannot tell: wait for room
-        return unread[0] == 0 or capacity - unread[0] >= size
+        return self.capacity is None or unread[0] == 0 or self.capacity - unread[0] >= size
 
     def ended(self) -> str:
         """How the process ended (``"killed by SIGKILL"``), waiting for it a moment."""
@@ -289,13 +292,6 @@ class Recorder:
             channels.extend(indices)
             batch.extend(messages.values())
         return add
-
-    def tap(self, source: str, channel: str, data: bytes) -> None:
-        """One message of channel ``<source>/<channel>`` (the tap of ``manager.scheme.replica.PerMessage``)."""
-        if (source, channel) == ("manager", "status"):
-            self.status(data)
-        else:
-            (self.commands if channel == "commands" else self.replies)({source: data})
 
     def flush(self, last: bool = False) -> None:
         """Hand what the tap holds to the recorder process now (``last``: the run's last batch, which the live

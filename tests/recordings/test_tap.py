@@ -54,8 +54,8 @@ class _InterruptedDict(dict):
 def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     recorder = CapturingRecorder(tmp_path)
     for step in range(3):
-        recorder.tap("S1", "commands", b"c%d" % step)
-        recorder.tap("manager", "status", b"s%d" % step)
+        recorder.commands({"S1": b"c%d" % step})
+        recorder.status(b"s%d" % step)
     with pytest.raises(KeyboardInterrupt):  # the channel index goes in, the message does not
         recorder.replies(_InterruptedDict(S2=b"cut"))
     recorder.flush()  # what finish() does after an interrupted run
@@ -66,8 +66,8 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
 
 def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_path):
     recorder = CapturingRecorder(tmp_path)
-    recorder.tap("S1", "commands", b"c")
-    recorder.tap("manager", "status", b"s")
+    recorder.commands({"S1": b"c"})
+    recorder.status(b"s")
     sent_before_interrupt = []
 
     def interrupt(*_) -> None:  # as cli.main's SIGTERM handler
