@@ -73,10 +73,13 @@ class Mechanism:
                 bond = bonds.get(name)
                 force = None if bond is None else (plan.subsystems[bond.force_side].name, bond.force_output)
                 self._couplings.append((name, (sub_a, point_a), (sub_b, point_b), force))
-        self._force_sides = {force[0] for *_, force in self._couplings if force is not None}
+        self._force_outputs: dict[str, list[list[int]]] = {}  # force side → the force outputs of each of its couplings
+        for *_, force in self._couplings:
+            if force is not None:
+                self._force_outputs.setdefault(force[0], []).append(list(force[1]))
         self._pending: dict[int, Frame] = {}
         self._latest: dict[str, int] = {}  # the last step each drawn subsystem reported
-        self._outputs: dict[str, deque[tuple[int, np.ndarray]]] = {name: deque() for name in self._force_sides}
+        self._outputs: dict[str, deque[tuple[int, np.ndarray]]] = {name: deque() for name in self._force_outputs}
         self._largest_force = 0.0  # of every step up to the last frame completed [N]
 
     def command(self, name: str, wire: bytes) -> list[Frame]:
@@ -101,10 +104,12 @@ class Mechanism:
         reported = min(self._latest.values())  # every drawn subsystem has gone past the frames before this
         return [self._complete(done) for done in sorted(s for s in self._pending if s < reported)]
 
-    def output(self, name: str, step: int, values: np.ndarray) -> None:
-        """A recorded OUTPUT of subsystem ``name`` (drawn or not): the force of its couplings at ``step``."""
-        if name in self._force_sides:
-            self._outputs[name].append((step, values))
+    def outputs(self, name: str, steps: np.ndarray, values: np.ndarray) -> None:
+        """Recorded OUTPUTs of subsystem ``name`` (drawn or not; a row of ``values`` per step of ``steps``): the
+        force of its couplings at those steps (kept only for a coupling's force side)."""
+        queue = self._outputs.get(name)
+        if queue is not None:
+            queue.extend(zip(steps.tolist(), values))
 
     def finish(self) -> list[Frame]:
         """The frames still pending, in order."""
@@ -136,12 +141,11 @@ class Mechanism:
         """Take the force sides' outputs up to ``step`` into the largest force so far (the magnitude of a
         coupling's force: along its point's unit direction, or in the plane); return those at ``step``."""
         at = {}
-        force_outputs = [force for *_, force in self._couplings if force is not None]
         for source, queue in self._outputs.items():
             while queue and queue[0][0] <= step:
                 reported, values = queue.popleft()
-                for _, outputs in (force for force in force_outputs if force[0] == source):
-                    f = values[list(outputs)]
+                for outputs in self._force_outputs[source]:
+                    f = values[outputs]
                     self._largest_force = max(self._largest_force, float(abs(f[0]) if f.size == 1 else np.hypot(*f[:2])))
                 if reported == step:
                     at[source] = values

@@ -95,7 +95,6 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
     batch holds whole steps, each opened by its status: one whose first status is not the step after the
     last one seen follows batches the manager skipped (this view fell behind, ``recordings.recorder``),
     which the view says on its timeline."""
-    drawn = set(view.mechanism.drawn) if view.mechanism is not None else set()
     status = next(i for i, spec in enumerate(specs) if spec.role == "status")
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
@@ -108,7 +107,6 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
         statuses = np.flatnonzero(valid & (channels == status))
         if statuses.size and int(heads["step"][statuses[0]]) > last_step + 1:
             view.gap(last_step, int(heads["step"][statuses[0]]), macro_step_ns)
-            drawn = set()
         for index, spec in enumerate(specs):
             width = len(spec.names)
             chosen = np.flatnonzero(valid & (channels == index) & (heads["kind"] == PLOTTED[spec.role])
@@ -117,6 +115,7 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
             view.feed(spec.topic, heads["step"][chosen], heads["time_ns"][chosen], values)
             if spec.role == "status" and chosen.size:
                 last_step = int(heads["step"][chosen[-1]])
+        drawn = view.mechanism.drawn if view.mechanism is not None else ()  # none after a gap (RunView.gap)
         commands = [(specs[i].source, messages[starts[k]:starts[k] + sizes[k]])
                     for k, i in enumerate(channels.tolist()) if specs[i].source in drawn and specs[i].role == "inputs"
                     and valid[k]]

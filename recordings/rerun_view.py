@@ -143,8 +143,7 @@ class RunView:
             return
         values = values[:, :len(spec.names)]
         if spec.role == "outputs" and self.mechanism is not None:
-            for step, row in zip(steps.tolist(), values):
-                self.mechanism.output(spec.source, step, row)
+            self.mechanism.outputs(spec.source, steps, values)
         self._columns.setdefault(topic, []).append((steps, times, values))
         for series in self.series[topic]:
             if series.root == STEP_TIMING[0] and np.isfinite(values[:, series.column]).any():
