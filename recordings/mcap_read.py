@@ -43,8 +43,9 @@ from mcap.records import (
     Statistics,
     SummaryOffset,
 )
+from mcap.writer import MCAP0_MAGIC
 
-MAGIC = b"\x89MCAP0\r\n"
+MAGIC = MCAP0_MAGIC  # the 8 bytes an MCAP file starts and ends with (the mcap library's, which the writer writes)
 EXPANSION = 100  # the chunks of a file may hold at most this many times its size of uncompressed records
 MIN_BUDGET = 1 << 20  # and at least this many bytes [B]
 _PREFIX = struct.Struct("<BQ")  # opcode, record length
