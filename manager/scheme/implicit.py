@@ -53,6 +53,7 @@ from zencosim.manager.scheme.base import (
     expect_reply,
 )
 from zencosim.manager.scheme.extrapolation import lagrange_coefficients
+from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import Kind, encode
 from zencosim.manager.wire.status import StatusReport
@@ -251,9 +252,7 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     traj = [RowWindow(n_ticks + 1, len(s.outputs), float, np.nan, HISTORY_ROWS, spill, f"{s.name}-outputs")
             for s in subs]
     corrector_runs = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "corrector-runs")
-    send_time = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "send-time")
-    late_window = None if pacer is None else RowWindow(n_ticks, None, np.int64, 0, 1, spill, "lateness")
-    first_release_ns = 0
+    releases = Releases(n_ticks, pacer, spill)
     for s, y in (yield from exchanges.consistent_start()).items():
         traj[s].array[0] = y
 
@@ -263,12 +262,7 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     for tick in range(n_ticks):
         yield from exchanges.control(Kind.SAVE, tick, subs, step_status)
         step_status = None  # reported
-        released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
-        send_time.put(tick, released_ns)
-        if late_window is not None:
-            late_window.put(tick, pacer.last_lateness_ns)
-        if tick == 0:
-            first_release_ns = released_ns
+        released_ns = releases.release(tick)
         predicted = yield from exchanges.run(tick, subs, tick, 0)
         # e_N … e_{N-k}, a copy: the corrector's candidate may move the window (manager.scheme.window)
         newest_first = history.array[max(0, tick - k) - history.offset:tick + 1 - history.offset][::-1].copy()
@@ -288,9 +282,8 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
         for s, y in corrected.items():
             traj[s].put(tick + 1, y)
         if status is not None:
-            step_status = status.encode(tick + 1, (tick + 1) * base, no_bonds, no_bonds, first_release_ns,
-                                        released_ns, time.perf_counter_ns(),
-                                        None if pacer is None else pacer.last_lateness_ns)
+            step_status = status.encode(tick + 1, (tick + 1) * base, no_bonds, no_bonds, releases.first_ns,
+                                        released_ns, time.perf_counter_ns(), releases.last_lateness_ns)
         y_corrected = side_outputs(corrected)
         gap = np.max(np.abs(y_corrected[1, 0] - y_corrected[0, 0]))
         if not (gap <= settings.divergence_gap and np.isfinite(e_new).all()
@@ -304,6 +297,6 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
         yield Exchange({}, (), step_status)
     done = n_ticks if diverged_at is None else diverged_at + 1  # macro-steps executed
     residual = np.broadcast_to(np.zeros(len(plan.bonds)), (n_ticks + 1, len(plan.bonds)))  # a joint is no power bond
-    return RunRecord(plan, [window.finish() for window in traj], residual, residual, send_time.finish(done),
-                     None if late_window is None else late_window.finish(done), 0 if pacer is None else pacer.missed,
+    return RunRecord(plan, [window.finish() for window in traj], residual, residual, *releases.finish(done),
+                     0 if pacer is None else pacer.missed,
                      implicit=ImplicitRecord(history.finish(), corrector_runs.finish(), diverged_at))

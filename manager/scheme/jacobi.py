@@ -30,6 +30,7 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Corrector, Exchange, OutputReader, RunRecord
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
+from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.residual import residual_power
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
@@ -75,9 +76,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     p_res[0], e_res[0] = 0.0, 0.0
     last_bond_tick = [0] * n_bonds
     last_bond_energy = [0.0] * n_bonds
-    send_window = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "send-time")
-    late_window = None if pacer is None else RowWindow(n_ticks, None, np.int64, 0, 1, spill, "lateness")
-    first_release_ns = 0
+    releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds
               if f.source in tracked] for s in subs]
@@ -122,12 +121,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
             sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
-        released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
-        send_window.put(tick, released_ns)
-        if late_window is not None:
-            late_window.put(tick, pacer.last_lateness_ns)
-        if tick == 0:
-            first_release_ns = released_ns
+        released_ns = releases.release(tick)
         replies = yield Exchange(sends, due_names[phase], step_status, next_tick)
         for s in due[phase]:
             readers[s.index].commit(replies[s.name], next_tick)
@@ -145,15 +139,14 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             corrector.observe(next_tick, windows, e_window)
         if status is not None:
             step_status = status.encode(next_tick, next_tick * base, p_res[row], e_res[row],
-                                        first_release_ns, released_ns, time.perf_counter_ns(),
-                                        None if pacer is None else pacer.last_lateness_ns)
+                                        releases.first_ns, released_ns, time.perf_counter_ns(),
+                                        releases.last_lateness_ns)
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
     if step_status is not None:
         yield Exchange({}, (), step_status)
 
-    return RunRecord(plan, [w.finish() for w in windows], p_window.finish(), e_window.finish(), send_window.finish(),
-                     None if late_window is None else late_window.finish(),
+    return RunRecord(plan, [w.finish() for w in windows], p_window.finish(), e_window.finish(), *releases.finish(),
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 

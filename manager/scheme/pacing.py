@@ -17,6 +17,10 @@ import sys
 import threading
 import time
 
+import numpy as np
+
+from zencosim.manager.scheme.window import RowWindow, Spill
+
 # how long before a deadline the pacer stops sleeping and spins (measured, docs/realtime.md): a run
 # alone in its process spins longer (wake-ups come late on this machine), subsystem processes that
 # share the cores with each other and with Zenoh's threads spin less (spinning takes those cores)
@@ -88,3 +92,35 @@ class Pacer:
         if now - deadline > self.missed_after_ns:
             self.missed += 1
         return now
+
+
+class Releases:
+    """When each macro-step of a run was released [ns, time.perf_counter_ns] — paced by ``pacer`` (a real-time
+    run), else at once — and, paced, how late against its deadline: a scheme's record of its steps
+    (``RunRecord.send_time_ns``, ``lateness_ns``), in windows that spill with a long run (``spill``)."""
+
+    def __init__(self, n_ticks: int, pacer: Pacer | None, spill: Spill | None) -> None:
+        self.pacer = pacer
+        self.times = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "send-time")
+        self.lateness = None if pacer is None else RowWindow(n_ticks, None, np.int64, 0, 1, spill, "lateness")
+        self.first_ns = 0  # the release of step 0
+
+    def release(self, tick: int) -> int:
+        """Release step ``tick`` (paced: at its deadline) and record it; its release time."""
+        pacer = self.pacer
+        released_ns = time.perf_counter_ns() if pacer is None else pacer.wait(tick)
+        self.times.put(tick, released_ns)
+        if pacer is not None:
+            self.lateness.put(tick, pacer.last_lateness_ns)
+        if tick == 0:
+            self.first_ns = released_ns
+        return released_ns
+
+    @property
+    def last_lateness_ns(self) -> int | None:
+        """The lateness of the step released last (None: not paced)."""
+        return None if self.pacer is None else self.pacer.last_lateness_ns
+
+    def finish(self, rows: int | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """The release times and latenesses of the first ``rows`` steps (default: all; lateness None: not paced)."""
+        return self.times.finish(rows), None if self.lateness is None else self.lateness.finish(rows)
