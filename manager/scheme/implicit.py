@@ -258,7 +258,6 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
 
     diverged_at = None
     step_status = None
-    no_bonds = np.zeros(0)  # a rigid joint is no power bond: the status has timing only
     for tick in range(n_ticks):
         yield from exchanges.control(Kind.SAVE, tick, subs, step_status)
         step_status = None  # reported
@@ -282,7 +281,8 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
         for s, y in corrected.items():
             traj[s].put(tick + 1, y)
         if status is not None:
-            step_status = status.encode(tick + 1, (tick + 1) * base, no_bonds, no_bonds, releases.first_ns,
+            # a rigid joint is no power bond: the status has timing only
+            step_status = status.encode(tick + 1, (tick + 1) * base, (), releases.first_ns,
                                         released_ns, time.perf_counter_ns(), releases.last_lateness_ns)
         y_corrected = side_outputs(corrected)
         gap = np.max(np.abs(y_corrected[1, 0] - y_corrected[0, 0]))

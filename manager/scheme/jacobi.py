@@ -76,6 +76,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     p_res[0], e_res[0] = 0.0, 0.0
     last_bond_tick = [0] * n_bonds
     last_bond_energy = [0.0] * n_bonds
+    residuals = [math.nan] * (2 * n_bonds)  # the status's: δP of every bond evaluated at this step's end, then δE
     releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds
@@ -98,6 +99,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
     yield from _initial_outputs(plan, readers, input_polynomial, local, tracked)
     period, starting, partners_starting, due, due_names, bonds_due = _schedule(plan, local, tracked)
+    some_bonds_idle = [len(bonds) < n_bonds for bonds in bonds_due]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
     step_status = None
     header = HEADER.pack
@@ -129,18 +131,19 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             p_window.advance(next_tick)
             e_window.advance(next_tick)
         row = next_tick - p_window.offset
+        if some_bonds_idle[phase]:
+            residuals = [math.nan] * (2 * n_bonds)
         for b, bond, components in bonds_due[phase]:
             delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
-            p_res[row, b] = delta_p
-            e_res[row, b] = last_bond_energy[b] = (last_bond_energy[b]
-                                                   + delta_p * (next_tick - last_bond_tick[b]) * step_s)
+            p_res[row, b] = residuals[b] = delta_p
+            e_res[row, b] = last_bond_energy[b] = residuals[n_bonds + b] = (
+                last_bond_energy[b] + delta_p * (next_tick - last_bond_tick[b]) * step_s)
             last_bond_tick[b] = next_tick
         for corrector in correctors:
             corrector.observe(next_tick, windows, e_window)
         if status is not None:
-            step_status = status.encode(next_tick, next_tick * base, p_res[row], e_res[row],
-                                        releases.first_ns, released_ns, time.perf_counter_ns(),
-                                        releases.last_lateness_ns)
+            step_status = status.encode(next_tick, next_tick * base, residuals, releases.first_ns, released_ns,
+                                        time.perf_counter_ns(), releases.last_lateness_ns)
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
     if step_status is not None:

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.wire.protocol import Kind, floats_encoder
 
@@ -38,10 +36,13 @@ class StatusReport:
         )
         self._encode = floats_encoder(Kind.STATUS, len(self.fields))
 
-    def encode(self, step: int, time_ns: int, delta_p: np.ndarray, delta_e: np.ndarray, start_ns: int,
-               released_ns: int, completed_ns: int, lateness_ns: int | None) -> bytes:
-        """The STATUS message of step ``step`` (times from ``time.perf_counter_ns``)."""
-        timing = ((completed_ns - start_ns) * 1e-9, (completed_ns - released_ns) * 1e-9)
-        if lateness_ns is not None:
-            timing += (lateness_ns * 1e-9,)
-        return self._encode(step, time_ns, 0, *delta_p.tolist(), *delta_e.tolist(), *timing)
+    def encode(self, step: int, time_ns: int, residuals: list[float], start_ns: int, released_ns: int,
+               completed_ns: int, lateness_ns: int | None) -> bytes:
+        """The STATUS message of step ``step``: ``residuals`` are δP of every bond, then δE of every bond, as
+        Python floats (the scheme's own, not a numpy row: this runs every step); times from
+        ``time.perf_counter_ns``."""
+        if lateness_ns is None:
+            return self._encode(step, time_ns, 0, *residuals, (completed_ns - start_ns) * 1e-9,
+                                (completed_ns - released_ns) * 1e-9)
+        return self._encode(step, time_ns, 0, *residuals, (completed_ns - start_ns) * 1e-9,
+                            (completed_ns - released_ns) * 1e-9, lateness_ns * 1e-9)
