@@ -26,7 +26,7 @@ from zencosim.manager.results.reference import (
 )
 from zencosim.manager.results.summary import summarize
 from zencosim.manager.scene.load import Scene
-from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.base import Exchange, RunRecord
 from zencosim.manager.scheme.window import spill_for
 from zencosim.manager.wire.status import StatusReport
 
@@ -41,14 +41,8 @@ class RunRecorder(Protocol):
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start recording."""
 
-    def status(self, message: bytes) -> None:
-        """The status after a macro-step; with ``commands`` and ``replies``, the replica's ``Tap``."""
-
-    def commands(self, sends: dict[str, bytes]) -> None:
-        """The commands of an exchange."""
-
-    def replies(self, replies: dict[str, bytes]) -> None:
-        """The replies of an exchange."""
+    def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
+        """What the replica went through: the replica's ``Tap`` (``manager.scheme.replica``)."""
 
     def finish(self, outcome: str) -> dict:
         """Close the recording (what the tap handed over is what was published)."""

@@ -2,8 +2,9 @@
 (recordings.rerun_live): the observers of a run.
 
 ``start`` spawns each process (it dies with the manager, and runs at idle priority: it takes the CPU
-time the run leaves), sends it the run's description and waits until it is ready; ``tap`` (on the manager's replica, in process or following a Zenoh run) hands it
-every message through a pipe — the tap only appends the message and its channel to two lists, and
+time the run leaves), sends it the run's description and waits until it is ready; ``exchange``, the tap of the manager's replica (in process, or following a Zenoh
+run), hands it every message through a pipe — the tap only appends the messages and their channels to two
+lists, and
 every ``BATCH_MESSAGES`` messages (after every step of a real-time run) they go down the pipe as one
 frame, to every observer, so validation, encoding and compression (and the live view) run in the other
 processes, on the other core. A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
@@ -35,6 +36,7 @@ from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecorderLost, RecordingError
@@ -186,6 +188,19 @@ class _Observer:
         return ":\n" + "\n".join(text.splitlines()[-15:]) if text else ""
 
 
+class _ChannelIndices(dict):
+    """The channel indices (bytes) of channel ``channel`` of the subsystems of a tuple of names, found once."""
+
+    def __init__(self, index: dict[tuple[str, str], int], channel: str) -> None:
+        super().__init__()
+        self.index = index
+        self.channel = channel
+
+    def __missing__(self, names: tuple[str, ...]) -> bytes:
+        self[names] = indices = bytes(self.index[name, self.channel] for name in names)
+        return indices
+
+
 class Recorder:
     """Records one run to ``path`` and/or shows it live in Rerun (``rerun``: ``spawn``, ``connect=ADDR`` or
     ``serve``, ``recordings.rerun_live``): create it, pass it to ``manager.run.execute``, read ``result``
@@ -224,8 +239,6 @@ class Recorder:
         self._channels = bytearray()  # the batch being tapped: channel index of each message
         self._messages: list[bytes] = []  # and the messages
         self._stamps: list[int] = []  # wall clock [ns] at each status message of the batch
-        self.commands = self._adder("commands")  # the Tap's, twice per step on the stepping loop
-        self.replies = self._adder("y")
         self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
         self._paced = False  # a real-time run: the tap hands each step over at once
 
@@ -268,30 +281,38 @@ class Recorder:
         self._index.update({tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)})
         self._topics = [spec.topic for spec in specs]
         self._status = self._topics.index(STATUS_TOPIC)
+        self.exchange = self._tap()
 
-    # the Tap of a replica (manager.scheme.replica): one call per exchange, a few list operations each;
-    # ``commands`` and ``replies`` are closures (``_adder``)
-    def status(self, message: bytes) -> None:
-        """The status after a macro-step: it opens a step, so a batch handed over here holds whole steps."""
-        if self._paced or len(self._messages) >= BATCH_MESSAGES:
-            self.flush()
-        self._stamps.append(time_ns())
-        self._channels.append(self._status)
-        self._messages.append(message)
+    def _tap(self) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
+        """The Tap of a replica (``manager.scheme.replica``): ``exchange(replies, request)``, once per exchange on
+        the stepping loop. It adds the replies (those the last request awaited, in that order), the request's
+        status (which opens a macro-step, so a batch handed over before it holds whole steps) and its commands
+        to the batch: a closure over the batch and the channel indices of each list of names, without attribute
+        lookups or nested calls. A channel index always goes in before its message (``flush`` drops an index
+        whose message an interrupt cut off)."""
+        channels, batch, stamps = self._channels, self._messages, self._stamps
+        status_index, paced, flush = self._status, self._paced, self.flush
+        replies_of, commands_of = _ChannelIndices(self._index, "y"), _ChannelIndices(self._index, "commands")
+        awaited: tuple[str, ...] = ()
 
-    def _adder(self, channel: str) -> Callable[[dict[str, bytes]], None]:
-        """The tap of every subsystem's channel ``channel``: it adds the messages of a dict (subsystem →
-        message) to the batch. A closure over the batch, without attribute lookups or a nested call."""
-        index, found, channels, batch = self._index, {}, self._channels, self._messages
-
-        def add(messages: dict[str, bytes]) -> None:
-            names = tuple(messages)
-            indices = found.get(names)
-            if indices is None:
-                indices = found[names] = bytes(index[name, channel] for name in names)
-            channels.extend(indices)
-            batch.extend(messages.values())
-        return add
+        def exchange(replies: dict[str, bytes] | None, request: Exchange | None) -> None:
+            nonlocal awaited
+            if replies:
+                channels.extend(replies_of[awaited])
+                batch.extend(replies.values())
+            if request is None:
+                return
+            sends, awaited, status = request[:3]
+            if status is not None:
+                if paced or len(batch) >= BATCH_MESSAGES:
+                    flush()
+                stamps.append(time_ns())
+                channels.append(status_index)
+                batch.append(status)
+            if sends:
+                channels.extend(commands_of[tuple(sends)])
+                batch.extend(sends.values())
+        return exchange
 
     def flush(self, last: bool = False) -> None:
         """Hand what the tap holds to the recorder process now (``last``: the run's last batch, which the live

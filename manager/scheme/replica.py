@@ -19,12 +19,11 @@ with its key) and the replica waits for the next one: a stray, replayed or garbl
 the run, and a subsystem whose replica diverged (different software, different arithmetic) sends only
 replies that fail, so the run stalls and the bus's timeout names it with what it dropped.
 
-A :class:`Tap` sees what a replica goes through: the commands of each exchange (``commands``, subsystem
-→ message), the replies of each exchange when the scheme takes them (``replies``, in simulation order
-whether they were computed here or came from the network) and, when the scheme reports it, the status
-after every macro-step (``status``). One call per exchange, not per message: a recorded run taps the
-in-process replica, on the stepping loop, or the manager's replica that follows a Zenoh run.
-:class:`PerMessage` makes a tap of a function of ``(source, channel, message)``.
+A :class:`Tap` sees what a replica goes through, in order, one call per exchange: the replies the scheme
+took (in simulation order whether they were computed here or came from the network), then the request it
+made of them: the status after the macro-step that has just ended, when the scheme reports it, and the
+commands. A recorded run taps the in-process replica, on the stepping loop, or the manager's replica that
+follows a Zenoh run. :class:`PerMessage` makes a tap of a function of ``(source, channel, message)``.
 """
 from __future__ import annotations
 
@@ -40,14 +39,10 @@ REPLY_KINDS = (Kind.OUTPUT, Kind.ACK, Kind.ERROR)
 class Tap(Protocol):
     """What sees every message of a replica (see the module text)."""
 
-    def status(self, message: bytes) -> None:
-        """The status after a macro-step (channel ``manager/status``)."""
-
-    def commands(self, sends: dict[str, bytes]) -> None:
-        """The commands of an exchange (channels ``<sub>/commands``)."""
-
-    def replies(self, replies: dict[str, bytes]) -> None:
-        """The replies the scheme takes (channels ``<sub>/y``)."""
+    def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
+        """The replies the scheme took (channels ``<sub>/y``; None before its first request), then its next
+        request: ``request.status`` (channel ``manager/status``) and ``request.sends`` (channels
+        ``<sub>/commands``); None when the scheme has ended."""
 
 
 class PerMessage:
@@ -56,16 +51,14 @@ class PerMessage:
     def __init__(self, tap: Callable[[str, str, bytes], None]) -> None:
         self.tap = tap
 
-    def status(self, message: bytes) -> None:
-        self.tap("manager", "status", message)
-
-    def commands(self, sends: dict[str, bytes]) -> None:
-        for name, command in sends.items():
-            self.tap(name, "commands", command)
-
-    def replies(self, replies: dict[str, bytes]) -> None:
-        for name, reply in replies.items():
+    def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
+        for name, reply in (replies or {}).items():
             self.tap(name, "y", reply)
+        if request is not None:
+            if request.status is not None:
+                self.tap("manager", "status", request.status)
+            for name, command in request.sends.items():
+                self.tap(name, "commands", command)
 
 
 class Replica:
@@ -97,7 +90,7 @@ class Replica:
 
     def start(self) -> None:
         self.request = next(self.scheme)
-        self._execute()
+        self._execute(None)
         self._advance()
 
     def deliver(self, name: str, reply: bytes) -> None:
@@ -113,12 +106,10 @@ class Replica:
             raise RuntimeError(f"the scheme waits for {self.waiting_for()}, which no endpoint answers")
         return self.result
 
-    def _execute(self) -> None:
-        tap = self.tap
-        if tap is not None:
-            if self.request.status is not None:
-                tap.status(self.request.status)
-            tap.commands(self.request.sends)
+    def _execute(self, replies: dict[str, bytes] | None) -> None:
+        """Send the request's commands (after the tap has seen ``replies``, what the scheme took to make it)."""
+        if self.tap is not None:
+            self.tap.exchange(replies, self.request)
         for name, command in self.request.sends.items():
             endpoint = self.local.get(name)
             if endpoint is None:
@@ -140,16 +131,16 @@ class Replica:
                 for name in replies:
                     if self.expected[name]:
                         self.expected[name].popleft()
-            if self.tap is not None:
-                self.tap.replies(replies)
             try:
                 self.request = self.scheme.send(replies)
             except StopIteration as done:
                 self.result = done.value
                 self.request = None
+                if self.tap is not None:
+                    self.tap.exchange(replies, None)
                 return
             self.steps_done += 1
-            self._execute()
+            self._execute(replies)
 
     def fault(self, name: str, reply: bytes) -> str | None:
         """Why the scheme must not take ``reply``, the next of subsystem ``name`` from the network (None: it may)."""

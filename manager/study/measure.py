@@ -30,7 +30,7 @@ from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.summary import digest
 from zencosim.manager.run import execute, summarize_run
 from zencosim.manager.scene.load import Scene, SceneError, load_scene
-from zencosim.manager.scheme.base import SubsystemFailure
+from zencosim.manager.scheme.base import Exchange, SubsystemFailure
 
 
 def predicted_stability(scene: Scene) -> tuple[bool | None, float | None]:
@@ -106,14 +106,9 @@ class _CountingTap:
     def start(self, *_args) -> None:
         pass
 
-    def status(self, message: bytes) -> None:
-        pass
-
-    def commands(self, sends: dict[str, bytes]) -> None:
-        self.sent += len(sends)
-
-    def replies(self, replies: dict[str, bytes]) -> None:
-        pass
+    def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
+        if request is not None:
+            self.sent += len(request.sends)
 
     def finish(self, outcome: str) -> dict:
         self.result = {"outcome": outcome}

@@ -13,6 +13,7 @@ import pytest
 
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import Recorder
@@ -54,10 +55,9 @@ class _InterruptedDict(dict):
 def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     recorder = CapturingRecorder(tmp_path)
     for step in range(3):
-        recorder.commands({"S1": b"c%d" % step})
-        recorder.status(b"s%d" % step)
+        recorder.exchange(None, Exchange({"S1": b"c%d" % step}, ("S2",), b"s%d" % step))
     with pytest.raises(KeyboardInterrupt):  # the channel index goes in, the message does not
-        recorder.replies(_InterruptedDict(S2=b"cut"))
+        recorder.exchange(_InterruptedDict(S2=b"cut"), None)
     recorder.flush()  # what finish() does after an interrupted run
     assert [_messages_in(frame) for frame in recorder.frames] == [(6, 3)]
     assert sum(recorder.published.values()) == 6
@@ -66,8 +66,7 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
 
 def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_path):
     recorder = CapturingRecorder(tmp_path)
-    recorder.commands({"S1": b"c"})
-    recorder.status(b"s")
+    recorder.exchange(None, Exchange({"S1": b"c"}, ("S1",), b"s"))
     sent_before_interrupt = []
 
     def interrupt(*_) -> None:  # as cli.main's SIGTERM handler
