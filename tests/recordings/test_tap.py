@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import signal
 
+import numpy as np
 import pytest
 
 from zencosim.manager.assembly import plan_scene
@@ -17,7 +18,7 @@ from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import Recorder
-from zencosim.recordings.recorder_process import BATCH_HEAD
+from zencosim.recordings.recorder_process import BATCH_HEAD, split_batch
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 
@@ -55,13 +56,20 @@ class _InterruptedDict(dict):
 def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     recorder = CapturingRecorder(tmp_path)
     for step in range(3):
-        recorder.exchange(None, Exchange({"S1": b"c%d" % step}, ("S2",), b"s%d" % step))
+        recorder.exchange(None if step == 0 else {"S2": b"y%d" % step},
+                          Exchange({"S1": b"c%d" % step}, ("S2",), b"s%d" % step))
     with pytest.raises(KeyboardInterrupt):  # the channel index goes in, the message does not
         recorder.exchange(_InterruptedDict(S2=b"cut"), None)
     recorder.flush()  # what finish() does after an interrupted run
-    assert [_messages_in(frame) for frame in recorder.frames] == [(6, 3)]
-    assert sum(recorder.published.values()) == 6
-    assert recorder.published["S2/y"] == 0
+    assert [_messages_in(frame) for frame in recorder.frames] == [(8, 3)]
+    channels, sizes, _, blob = split_batch(recorder.frames[0])
+    ends = np.cumsum(sizes)
+    assert [blob[end - size:end] for size, end in zip(sizes, ends)] == [  # the replica's order
+        b"s0", b"c0", b"y1", b"s1", b"c1", b"y2", b"s2", b"c2"]
+    assert [recorder._topics[i] for i in channels] == ["manager/status", "S1/commands"] + [
+        "S2/y", "manager/status", "S1/commands"] * 2
+    assert recorder.published == {**dict.fromkeys(recorder.published, 0), "manager/status": 3, "S1/commands": 3,
+                                  "S2/y": 2}
 
 
 def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_path):
