@@ -2,12 +2,12 @@
 (recordings.rerun_live): the observers of a run.
 
 ``start`` spawns each process (it dies with the manager, and runs at idle priority: it takes the CPU
-time the run leaves), sends it the run's description and waits until it is ready; ``exchange``, the tap of the manager's replica (in process, or following a Zenoh
-run), hands it every message through a pipe — the tap only appends the messages and their channels to two
-lists, and
-every ``BATCH_MESSAGES`` messages (after every step of a real-time run) they go down the pipe as one
-frame, to every observer, so validation, encoding and compression (and the live view) run in the other
-processes, on the other core. A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
+time the run leaves), sends it the run's description and waits until it is ready; ``exchange``, the tap
+of the manager's replica (in process, or following a Zenoh run), hands it every message through a pipe —
+the tap only appends the messages and their channels to two lists, and every ``BATCH_MESSAGES``
+messages (after every step of a real-time run) they go down the pipe as one frame, to every observer, so
+validation, encoding and compression (and the live view) run in the other processes, on the other core.
+A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
 handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
 """
 from __future__ import annotations

@@ -40,9 +40,9 @@ class Tap(Protocol):
     """What sees every message of a replica (see the module text)."""
 
     def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
-        """The replies the scheme took (channels ``<sub>/y``; None before its first request), then its next
-        request: ``request.status`` (channel ``manager/status``) and ``request.sends`` (channels
-        ``<sub>/commands``); None when the scheme has ended."""
+        """The replies the scheme took (channels ``<sub>/y``): those the last request awaits, in the order of its
+        ``awaits`` (None before the first request); then its next request: ``request.status`` (channel
+        ``manager/status``) and ``request.sends`` (channels ``<sub>/commands``); None when the scheme has ended."""
 
 
 class PerMessage:
