@@ -233,14 +233,12 @@ class Recorder:
         self._observers: list[_Observer] = []
         self._recorder: _Observer | None = None
         self._live: _Observer | None = None
-        self._index: dict[tuple[str, str], int] = {}  # (source, channel) → channel index
         self._topics: list[str] = []
         self._status = -1  # index of the status channel
         self._channels = bytearray()  # the batch being tapped: channel index of each message
         self._messages: list[bytes] = []  # and the messages
         self._stamps: list[int] = []  # wall clock [ns] at each status message of the batch
         self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
-        self._paced = False  # a real-time run: the tap hands each step over at once
 
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start the recorder process and the live view, and wait until they are ready."""
@@ -272,27 +270,28 @@ class Recorder:
         if ready["event"] != "ready":
             raise RecordingError(ready.get("reason", f"{what} failed to start"))
         return observer, ready
+
     def _declare(self, specs: list[ChannelSpec], realtime: bool) -> None:
-        """What the tap needs to know of the channels."""
+        """What the tap needs to know of the channels (``realtime``: the tap hands each step over at once)."""
         if len(specs) > 255:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
-        self._paced = realtime
-        self._index.clear()
-        self._index.update({tuple(spec.topic.split("/")): index for index, spec in enumerate(specs)})
         self._topics = [spec.topic for spec in specs]
         self._status = self._topics.index(STATUS_TOPIC)
-        self.exchange = self._tap()
+        index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
+        self.exchange = self._tap(index, realtime)
 
-    def _tap(self) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
+    def _tap(self, index: dict[tuple[str, str], int], paced: bool
+             ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
         """The Tap of a replica (``manager.scheme.replica``): ``exchange(replies, request)``, once per exchange on
         the stepping loop. It adds the replies (those the last request awaited, in that order), the request's
         status (which opens a macro-step, so a batch handed over before it holds whole steps) and its commands
         to the batch: a closure over the batch and the channel indices of each list of names, without attribute
         lookups or nested calls. A channel index always goes in before its message (``flush`` drops an index
-        whose message an interrupt cut off)."""
+        whose message an interrupt cut off). ``index``: the channel index of each (source, channel); ``paced``:
+        a real-time run, whose every step is handed over at once."""
         channels, batch, stamps = self._channels, self._messages, self._stamps
-        status_index, paced, flush = self._status, self._paced, self.flush
-        replies_of, commands_of = _ChannelIndices(self._index, "y"), _ChannelIndices(self._index, "commands")
+        status_index, flush = self._status, self.flush
+        replies_of, commands_of = _ChannelIndices(index, "y"), _ChannelIndices(index, "commands")
         awaited: tuple[str, ...] = ()
 
         def exchange(replies: dict[str, bytes] | None, request: Exchange | None) -> None:
@@ -302,7 +301,7 @@ class Recorder:
                 batch.extend(replies.values())
             if request is None:
                 return
-            sends, awaited, status = request[:3]
+            sends, awaited, status = request.sends, request.awaits, request.status
             if status is not None:
                 if paced or len(batch) >= BATCH_MESSAGES:
                     flush()
@@ -318,8 +317,8 @@ class Recorder:
         """Hand what the tap holds to the recorder process now (``last``: the run's last batch, which the live
         view is not skipped for, so that it shows how the run ended).
 
-        SIGINT and SIGTERM end a run by an exception wherever it is (``cli.main``): one that cut a
-        ``tap`` short leaves a channel index (or a stamp) without its message, which is dropped here,
+        SIGINT and SIGTERM end a run by an exception wherever it is (``cli.main``): one that cut the
+        tap (``exchange``) short leaves a channel index (or a stamp) without its message, which is dropped here,
         uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
         is sent whole and counted exactly once."""
         n = min(len(self._channels), len(self._messages))
