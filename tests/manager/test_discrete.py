@@ -9,10 +9,9 @@ import zencosim
 from zencosim.manager.analysis.discrete import ZERO_EIGENVALUE, DiscreteScheme, discrete_scheme
 from zencosim.manager.analysis.monolithic import linear_model, linear_unavailable
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.results.summary import energy_growth_rate, total_energy
 from zencosim.manager.scene.load import bundled_scene_names, load_scene
-from zencosim.manager.scheme.replica import Replica
 
 FOUR_MS = ["manager.macro_step=0.004", "subsystems.S1.micro_step=0.004", "subsystems.S2.micro_step=0.004"]
 MULTI_RATE = ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001"]
@@ -40,7 +39,7 @@ def _run(name: str, overrides: list[str], ticks: int) -> tuple[np.ndarray, objec
     scene = load_scene(name, [*overrides, f"manager.duration={ticks * base_ns / 1e9!r}"])
     plan, subsystems = plan_scene(scene)
     scheme = discrete_scheme(plan, subsystems)
-    record = Replica(make_scheme(scene, plan), [s.name for s in plan.subsystems], endpoints(plan, subsystems)).run()
+    record = run_in_process(make_scheme(scene, plan), plan, subsystems)
     X = np.empty(scheme.Psi.shape[0])
     for s in plan.subsystems:
         X[scheme.z_index[s.index]] = subsystems[s.name].z

@@ -20,9 +20,8 @@ import pytest
 import zencosim
 from tests.conftest import REPO, children_of, cmdline
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.scene.load import load_scene, scene_from_text
-from zencosim.manager.scheme.replica import Replica
 from zencosim.manager.wire.protocol import Kind
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import SCENE_ATTACHMENT
@@ -160,8 +159,7 @@ def _recording_half_a_second(path, run_id: str):
     recorder = Recorder(path)
     try:
         recorder.start(scene, plan, status, "inproc", run_id, realtime=False)
-        yield recorder, Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                                endpoints(plan, subsystems), tap=recorder).run()
+        yield recorder, run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, recorder)
     finally:
         recorder.close()
 

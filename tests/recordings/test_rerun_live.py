@@ -20,10 +20,9 @@ import pytest
 from tests.conftest import wait_for
 from tests.recordings.test_rerun_view import _columns
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_session import free_tcp_port
 from zencosim.manager.scene.load import load_scene
-from zencosim.manager.scheme.replica import Replica
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.mechanism import LIVE_FRAME_NS
 from zencosim.recordings.recorder import Recorder
@@ -113,8 +112,7 @@ def test_a_live_view_that_falls_behind_is_skipped_not_waited_for(tmp_path):
             view = recorder.pids[1]
             os.kill(view, signal.SIGSTOP)
             try:
-                Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems],
-                        endpoints(plan, subsystems), tap=recorder).run()
+                run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, recorder)
             finally:
                 os.kill(view, signal.SIGCONT)
             end = recorder.finish("completed")
