@@ -39,7 +39,8 @@ elif sys.argv[1] == "run":
     execute(scene, "inproc")
 else:  # the stepping loop: "plain", with the "status", with the status and the "tap"
     from bench_recording import stepping_loop
-    stepping_loop(scene, sys.argv[1])
+    from zencosim.manager.assembly import plan_scene
+    stepping_loop(scene, sys.argv[1], *plan_scene(scene))
 """
 
 

@@ -33,11 +33,11 @@ from rich.console import Console
 from rich.table import Table
 
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import endpoints
+from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_session import free_tcp_port
 from zencosim.manager.run import execute
 from zencosim.manager.scene.load import load_scene
-from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.wire.protocol import encode
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
@@ -48,31 +48,45 @@ from zencosim.recordings.writer import RecordingWriter
 SCENE = "two_mass_damped"
 
 
+def _in_turn(runs: list, repeat: int) -> list:
+    """``runs`` in the order of repeat ``repeat``: each first in turn, so that a host whose speed drifts between
+    repeats (here the hypervisor takes 0-40 % of the CPU) affects every kind of run alike."""
+    first = repeat % len(runs)
+    return runs[first:] + runs[:first]
+
+
+def _overhead_of(costs: list[float], baselines: list[float]) -> dict:
+    """The median over repeats of each repeat's ratio ``cost / baseline``, minus one, and the range of those."""
+    ratios = [cost / baseline for cost, baseline in zip(costs, baselines)]
+    return {"overhead": statistics.median(ratios) - 1.0, "overhead_range": (min(ratios) - 1.0, max(ratios) - 1.0)}
+
+
 def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> dict:
     """Steps/s without and with recording, time to a complete file, losses; with ``live`` (a ``--rerun`` target)
     the cost of the live view alone instead of the recording, and as losses the macro-steps not sent to it
-    because it had fallen behind. Each repeat runs the two one after the other, in turn first, and the overhead
-    is the median over repeats of each pair's ratio: a host whose speed drifts between repeats (here the
-    hypervisor takes 0-40 % of the CPU) affects both runs of a pair alike."""
+    because it had fallen behind. Each repeat runs the two one after the other (``_in_turn``), and the overhead
+    is the median over repeats of each pair's ratio."""
     scene = load_scene(SCENE)
-    plain, recorded, complete, lost = [], [], [], []
-    for i in range(repeats):
-        for kind in ("plain", "recorded") if i % 2 == 0 else ("recorded", "plain"):
-            if kind == "plain":
-                record, wall = execute(scene, bus)
-                plain.append(record.plan.n_ticks / wall)
-                continue
-            recorder = Recorder(None, rerun=live) if live else Recorder(workdir / f"{bus}-{i}.mcap")
-            started = time.perf_counter()
-            record, wall = execute(scene, bus, recorder=recorder)
-            complete.append(time.perf_counter() - started)
-            recorded.append(record.plan.n_ticks / wall)
-            lost.append(recorder.live_skipped[1] if live else recorder.result["lost"])
-    ratios = [without / with_ for without, with_ in zip(plain, recorded)]
-    return {"steps": record.plan.n_ticks, "steps_per_s_without": statistics.median(plain),
-            "steps_per_s_with": statistics.median(recorded), "overhead": statistics.median(ratios) - 1.0,
-            "overhead_range": (min(ratios) - 1.0, max(ratios) - 1.0),
-            "recording_complete_s": statistics.median(complete),
+    plain, recorded, complete, lost, steps = [], [], [], [], []
+
+    def run_plain(_repeat: int) -> None:
+        record, wall = execute(scene, bus)
+        plain.append(record.plan.n_ticks / wall)
+        steps.append(record.plan.n_ticks)
+
+    def run_recorded(repeat: int) -> None:
+        recorder = Recorder(None, rerun=live) if live else Recorder(workdir / f"{bus}-{repeat}.mcap")
+        started = time.perf_counter()
+        record, wall = execute(scene, bus, recorder=recorder)
+        complete.append(time.perf_counter() - started)
+        recorded.append(record.plan.n_ticks / wall)
+        lost.append(recorder.live_skipped[1] if live else recorder.result["lost"])
+
+    for repeat in range(repeats):
+        for run in _in_turn([run_plain, run_recorded], repeat):
+            run(repeat)
+    return {"steps": steps[-1], "steps_per_s_without": statistics.median(plain), "steps_per_s_with": statistics.median(recorded),
+            **_overhead_of(plain, recorded), "recording_complete_s": statistics.median(complete),
             "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
 
 
@@ -101,45 +115,28 @@ class _NullRecorder(Recorder):
         pass
 
 
-def stepping_loop(scene, what: str) -> None:
-    """One in-process run of ``scene``'s stepping loop: ``plain``, with the ``status``, or with the status and
-    the ``tap`` (bench_instructions.py counts its instructions)."""
-    plan, subsystems = plan_scene(scene)
+def stepping_loop(scene, what: str, plan, subsystems) -> RunRecord:
+    """One in-process run of ``scene``'s stepping loop (``plan_scene``: its plan and subsystems): ``plain``, with
+    the ``status``, or with the status and the ``tap`` (its batches dropped). bench_instructions.py counts its
+    instructions."""
     status = None if what == "plain" else StatusReport(plan, False)
-    Replica(make_scheme(scene, plan, status=status), [s.name for s in plan.subsystems], endpoints(plan, subsystems),
-            tap=_NullRecorder(plan, status) if what == "tap" else None).run()
+    return run_in_process(make_scheme(scene, plan, status=status), plan, subsystems,
+                          _NullRecorder(plan, status) if what == "tap" else None)
 
 
 def stepping_loop_cost(repeats: int) -> dict:
-    """CPU µs per macro-step of the in-process run: plain, with the status, with status and tap. The three
-    run one after the other in each repeat (in turn first), and the overhead is the median over repeats of
-    each repeat's ratio: a machine whose load drifts between repeats affects the three alike."""
+    """CPU µs per macro-step of the in-process run (``stepping_loop``): plain, with the status, with status and
+    tap, in turn first (``_in_turn``); the overhead is the median over repeats of each repeat's ratio."""
     scene = load_scene(SCENE)
-    plan, _ = plan_scene(scene)
-    names = [s.name for s in plan.subsystems]
-
-    def cpu_per_step(status: StatusReport | None, tap) -> float:
-        replica = Replica(make_scheme(scene, plan, status=status), names, endpoints(plan, plan_scene(scene)[1]), tap=tap)
-        started = time.process_time()
-        replica.run()
-        return (time.process_time() - started) / plan.n_ticks * 1e6
-
-    def with_status() -> float:
-        return cpu_per_step(StatusReport(plan, False), None)
-
-    def with_tap() -> float:
-        status = StatusReport(plan, False)
-        return cpu_per_step(status, _NullRecorder(plan, status))
-
-    variants = [("plain", lambda: cpu_per_step(None, None)), ("status", with_status), ("status_and_tap", with_tap)]
-    found: dict[str, list[float]] = {name: [] for name, _ in variants}
+    found: dict[str, list[float]] = {"plain": [], "status": [], "tap": []}
     for repeat in range(repeats):
-        for name, run in variants[repeat % 3:] + variants[:repeat % 3]:
-            found[name].append(run())
-    ratios = [tap / plain for tap, plain in zip(found["status_and_tap"], found["plain"])]
-    return {**{f"{name}_us": statistics.median(values) for name, values in found.items()},
-            "overhead": statistics.median(ratios) - 1.0,
-            "overhead_range": (min(ratios) - 1.0, max(ratios) - 1.0)}
+        for what in _in_turn(list(found), repeat):
+            plan, subsystems = plan_scene(scene)
+            started = time.process_time()
+            stepping_loop(scene, what, plan, subsystems)
+            found[what].append((time.process_time() - started) / plan.n_ticks * 1e6)
+    return {"plain_us": statistics.median(found["plain"]), "status_us": statistics.median(found["status"]),
+            "status_and_tap_us": statistics.median(found["tap"]), **_overhead_of(found["tap"], found["plain"])}
 
 
 def wire_messages(path: Path) -> list[tuple[int, bytes]]:
