@@ -40,7 +40,7 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.wire.protocol import encode
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings.layout import channel_specs
+from zencosim.recordings.layout import channel_specs, status_index
 from zencosim.recordings.reader import read_recording
 from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
 from zencosim.recordings.writer import RecordingWriter
@@ -158,7 +158,7 @@ def writer_ceiling(messages: list[tuple[int, bytes]], path: Path) -> dict:
     specs = [c.spec for c in recording.channels.values()]
     out = path.with_suffix(".ceiling.mcap")
     writer = RecordingWriter(out, recording.info, recording.scene_toml, specs)
-    status = next(i for i, spec in enumerate(specs) if spec.role == "status")
+    status = status_index(specs)
     started = time.process_time()
     for at in range(0, len(messages), BATCH_MESSAGES):
         batch = messages[at:at + BATCH_MESSAGES]

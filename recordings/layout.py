@@ -74,6 +74,11 @@ def channel_specs(plan: Plan, status: StatusReport) -> list[ChannelSpec]:
     return specs
 
 
+def status_index(specs: list[ChannelSpec]) -> int:
+    """The index of the run's status channel among ``specs`` (a recording's channels, or ``channel_specs``)."""
+    return next(i for i, spec in enumerate(specs) if spec.role == "status")
+
+
 def run_metadata(scene: Scene, plan: Plan, bus: str, run_id: str, realtime: bool,
                  host_info: bool = False) -> dict[str, str]:
     """The ``zencosim`` metadata record of a run; ``host_info`` adds the host's name and the scene file's

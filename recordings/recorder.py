@@ -40,7 +40,7 @@ from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecorderLost, RecordingError
-from zencosim.recordings.layout import STATUS_TOPIC, ChannelSpec, channel_specs, run_metadata
+from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
 from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
 
 READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
@@ -276,7 +276,7 @@ class Recorder:
         if len(specs) > 255:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
         self._topics = [spec.topic for spec in specs]
-        self._status = self._topics.index(STATUS_TOPIC)
+        self._status = status_index(specs)
         index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
         self.exchange = self._tap(index, realtime)
 

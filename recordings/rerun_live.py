@@ -32,7 +32,7 @@ from zencosim.manager.scene.load import SceneError, scene_from_text
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.recordings import RecordingError
 from zencosim.recordings.encoding import wire_headers
-from zencosim.recordings.layout import SCENE_ATTACHMENT, ChannelSpec
+from zencosim.recordings.layout import SCENE_ATTACHMENT, ChannelSpec, status_index
 from zencosim.recordings.mechanism import LIVE_FRAME_NS
 from zencosim.recordings.recorder_process import CONTROL, NO_END, FrameReader, announce, observe, split_batch
 from zencosim.recordings.rerun_sinks import serve_web, spawn_viewer, viewer_url
@@ -95,7 +95,7 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
     batch holds whole steps, each opened by its status: one whose first status is not the step after the
     last one seen follows batches the manager skipped (this view fell behind, ``recordings.recorder``),
     which the view says on its timeline."""
-    status = next(i for i, spec in enumerate(specs) if spec.role == "status")
+    status = status_index(specs)
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame

@@ -21,7 +21,14 @@ import numpy as np
 
 from zencosim.recordings import RecordingError
 from zencosim.recordings.encoding import BatchEncoder
-from zencosim.recordings.layout import CONTENT_DIGEST, END_METADATA, RUN_METADATA, SCENE_ATTACHMENT, ChannelSpec
+from zencosim.recordings.layout import (
+    CONTENT_DIGEST,
+    END_METADATA,
+    RUN_METADATA,
+    SCENE_ATTACHMENT,
+    ChannelSpec,
+    status_index,
+)
 from zencosim.recordings.mcap_file import McapFile
 from zencosim.recordings.schema import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSchema
 
@@ -46,7 +53,7 @@ class RecordingWriter:
                                                                                 schema.descriptor_set), c.metadata())
                for c, schema in zip(channels, schemas)]
         self._ids = np.array(ids)
-        self._encoder = BatchEncoder(schemas, ids, next(i for i, c in enumerate(channels) if c.role == "status"))
+        self._encoder = BatchEncoder(schemas, ids, status_index(channels))
         self._stamp = time.time_ns()  # stamps the messages before the first status
         self._mcap.metadata(RUN_METADATA, metadata)
         self._mcap.attachment(SCENE_ATTACHMENT, "application/toml", scene_toml.encode(), time.time_ns())
