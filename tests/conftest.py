@@ -24,6 +24,14 @@ def pytest_addoption(parser):
                      help="also run the conformance test over this model: package.module:Class or a path to an FMU")
 
 
+def pytest_configure(config):
+    # A shell without job control starts a background job (`pytest … &`) with SIGINT ignored, and an ignored
+    # signal stays ignored across exec: every run this suite starts would then ignore the SIGINT that the
+    # tests of interruption send it. The suite's processes start as from a terminal: SIGINT acts.
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def pytest_generate_tests(metafunc):
     if "user_model" in metafunc.fixturenames:
         # without --model: the example user model that ships with zencosim
