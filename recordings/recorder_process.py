@@ -26,6 +26,7 @@ import sys
 
 import numpy as np
 
+from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
 from zencosim.recordings.layout import ChannelSpec
@@ -109,6 +110,7 @@ def observe() -> tuple[FrameReader, dict | None]:
     the START frame's JSON (None, said on standard error, when the first frame is not one)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     frames = FrameReader(sys.stdin.fileno(), SignalNote(signal.SIGTERM))
+    end_with_parent()  # SIGTERM, noted above, when the manager dies
     first = frames.next()
     if first is None or first[0] != CONTROL:
         print(f"{sys.argv[0]}: expected a START frame on standard input", file=sys.stderr)

@@ -18,6 +18,7 @@ from importlib.metadata import version
 
 from zencosim.cli.console import UsageError, err, examples, warn
 from zencosim.extras import MissingExtra
+from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.security import SecurityError
 from zencosim.manager.bus.zenoh_session import SessionError
@@ -70,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(argv[0] if argv else None).parse_args(argv)
     signal.signal(signal.SIGTERM, _interrupt)
+    end_with_parent()  # a subsystem process: SIGTERM (handled above) when its manager dies
     try:
         return args.handler(args)
     except BAD_INPUT as error:
