@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.conftest import wait_for
+from tests.conftest import alive, wait_for
 from zencosim.manager.assembly import build_subsystems
 from zencosim.manager.bus.children import cpu_time_s, exit_reason, process_state, start_child
 from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge
@@ -199,6 +199,22 @@ def test_starting_a_child_leaves_the_memory_of_this_process_private():
     memory[::4096] = b"\2" * pages
     # a fork faults once per page (8 192); without one only what else runs here faults (a few)
     assert resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before < pages // 10
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG")
+def test_a_child_whose_parent_died_before_it_started_ends_at_once():
+    """The parent-death signal is asked for by the child itself (end_with_parent): a parent gone before
+    that has already been replaced by another, and the child ends instead of running on, an orphan."""
+    parent = subprocess.run([sys.executable, "-c", "from zencosim.manager.bus.children import start_child\n"
+                             "child = start_child('zencosim', ['run', 'two_mass_damped', '--quiet', '--set', "
+                             "'manager.duration=100000'], stdout=-3, stderr=-3)\nprint(child.pid)"],
+                            capture_output=True, text=True, timeout=60, check=True)
+    orphan = int(parent.stdout)
+    try:  # a run of 10^8 steps; ended, it is gone (or a zombie its new parent has not reaped)
+        wait_for(lambda: not alive(orphan), 60, "the orphaned run to end")
+    finally:
+        if alive(orphan):
+            os.kill(orphan, signal.SIGKILL)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")

@@ -71,8 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(argv[0] if argv else None).parse_args(argv)
     signal.signal(signal.SIGTERM, _interrupt)
-    end_with_parent()  # a subsystem process: SIGTERM (handled above) when its manager dies
     try:
+        end_with_parent()  # a subsystem process: SIGTERM (an interrupt, as above) when its manager dies
         return args.handler(args)
     except BAD_INPUT as error:
         err.print("[bold red]error:[/]", highlight=False, end=" ")
