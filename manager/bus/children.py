@@ -5,7 +5,7 @@ A child runs ``python -P -m <module>`` with the parent's interpreter: ``-P`` kee
 (and the script's directory) off the import path, so a ``manager.py`` or a ``recordings/`` folder
 where the user works cannot shadow zencosim's modules, while ``PYTHONPATH`` and the environment's
 site-packages still apply. On Linux a child gets SIGTERM when its parent dies, even by SIGKILL, so
-that none is orphaned: the child asks for it itself (``end_with_parent``, first thing in its ``main``), so
+that none is orphaned: the child asks for it itself (``end_with_parent``, as its ``main`` starts), so
 that the parent starts it without a ``preexec_fn`` — with one, subprocess forks instead of vforking, the
 parent's memory turns copy-on-write, and every page the parent writes afterwards faults once (about
 7 400 faults, 1.5 µs each on this host, in the first steps of a recorded in-process run).
