@@ -9,8 +9,10 @@
    shown too). Also
    the time until the recording is complete (the recorder finishing after the last step) and the
    messages lost. On a shared machine these depend on what else runs; so, also, the cost on the
-   stepping loop alone: CPU time per step of the in-process run with the status and the tap, whose
-   batches go nowhere (no recorder process competing for a core).
+   stepping loop alone: CPU time per step of the in-process run plain, with the status, and with the
+   status and the tap, whose batches go nowhere (no recorder process competing for a core) — the three
+   side by side in one process, taking turns every 500 steps, so that the host's drift falls on all
+   three alike (as separate runs in turn their pair ratios spread from −34 % to +60 %).
 2. Recorder ceiling: messages per second the recorder's writer takes (validate, encode and write
    MCAP, in batches as the tap sends them), alone on one core.
    Also the file's bytes per message, the time to read a recording back per message, and whether
@@ -19,14 +21,17 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from rich.console import Console
@@ -115,26 +120,66 @@ class _NullRecorder(Recorder):
         pass
 
 
-def stepping_loop(scene, what: str, plan, subsystems) -> RunRecord:
+def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], None] | None = None) -> RunRecord:
     """One in-process run of ``scene``'s stepping loop (``plan_scene``: its plan and subsystems): ``plain``, with
-    the ``status``, or with the status and the ``tap`` (its batches dropped). bench_instructions.py counts its
-    instructions."""
+    the ``status``, or with the status and the ``tap`` (its batches dropped); ``progress`` as ``make_scheme``'s.
+    bench_instructions.py counts its instructions."""
     status = None if what == "plain" else StatusReport(plan, False)
-    return run_in_process(make_scheme(scene, plan, status=status), plan, subsystems,
+    return run_in_process(make_scheme(scene, plan, status=status, progress=progress), plan, subsystems,
                           _NullRecorder(plan, status) if what == "tap" else None)
+
+
+def _in_turns(runs: list[Callable[[Callable[[int], None]], object]]) -> list[float]:
+    """Run each of ``runs`` (called with a progress callback) in a thread of its own, one at a time, each handing
+    over to the next at every progress callback; the CPU time [s] of each (``time.thread_time``)."""
+    turns = threading.Condition()
+    turn, running, cpu = [0], [True] * len(runs), [0.0] * len(runs)
+
+    def pass_turn(i: int) -> None:  # with ``turns`` held: to the next run still going (itself if the only one)
+        for k in range(1, len(runs) + 1):
+            if running[(i + k) % len(runs)]:
+                turn[0] = (i + k) % len(runs)
+                break
+        turns.notify_all()
+
+    def body(i: int) -> None:
+        def hand_over(_tick: int) -> None:
+            with turns:
+                pass_turn(i)
+                turns.wait_for(lambda: turn[0] == i)
+
+        with turns:
+            turns.wait_for(lambda: turn[0] == i)
+        started = time.thread_time()
+        try:
+            runs[i](hand_over)
+        finally:
+            cpu[i] = time.thread_time() - started
+            with turns:
+                running[i] = False
+                pass_turn(i)
+
+    threads = [threading.Thread(target=body, args=(i,)) for i in range(len(runs))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return cpu
 
 
 def stepping_loop_cost(repeats: int) -> dict:
     """CPU µs per macro-step of the in-process run (``stepping_loop``): plain, with the status, with status and
-    tap, in turn first (``_in_turn``); the overhead is the median over repeats of each repeat's ratio."""
+    tap, the three side by side in one process taking turns every ``PROGRESS_EVERY`` steps (``_in_turns``), so
+    that the host's drifting speed — it swings by half within minutes here — falls on the three alike; the
+    overhead is the median over repeats of each repeat's ratio of status and tap to plain."""
     scene = load_scene(SCENE)
-    found: dict[str, list[float]] = {"plain": [], "status": [], "tap": []}
-    for repeat in range(repeats):
-        for what in _in_turn(list(found), repeat):
-            plan, subsystems = plan_scene(scene)
-            started = time.process_time()
-            stepping_loop(scene, what, plan, subsystems)
-            found[what].append((time.process_time() - started) / plan.n_ticks * 1e6)
+    kinds = ("plain", "status", "tap")
+    found: dict[str, list[float]] = {what: [] for what in kinds}
+    for _ in range(repeats):
+        plans = {what: plan_scene(scene) for what in kinds}
+        cpu = _in_turns([functools.partial(stepping_loop, scene, what, *plans[what]) for what in kinds])
+        for what, seconds in zip(kinds, cpu):
+            found[what].append(seconds / plans[what][0].n_ticks * 1e6)
     return {"plain_us": statistics.median(found["plain"]), "status_us": statistics.median(found["status"]),
             "status_and_tap_us": statistics.median(found["tap"]), **_overhead_of(found["tap"], found["plain"])}
 
