@@ -13,6 +13,8 @@
    status and the tap, whose batches go nowhere (no recorder process competing for a core) — the three
    side by side in one process, taking turns every 500 steps, so that the host's drift falls on all
    three alike (as separate runs in turn their pair ratios spread from −34 % to +60 %).
+   In process, also a run without and a run with recording side by side in one process, taking turns
+   every 500 steps, compared by the CPU time of each (``interleaved_overhead``).
 2. Recorder ceiling: messages per second the recorder's writer takes (validate, encode and write
    MCAP, in batches as the tap sends them), alone on one core.
    Also the file's bytes per message, the time to read a recording back per message, and whether
@@ -93,6 +95,25 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
     return {"steps": steps[-1], "steps_per_s_without": statistics.median(plain), "steps_per_s_with": statistics.median(recorded),
             **_overhead_of(plain, recorded), "recording_complete_s": statistics.median(complete),
             "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
+
+
+def interleaved_overhead(repeats: int, workdir: Path) -> dict:
+    """In process, a run without and a run with ``--record`` side by side in one process, taking turns every
+    500 steps (``_in_turns``): CPU µs per macro-step of each run's thread (the whole of ``execute``, so the
+    recording's start and finish count against it), and the median over repeats of their ratio — a figure the
+    host's drift, which falls on both alike, does not swing as it swings the runs in turn of ``overhead``."""
+    scene = load_scene(SCENE)
+    plain, recorded, lost = [], [], []
+    for repeat in range(repeats):
+        recorder = Recorder(workdir / f"turns-{repeat}.mcap")
+        cpu = _in_turns([lambda hand_over: execute(scene, "inproc", progress=hand_over),
+                         lambda hand_over: execute(scene, "inproc", progress=hand_over, recorder=recorder)])
+        steps = scene.manager.duration_ns // scene.manager.macro_step_ns
+        plain.append(cpu[0] / steps * 1e6)
+        recorded.append(cpu[1] / steps * 1e6)
+        lost.append(recorder.result["lost"])
+    return {"cpu_us_without": statistics.median(plain), "cpu_us_with": statistics.median(recorded),
+            **_overhead_of(recorded, plain), "lost": lost}
 
 
 def live_overhead(repeats: int, workdir: Path) -> dict:
@@ -239,6 +260,7 @@ def main() -> None:
         figures = {"scene": SCENE, "cpus": os.cpu_count(), "load_average": os.getloadavg(),
                    "stepping_loop": stepping_loop_cost(args.loop_repeats),
                    "inproc": overhead("inproc", args.repeats, workdir),
+                   "inproc_in_turns": interleaved_overhead(args.repeats, workdir),
                    "zenoh": overhead("zenoh", args.zenoh_repeats, workdir),
                    "live": live_overhead(args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
@@ -267,6 +289,12 @@ def main() -> None:
         table.add_row(f"{bus}: run to complete recording [s]", f"{f['recording_complete_s']:.2f}")
         table.add_row(f"{bus}: messages lost per run", ", ".join(map(str, f["lost"])))
         table.add_row(f"{bus}: file size [bytes]", f"{f['file_bytes']}")
+    turns = figures["inproc_in_turns"]
+    table.add_row("inproc, runs side by side in turns: CPU per step without / with --record [µs] (medians)",
+                  f"{turns['cpu_us_without']:.1f} / {turns['cpu_us_with']:.1f}")
+    table.add_row("inproc, runs side by side in turns: overhead of recording (target <= 10 %; median of ratios, "
+                  "range)", _overhead(turns))
+    table.add_row("inproc, runs side by side in turns: messages lost per run", ", ".join(map(str, turns["lost"])))
     recorder = figures["recorder"]
     table.add_row("recorder writer alone [messages/s of CPU]", f"{recorder['messages_per_s']:.0f}")
     table.add_row("file [bytes/message]", f"{recorder['file_bytes_per_message']:.1f}")
