@@ -152,9 +152,11 @@ def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], 
 
 def _in_turns(runs: list[Callable[[Callable[[int], None]], object]]) -> list[float]:
     """Run each of ``runs`` (called with a progress callback) in a thread of its own, one at a time, each handing
-    over to the next at every progress callback; the CPU time [s] of each (``time.thread_time``)."""
+    over to the next at every progress callback; the CPU time [s] of each (``time.thread_time``). A run that
+    raises ends its turns, and its error is raised here once every run has ended."""
     turns = threading.Condition()
     turn, running, cpu = [0], [True] * len(runs), [0.0] * len(runs)
+    errors: list[BaseException] = []
 
     def pass_turn(i: int) -> None:  # with ``turns`` held: to the next run still going (itself if the only one)
         for k in range(1, len(runs) + 1):
@@ -174,6 +176,8 @@ def _in_turns(runs: list[Callable[[Callable[[int], None]], object]]) -> list[flo
         started = time.thread_time()
         try:
             runs[i](hand_over)
+        except BaseException as error:
+            errors.append(error)
         finally:
             cpu[i] = time.thread_time() - started
             with turns:
@@ -185,6 +189,8 @@ def _in_turns(runs: list[Callable[[Callable[[int], None]], object]]) -> list[flo
         thread.start()
     for thread in threads:
         thread.join()
+    if errors:
+        raise errors[0]
     return cpu
 
 
