@@ -103,12 +103,12 @@ def interleaved_overhead(repeats: int, workdir: Path) -> dict:
     recording's start and finish count against it), and the median over repeats of their ratio — a figure the
     host's drift, which falls on both alike, does not swing as it swings the runs in turn of ``overhead``."""
     scene = load_scene(SCENE)
+    steps = plan_scene(scene)[0].n_ticks
     plain, recorded, lost = [], [], []
     for repeat in range(repeats):
         recorder = Recorder(workdir / f"turns-{repeat}.mcap")
         cpu = _in_turns([lambda hand_over: execute(scene, "inproc", progress=hand_over),
                          lambda hand_over: execute(scene, "inproc", progress=hand_over, recorder=recorder)])
-        steps = scene.manager.duration_ns // scene.manager.macro_step_ns
         plain.append(cpu[0] / steps * 1e6)
         recorded.append(cpu[1] / steps * 1e6)
         lost.append(recorder.result["lost"])
