@@ -8,7 +8,6 @@ import contextlib
 import os
 import signal
 import subprocess
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import pyarrow.compute as pc
 import pytest
 
 from tests.conftest import wait_for
-from tests.recordings.test_rerun_view import _columns
+from tests.recordings.test_rerun_view import RERUN, _columns
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_session import free_tcp_port
@@ -28,8 +27,6 @@ from zencosim.recordings.mechanism import LIVE_FRAME_NS
 from zencosim.recordings.recorder import Recorder
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.filterwarnings("ignore:RRD file has no footer")]
-
-RERUN = Path(sys.executable).with_name("rerun")
 
 
 def _logged(rrd: Path) -> dict[str, dict[int, bytes]]:

@@ -24,6 +24,8 @@ from zencosim.recordings.reader import read_recording
 
 pytestmark = pytest.mark.multiprocess
 
+RERUN = Path(sys.executable).with_name("rerun")  # the Rerun command line the rerun-sdk installs beside Python
+
 UNITS_OF_PANELS = {"positions": "m", "velocities": "m/s", "forces": "N", "energies": "J", "residual_power": "W",
                    "residual_energy": "J", "step_timing": "µs", "wall_time": "s"}
 
@@ -137,8 +139,8 @@ def test_the_replay_passes_the_rerun_tools_own_check(replayed):
     """``rerun rrd verify`` decodes every chunk against Rerun's schemas (of a 2 s replay: it takes about 50 s
     for the 10 s one of test_recorded_runs, whose content is checked series by series instead)."""
     recording, _, _ = replayed
-    checked = subprocess.run([str(Path(sys.executable).with_name("rerun")), "rrd", "verify",
-                              str(recording.path.with_suffix(".rrd"))], capture_output=True, text=True, timeout=120)
+    checked = subprocess.run([str(RERUN), "rrd", "verify", str(recording.path.with_suffix(".rrd"))],
+                             capture_output=True, text=True, timeout=120)
     assert checked.returncode == 0, checked.stderr
 
 
