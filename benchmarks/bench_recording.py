@@ -74,12 +74,11 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
     because it had fallen behind. Each repeat runs the two one after the other (``_in_turn``), and the overhead
     is the median over repeats of each pair's ratio."""
     scene = load_scene(SCENE)
-    plain, recorded, complete, lost, steps = [], [], [], [], []
+    plain, recorded, complete, lost = [], [], [], []
 
     def run_plain(_repeat: int) -> None:
         record, wall = execute(scene, bus)
         plain.append(record.plan.n_ticks / wall)
-        steps.append(record.plan.n_ticks)
 
     def run_recorded(repeat: int) -> None:
         recorder = Recorder(None, rerun=live) if live else Recorder(workdir / f"{bus}-{repeat}.mcap")
@@ -92,14 +91,15 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
     for repeat in range(repeats):
         for run in _in_turn([run_plain, run_recorded], repeat):
             run(repeat)
-    return {"steps": steps[-1], "steps_per_s_without": statistics.median(plain), "steps_per_s_with": statistics.median(recorded),
+    return {"steps": plan_scene(scene)[0].n_ticks, "steps_per_s_without": statistics.median(plain),
+            "steps_per_s_with": statistics.median(recorded),
             **_overhead_of(plain, recorded), "recording_complete_s": statistics.median(complete),
             "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
 
 
 def interleaved_overhead(repeats: int, workdir: Path) -> dict:
     """In process, a run without and a run with ``--record`` side by side in one process, taking turns every
-    500 steps (``_in_turns``): CPU µs per macro-step of each run's thread (the whole of ``execute``, so the
+    500 steps (``_side_by_side``): CPU µs per macro-step of each run's thread (the whole of ``execute``, so the
     recording's start and finish count against it), and the median over repeats of their ratio — a figure the
     host's drift, which falls on both alike, does not swing as it swings the runs in turn of ``overhead``."""
     scene = load_scene(SCENE)
@@ -107,7 +107,7 @@ def interleaved_overhead(repeats: int, workdir: Path) -> dict:
     plain, recorded, lost = [], [], []
     for repeat in range(repeats):
         recorder = Recorder(workdir / f"turns-{repeat}.mcap")
-        cpu = _in_turns([lambda hand_over: execute(scene, "inproc", progress=hand_over),
+        cpu = _side_by_side([lambda hand_over: execute(scene, "inproc", progress=hand_over),
                          lambda hand_over: execute(scene, "inproc", progress=hand_over, recorder=recorder)])
         plain.append(cpu[0] / steps * 1e6)
         recorded.append(cpu[1] / steps * 1e6)
@@ -150,7 +150,7 @@ def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], 
                           _NullRecorder(plan, status) if what == "tap" else None)
 
 
-def _in_turns(runs: list[Callable[[Callable[[int], None]], object]]) -> list[float]:
+def _side_by_side(runs: list[Callable[[Callable[[int], None]], object]]) -> list[float]:
     """Run each of ``runs`` (called with a progress callback) in a thread of its own, one at a time, each handing
     over to the next at every progress callback; the CPU time [s] of each (``time.thread_time``). A run that
     raises ends its turns, and its error is raised here once every run has ended."""
@@ -196,7 +196,7 @@ def _in_turns(runs: list[Callable[[Callable[[int], None]], object]]) -> list[flo
 
 def stepping_loop_cost(repeats: int) -> dict:
     """CPU µs per macro-step of the in-process run (``stepping_loop``): plain, with the status, with status and
-    tap, the three side by side in one process taking turns every ``PROGRESS_EVERY`` steps (``_in_turns``), so
+    tap, the three side by side in one process taking turns every ``PROGRESS_EVERY`` steps (``_side_by_side``), so
     that the host's drifting speed — it swings by half within minutes here — falls on the three alike; the
     overhead is the median over repeats of each repeat's ratio of status and tap to plain."""
     scene = load_scene(SCENE)
@@ -204,7 +204,7 @@ def stepping_loop_cost(repeats: int) -> dict:
     found: dict[str, list[float]] = {what: [] for what in kinds}
     for _ in range(repeats):
         plans = {what: plan_scene(scene) for what in kinds}
-        cpu = _in_turns([functools.partial(stepping_loop, scene, what, *plans[what]) for what in kinds])
+        cpu = _side_by_side([functools.partial(stepping_loop, scene, what, *plans[what]) for what in kinds])
         for what, seconds in zip(kinds, cpu):
             found[what].append(seconds / plans[what][0].n_ticks * 1e6)
     return {"plain_us": statistics.median(found["plain"]), "status_us": statistics.median(found["status"]),
@@ -266,7 +266,7 @@ def main() -> None:
         figures = {"scene": SCENE, "cpus": os.cpu_count(), "load_average": os.getloadavg(),
                    "stepping_loop": stepping_loop_cost(args.loop_repeats),
                    "inproc": overhead("inproc", args.repeats, workdir),
-                   "inproc_in_turns": interleaved_overhead(args.repeats, workdir),
+                   "inproc_side_by_side": interleaved_overhead(args.repeats, workdir),
                    "zenoh": overhead("zenoh", args.zenoh_repeats, workdir),
                    "live": live_overhead(args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
@@ -286,7 +286,8 @@ def main() -> None:
     table.add_row("zenoh: macro-steps/s without / with --rerun (live view)",
                   f"{live['steps_per_s_without']:.0f} / {live['steps_per_s_with']:.0f}")
     table.add_row("zenoh: overhead of the live view (target <= 5 %; median of ratios, range)", _overhead(live))
-    table.add_row("zenoh: macro-steps not sent to the live view (it fell behind), per run", ", ".join(map(str, live["lost"])))
+    table.add_row("zenoh: macro-steps not sent to the live view (it fell behind), per run",
+                  ", ".join(map(str, live["lost"])))
     for bus in ("inproc", "zenoh"):
         f = figures[bus]
         table.add_row(f"{bus}: macro-steps/s without / with --record",
@@ -295,7 +296,7 @@ def main() -> None:
         table.add_row(f"{bus}: run to complete recording [s]", f"{f['recording_complete_s']:.2f}")
         table.add_row(f"{bus}: messages lost per run", ", ".join(map(str, f["lost"])))
         table.add_row(f"{bus}: file size [bytes]", f"{f['file_bytes']}")
-    turns = figures["inproc_in_turns"]
+    turns = figures["inproc_side_by_side"]
     table.add_row("inproc, runs side by side in turns: CPU per step without / with --record [µs] (medians)",
                   f"{turns['cpu_us_without']:.1f} / {turns['cpu_us_with']:.1f}")
     table.add_row("inproc, runs side by side in turns: overhead of recording (target <= 10 %; median of ratios, "
