@@ -93,7 +93,8 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
             run(repeat)
     return {"steps": plan_scene(scene)[0].n_ticks, "steps_per_s_without": statistics.median(plain),
             "steps_per_s_with": statistics.median(recorded),
-            **_overhead_of(plain, recorded), "recording_complete_s": statistics.median(complete),
+            **_overhead_of(plain, recorded),  # of rates: without / with is the ratio of times with / without
+            "recording_complete_s": statistics.median(complete),
             "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
 
 
