@@ -136,7 +136,7 @@ class _NullRecorder(Recorder):
 
     def __init__(self, plan, status: StatusReport) -> None:
         super().__init__(os.devnull)
-        self._declare(channel_specs(plan, status), realtime=False)
+        self._declare(channel_specs(plan, status), False, status)
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
         pass

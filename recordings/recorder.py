@@ -29,6 +29,7 @@ from pathlib import Path
 from time import time_ns
 from typing import Callable
 
+import numpy as np
 import tomli_w
 
 from zencosim.manager.bus.children import exit_reason, process_state, start_child
@@ -37,7 +38,6 @@ from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import Exchange
-from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecorderLost, RecordingError
 from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
@@ -236,14 +236,14 @@ class Recorder:
         self._topics: list[str] = []
         self._status = -1  # index of the status channel
         self._channels = bytearray()  # the batch being tapped: channel index of each message
-        self._messages: list[bytes] = []  # and the messages
-        self._stamps: list[int] = []  # wall clock [ns] at each status message of the batch
+        self._messages: list[bytes] = []  # and the messages but the statuses (in the status log until the flush)
+        self._report: StatusReport | None = None  # the run's status, whose log the flush takes the statuses from
         self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
 
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start the recorder process and the live view, and wait until they are ready."""
         specs = channel_specs(plan, status)
-        self._declare(specs, realtime)
+        self._declare(specs, realtime, status)
         self._stall_s = scene.manager.timeout
         channels = [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]
         metadata = run_metadata(scene, plan, bus, run_id, realtime, self.host_info)
@@ -271,10 +271,12 @@ class Recorder:
             raise RecordingError(ready.get("reason", f"{what} failed to start"))
         return observer, ready
 
-    def _declare(self, specs: list[ChannelSpec], realtime: bool) -> None:
-        """What the tap needs to know of the channels (``realtime``: the tap hands each step over at once)."""
+    def _declare(self, specs: list[ChannelSpec], realtime: bool, status: StatusReport) -> None:
+        """What the tap needs to know of the channels (``realtime``: the tap hands each step over at once) and the
+        run's status, whose messages it takes from the log its scheme fills."""
         if len(specs) > 255:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
+        self._report = status
         self._topics = [spec.topic for spec in specs]
         self._status = status_index(specs)
         index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
@@ -284,12 +286,14 @@ class Recorder:
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
         """The Tap of a replica (``manager.scheme.replica``): ``exchange(replies, request)``, once per exchange on
         the stepping loop. It adds the replies (those the last request awaited, in that order), the request's
-        status (which opens a macro-step, so a batch handed over before it holds whole steps) and its commands
-        to the batch: a closure over the batch and the channel indices of each list of names, without attribute
-        lookups or nested calls. A channel index always goes in before its message (``flush`` drops an index
-        whose message an interrupt cut off). ``index``: the channel index of each (source, channel); ``paced``:
-        a real-time run, whose every step is handed over at once."""
-        channels, batch, stamps = self._channels, self._messages, self._stamps
+        status (which opens a macro-step, so a batch handed over before it holds whole steps; only its channel
+        index: ``flush`` takes the message from the status log) and its commands to the batch: a closure over
+        the batch and the channel indices of each list of names, without attribute lookups or nested calls. A
+        channel index always goes in before its message (``flush`` drops an index whose message an interrupt cut
+        off).
+        ``index``: the channel index of each (source, channel); ``paced``: a real-time run, whose every step is
+        handed over at once."""
+        channels, batch = self._channels, self._messages
         status_index, flush = self._status, self.flush
         replies_of, commands_of = _ChannelIndices(index, "y"), _ChannelIndices(index, "commands")
         awaited: tuple[str, ...] = ()
@@ -305,9 +309,7 @@ class Recorder:
             if status is not None:
                 if paced or len(batch) >= BATCH_MESSAGES:
                     flush()
-                stamps.append(time_ns())
                 channels.append(status_index)
-                batch.append(status)
             if sends:
                 channels.extend(commands_of[tuple(sends)])
                 batch.extend(sends.values())
@@ -317,33 +319,37 @@ class Recorder:
         """Hand what the tap holds to the recorder process now (``last``: the run's last batch, which the live
         view is not skipped for, so that it shows how the run ended).
 
+        The batch's statuses are taken from the status log, in step order, and go after its other messages
+        (``recorder_process.BATCH``).
+
         SIGINT and SIGTERM end a run by an exception wherever it is (``cli.main``): one that cut the
-        tap (``exchange``) short leaves a channel index (or a stamp) without its message, which is dropped here,
+        tap (``exchange``) short leaves channel indices without their messages, which are dropped here,
         uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
         is sent whole and counted exactly once."""
-        n = min(len(self._channels), len(self._messages))
-        if n and self._observers and all(observer.gone for observer in self._observers):  # recorded no more (--record-lost continue)
-            self._channels.clear()
-            self._messages.clear()
-            self._stamps.clear()
-            return
-        if not n:
+        channels, messages = self._channels, self._messages
+        if not channels:
             return
         with _interrupts_deferred():
-            channels = bytes(self._channels[:n])
-            stamps = self._stamps[:channels.count(self._status)]
-            status = self._messages[channels.rfind(self._status)] if stamps else b""
-            step = HEADER.unpack_from(status)[4] if len(status) >= HEADER.size else self._step
-            self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(n, len(stamps)), channels,
-                                               array("I", map(len, self._messages[:n])).tobytes(),
-                                               array("q", stamps).tobytes(), *self._messages[:n])),
+            n_statuses = channels.count(self._status)
+            cut = len(channels) - n_statuses - len(messages)  # the last indices, whose messages never came
+            if cut:
+                del channels[-cut:]
+            statuses = self._report.take(n_statuses)
+            step = int(statuses.steps[-1]) if n_statuses else self._step
+            if self._observers and all(observer.gone for observer in self._observers):  # --record-lost continue
+                channels.clear()
+                messages.clear()
+                return
+            self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(len(channels), n_statuses), channels,
+                                               array("I", map(len, messages)).tobytes(), statuses.stamps.tobytes(),
+                                               *messages, statuses.messages)),
                               None if last else step - self._step)
+            counts = np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics))
             for index in range(len(self._topics)):
-                self._tapped[index] += channels.count(index)
+                self._tapped[index] += int(counts[index])
             self._step = step
-            self._channels.clear()
-            self._messages.clear()
-            self._stamps.clear()
+            channels.clear()
+            messages.clear()
 
     @property
     def pids(self) -> list[int]:

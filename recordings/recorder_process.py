@@ -6,10 +6,12 @@ Its standard input carries frames (``FRAME``: kind u16, length u32, wall-clock t
 ``length`` bytes). ``CONTROL`` frames hold JSON: the first, START, says where to write, the metadata,
 the scene and the channels; the last, END, gives the outcome of the run and what the manager's tap
 handed over per channel (the end record compares it with what was written). ``BATCH`` frames hold
-wire messages: ``BATCH_HEAD`` (messages n, stamps m), n channel indices (u8), n message sizes (u32),
-m wall-clock times (i64, one per status message: it and the messages after it were handed over
-then), and the n messages one after the other. The same input serves both buses: on the Zenoh bus
-the manager's replica, which follows the run, is the one tapped.
+wire messages: ``BATCH_HEAD`` (messages n, of which m are statuses), n channel indices (u8) in the run's
+order, the n - m sizes (u32) of the messages that are not statuses, m wall-clock times (i64, one per status
+message: it and the messages after it were handed over then), those n - m messages one after the other,
+and then the m statuses, all of one size (the tap takes them from the status log: ``manager.wire.status``);
+:func:`split_batch` puts them back in order. The same input serves both buses: on the Zenoh bus the
+manager's replica, which follows the run, is the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
 (also sent by the kernel when the manager dies) and an end of input without END finish the file with
@@ -29,7 +31,7 @@ import numpy as np
 from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
-from zencosim.recordings.layout import ChannelSpec
+from zencosim.recordings.layout import ChannelSpec, status_index
 from zencosim.recordings.writer import RecordingWriter
 
 FRAME = struct.Struct("<HIq")
@@ -78,24 +80,39 @@ class FrameReader:
                 return None
 
 
-def split_batch(batch: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, bytes]:
-    """(channel indices, message sizes, stamps, the messages one after the other) of a BATCH frame."""
+def split_batch(batch: bytes, status: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, bytes]:
+    """(channel indices, message sizes, stamps, the messages one after the other, in the run's order) of a BATCH
+    frame; ``status``: the index of the status channel."""
     n, m = BATCH_HEAD.unpack_from(batch)
     at = BATCH_HEAD.size
     channels = np.frombuffer(batch, dtype=np.uint8, count=n, offset=at)
-    sizes = np.frombuffer(batch, dtype="<u4", count=n, offset=at + n).astype(np.int64)
-    stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at + 5 * n)
-    return channels, sizes, stamps, batch[at + 5 * n + 8 * m:]
+    is_status = channels == status
+    sizes = np.empty(n, dtype=np.int64)
+    sizes[~is_status] = np.frombuffer(batch, dtype="<u4", count=n - m, offset=at + n)
+    at += n + 4 * (n - m)
+    stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at)
+    at += 8 * m
+    data = np.frombuffer(batch, dtype=np.uint8, offset=at)
+    others = int(sizes[~is_status].sum())
+    sizes[is_status] = (data.size - others) // m if m else 0
+    # where each message lies in ``data``: the others one after the other, then the statuses
+    source = np.empty(n, dtype=np.int64)
+    source[~is_status] = np.cumsum(sizes[~is_status]) - sizes[~is_status]
+    source[is_status] = others + np.cumsum(sizes[is_status]) - sizes[is_status]
+    starts = np.cumsum(sizes) - sizes
+    shift = np.repeat(source - starts, sizes)
+    return channels, sizes, stamps, data[shift + np.arange(shift.size)].tobytes()
 
 
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:
     """Record the wire messages of a run until END; return (outcome, published)."""
+    status = status_index(writer.channels)
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             end = json.loads(data)
             return end["outcome"], end["published"]
-        writer.write(*split_batch(data))
+        writer.write(*split_batch(data, status))
     return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 

@@ -101,7 +101,7 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
         kind, data, _ = frame
         if kind == CONTROL:
             return json.loads(data)["outcome"], last_step
-        channels, sizes, _, messages = split_batch(data)
+        channels, sizes, _, messages = split_batch(data, status)
         raw = np.frombuffer(messages, dtype=np.uint8)
         starts, heads, valid = wire_headers(sizes, raw)
         statuses = np.flatnonzero(valid & (channels == status))

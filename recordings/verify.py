@@ -163,7 +163,7 @@ def verify(recording: Recording) -> Verification:
                                  f"this zencosim has {', '.join(spec.names)}")
     comparer = _Comparer(recording, tuple(f.name for f in status.fields))
     try:
-        run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, PerMessage(comparer.tap))
+        run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, PerMessage(comparer.tap, status))
     except _Stop:
         pass
     note = comparer.exhausted or ""

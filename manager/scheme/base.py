@@ -31,12 +31,13 @@ class SubsystemFailure(RuntimeError):
 
 class Exchange(NamedTuple):
     """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``; ``status``, when
-    the run reports it, is the manager's STATUS message of the macro-step that has just ended; ``step``, when
-    given, the step of the replies awaited (``manager.scheme.replica`` checks it for replies from the network)."""
+    the run reports it, is the macro-step that has just ended, whose STATUS message is the next in the log of the
+    run's ``StatusReport`` (``manager.wire.status``: ``take`` it); ``step``, when given, the step of the replies
+    awaited (``manager.scheme.replica`` checks it for replies from the network)."""
 
     sends: dict[str, bytes]
     awaits: tuple[str, ...]
-    status: bytes | None = None
+    status: int | None = None
     step: int | None = None  # the step every awaited OUTPUT or ACK carries (a reply from the network is checked)
 
 

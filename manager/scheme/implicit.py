@@ -244,9 +244,9 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
     With ``status``, the SAVE that opens every macro-step after the first carries the status of the
-    step before it, and a last exchange without commands the status of the last step (as in jacobi).
+    step before it (its step, as in jacobi), and a last exchange without commands the status of the last step.
     ``spill``: as in jacobi, where a long run's arrays go as it runs."""
-    subs, base, n_ticks, k = plan.subsystems, plan.base_step_ns, plan.n_ticks, joint.k
+    subs, n_ticks, k = plan.subsystems, plan.n_ticks, joint.k
     exchanges = _JointExchanges(plan, joint, settings, spill)
     history, side_outputs = exchanges.history, exchanges.side_outputs
     traj = [RowWindow(n_ticks + 1, len(s.outputs), float, np.nan, HISTORY_ROWS, spill, f"{s.name}-outputs")
@@ -280,10 +280,10 @@ def implicit(plan: Plan, joint: JointPlan, settings: ImplicitSettings, pacer=Non
             corrected.update((yield from exchanges.project(side_outputs(corrected), corrected, tick + 1)))
         for s, y in corrected.items():
             traj[s].put(tick + 1, y)
-        if status is not None:
-            # a rigid joint is no power bond: the status has timing only
-            step_status = status.encode(tick + 1, (tick + 1) * base, (), releases.first_ns,
-                                        released_ns, time.perf_counter_ns(), releases.last_lateness_ns)
+        if status is not None:  # a rigid joint is no power bond: the status has timing only (logged: jacobi)
+            status.log_times((tick + 1, released_ns, time.perf_counter_ns(),
+                              0 if pacer is None else pacer.last_lateness_ns))
+            step_status = tick + 1
         y_corrected = side_outputs(corrected)
         gap = np.max(np.abs(y_corrected[1, 0] - y_corrected[0, 0]))
         if not (gap <= settings.divergence_gap and np.isfinite(e_new).all()

@@ -50,8 +50,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
            ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
-    With ``status``, every exchange after the first step carries the status of the step before it, and
-    a last exchange without commands carries the status of the last step.
+    With ``status``, every exchange after the first step carries the status of the step before it (its step:
+    the message is taken from ``status``'s log, ``StatusReport.take``), and a last exchange without commands
+    carries the status of the last step.
 
     ``local``: the subsystems whose commands this replica computes (a subsystem process: its own). It
     then follows only them and the sources of their inputs (``Plan.tracked``), takes only those replies,
@@ -101,7 +102,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     period, starting, partners_starting, due, due_names, bonds_due = _schedule(plan, local, tracked)
     some_bonds_idle = [len(bonds) < n_bonds for bonds in bonds_due]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
-    step_status = None
+    step_status = None  # the step whose status the next exchange reports
+    log_residuals, log_times = (status.log_residuals, status.log_times) if status is not None else (None, None)
     header = HEADER.pack
     step_kind = int(Kind.STEP)
 
@@ -141,9 +143,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             last_bond_tick[b] = next_tick
         for corrector in correctors:
             corrector.observe(next_tick, windows, e_window)
-        if status is not None:
-            step_status = status.encode(next_tick, next_tick * base, residuals, releases.first_ns, released_ns,
-                                        time.perf_counter_ns(), releases.last_lateness_ns)
+        if status is not None:  # logged, encoded when a tap takes it (manager.wire.status)
+            log_residuals(residuals)
+            log_times((next_tick, released_ns, time.perf_counter_ns(), 0 if pacer is None else pacer.last_lateness_ns))
+            step_status = next_tick
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
     if step_status is not None:

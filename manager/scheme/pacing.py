@@ -103,7 +103,6 @@ class Releases:
         self.pacer = pacer
         self.times = RowWindow(n_ticks, None, np.int64, 0, 1, spill, "send-time")
         self.lateness = None if pacer is None else RowWindow(n_ticks, None, np.int64, 0, 1, spill, "lateness")
-        self.first_ns = 0  # the release of step 0
 
     def release(self, tick: int) -> int:
         """Release step ``tick`` (paced: at its deadline) and record it; its release time."""
@@ -112,14 +111,7 @@ class Releases:
         self.times.put(tick, released_ns)
         if pacer is not None:
             self.lateness.put(tick, pacer.last_lateness_ns)
-        if tick == 0:
-            self.first_ns = released_ns
         return released_ns
-
-    @property
-    def last_lateness_ns(self) -> int | None:
-        """The lateness of the step released last (None: not paced)."""
-        return None if self.pacer is None else self.pacer.last_lateness_ns
 
     def finish(self, rows: int | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         """The release times and latenesses of the first ``rows`` steps (default: all; lateness None: not paced)."""

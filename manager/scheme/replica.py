@@ -32,6 +32,7 @@ from typing import Callable, Generator, Protocol
 
 from zencosim.manager.scheme.base import Exchange, RunRecord
 from zencosim.manager.wire.protocol import Kind, ProtocolError, command_ref, decode_header
+from zencosim.manager.wire.status import StatusReport
 
 REPLY_KINDS = (Kind.OUTPUT, Kind.ACK, Kind.ERROR)
 
@@ -42,21 +43,24 @@ class Tap(Protocol):
     def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
         """The replies the scheme took (channels ``<sub>/y``): those the last request awaits, in the order of its
         ``awaits`` (None before the first request); then its next request: ``request.status`` (channel
-        ``manager/status``) and ``request.sends`` (channels ``<sub>/commands``); None when the scheme has ended."""
+        ``manager/status``: the step whose message is the next in the run's ``StatusReport`` log; the tap takes
+        every one, in order) and ``request.sends`` (channels ``<sub>/commands``); None when the scheme has ended."""
 
 
 class PerMessage:
-    """A :class:`Tap` that hands each message to ``tap(source, channel, message)``."""
+    """A :class:`Tap` that hands each message to ``tap(source, channel, message)``; ``status``: the run's
+    ``StatusReport``, whose messages it takes one by one."""
 
-    def __init__(self, tap: Callable[[str, str, bytes], None]) -> None:
+    def __init__(self, tap: Callable[[str, str, bytes], None], status: StatusReport | None = None) -> None:
         self.tap = tap
+        self.status = status
 
     def exchange(self, replies: dict[str, bytes] | None, request: Exchange | None) -> None:
         for name, reply in (replies or {}).items():
             self.tap(name, "y", reply)
         if request is not None:
             if request.status is not None:
-                self.tap("manager", "status", request.status)
+                self.tap("manager", "status", self.status.take(1).messages)
             for name, command in request.sends.items():
                 self.tap(name, "commands", command)
 

@@ -11,10 +11,13 @@ import signal
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import Exchange
+from zencosim.manager.wire.protocol import Kind, decode
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import Recorder
@@ -29,13 +32,28 @@ class CapturingRecorder(Recorder):
     def __init__(self, tmp_path) -> None:
         super().__init__(tmp_path / "unused.mcap")
         plan, _ = plan_scene(load_scene("two_mass_damped"))
-        self._declare(channel_specs(plan, StatusReport(plan, False)), realtime=False)
+        self.report = StatusReport(plan, False)
+        self._declare(channel_specs(plan, self.report), False, self.report)
         self.frames: list[bytes] = []
         self.during_write = lambda: None
+
+    def status(self, step: int) -> int:
+        """Step ``step`` ends, as a scheme logs it (δP and δE equal to the step, completed 1 µs after its release);
+        the exchange's status."""
+        self.report.log_residuals([float(step)] * self.report.n_residuals)
+        self.report.log_times((step, 1000 * step, 1000 * step + 1000, 0))
+        return step
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
         self.during_write()
         self.frames.append(payload)
+
+
+def _status_of(message: bytes) -> tuple[int, list[float]]:
+    """(step, values) of a STATUS message."""
+    decoded = decode(message, "the tap")
+    assert decoded.kind == Kind.STATUS
+    return decoded.step, decoded.values.tolist()
 
 
 def _messages_in(frame: bytes) -> tuple[int, int]:
@@ -57,15 +75,19 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     recorder = CapturingRecorder(tmp_path)
     for step in range(3):
         recorder.exchange(None if step == 0 else {"S2": b"y%d" % step},
-                          Exchange({"S1": b"c%d" % step}, ("S2",), b"s%d" % step))
+                          Exchange({"S1": b"c%d" % step}, ("S2",), recorder.status(step)))
     with pytest.raises(KeyboardInterrupt):  # the channel index goes in, the message does not
         recorder.exchange(_InterruptedDict(S2=b"cut"), None)
     recorder.flush()  # what finish() does after an interrupted run
     assert [_messages_in(frame) for frame in recorder.frames] == [(8, 3)]
-    channels, sizes, _, blob = split_batch(recorder.frames[0])
+    channels, sizes, stamps, blob = split_batch(recorder.frames[0], recorder._status)
     ends = np.cumsum(sizes)
-    assert [blob[end - size:end] for size, end in zip(sizes, ends)] == [  # the replica's order
-        b"s0", b"c0", b"y1", b"s1", b"c1", b"y2", b"s2", b"c2"]
+    messages = [blob[end - size:end] for size, end in zip(sizes, ends)]
+    assert messages[1::3] == [b"c0", b"c1", b"c2"] and messages[2::3] == [b"y1", b"y2"]  # the replica's order
+    # each status encoded from the log: its step, δP and δE as logged, wall time since step 0's release, step time
+    assert [_status_of(message) for message in messages[::3]] == [
+        (step, [float(step), float(step), (1000 * step + 1000) * 1e-9, 1000 * 1e-9]) for step in range(3)]
+    assert np.diff(stamps).tolist() == [1000, 1000]  # stamped when each step completed, on the wall clock
     assert [recorder._topics[i] for i in channels] == ["manager/status", "S1/commands"] + [
         "S2/y", "manager/status", "S1/commands"] * 2
     assert recorder.published == {**dict.fromkeys(recorder.published, 0), "manager/status": 3, "S1/commands": 3,
@@ -74,7 +96,7 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
 
 def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_path):
     recorder = CapturingRecorder(tmp_path)
-    recorder.exchange(None, Exchange({"S1": b"c"}, ("S1",), b"s"))
+    recorder.exchange(None, Exchange({"S1": b"c"}, ("S1",), recorder.status(0)))
     sent_before_interrupt = []
 
     def interrupt(*_) -> None:  # as cli.main's SIGTERM handler
@@ -92,3 +114,40 @@ def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_pa
     assert [_messages_in(frame) for frame in recorder.frames] == [(2, 1)]
     assert sum(recorder.published.values()) == 2 and not recorder._messages  # counted and cleared once
     assert signal.getsignal(signal.SIGTERM) is previous
+
+
+_MESSAGE = st.binary(min_size=1, max_size=40)
+_STEP = st.tuples(st.dictionaries(st.sampled_from(["S1", "S2"]), _MESSAGE),  # the replies taken
+                  st.dictionaries(st.sampled_from(["S1", "S2"]), _MESSAGE),  # the commands sent
+                  st.booleans())  # whether the exchange reports a status
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(exchanges=st.lists(_STEP, min_size=1, max_size=30))
+def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_through_them(tmp_path_factory, exchanges):
+    """The frame holds the statuses after the other messages (taken from the status log at the flush); read back,
+    every message is where the replica went through it, whatever the mix of channels and sizes."""
+    recorder = CapturingRecorder(tmp_path_factory.mktemp("frames"))
+    expected, step, awaited = [], 0, None
+    for replies, sends, reports in exchanges:
+        replies = {name: replies.get(name, b"y") for name in awaited} if awaited else None
+        for name, reply in (replies or {}).items():
+            expected.append((f"{name}/y", reply))
+        status = recorder.status(step) if reports else None
+        if reports:
+            expected.append(("manager/status", ("status", step)))
+            step += 1
+        expected += [(f"{name}/commands", command) for name, command in sends.items()]
+        recorder.exchange(replies, Exchange(sends, tuple(sends), status))
+        awaited = tuple(sends)
+    recorder.flush()
+    if not expected:
+        assert recorder.frames == []
+        return
+    (frame,) = recorder.frames
+    channels, sizes, stamps, blob = split_batch(frame, recorder._status)
+    ends = np.cumsum(sizes)
+    found = [(recorder._topics[i], blob[end - size:end]) for i, size, end in zip(channels.tolist(), sizes, ends)]
+    assert [(topic, ("status", _status_of(message)[0]) if topic == "manager/status" else message)
+            for topic, message in found] == expected
+    assert len(stamps) == step
