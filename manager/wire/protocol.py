@@ -7,11 +7,10 @@ on the in-process bus and over Zenoh, so a codec bug shows on both.
 """
 from __future__ import annotations
 
-import functools
 import struct
 import zlib
 from enum import IntEnum
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -86,12 +85,6 @@ def split_messages(batch: bytes, sender: str) -> list[bytes]:
 def command_ref(command: bytes) -> int:
     """The reference a reply carries for ``command``."""
     return zlib.crc32(command)
-
-
-def floats_encoder(kind: Kind, count: int) -> Callable[..., bytes]:
-    """``encode`` of ``kind`` messages of exactly ``count`` float64 values in one ``struct.pack``, without
-    numpy: ``encoder(step, time_ns, ref, *values)`` (the manager's status, every step)."""
-    return functools.partial(struct.Struct(HEADER.format + f"{count}d").pack, VERSION, kind, 0, count)
 
 
 def decode(data: bytes, sender: str) -> Message:
