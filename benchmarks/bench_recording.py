@@ -144,8 +144,9 @@ class _NullRecorder(Recorder):
 
 def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], None] | None = None) -> RunRecord:
     """One in-process run of ``scene``'s stepping loop (``plan_scene``: its plan and subsystems): ``plain``, with
-    the ``status``, or with the status and the ``tap`` (its batches dropped); ``progress`` as ``make_scheme``'s.
-    bench_instructions.py counts its instructions."""
+    the ``status`` (logged by the scheme; without a tap nothing takes it), or with the status and the ``tap``
+    (which encodes the statuses; its batches dropped); ``progress`` as ``make_scheme``'s. bench_instructions.py
+    counts its instructions."""
     status = None if what == "plain" else StatusReport(plan, False)
     return run_in_process(make_scheme(scene, plan, status=status, progress=progress), plan, subsystems,
                           _NullRecorder(plan, status) if what == "tap" else None)
