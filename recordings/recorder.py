@@ -290,9 +290,8 @@ class Recorder:
         index: ``flush`` takes the message from the status log) and its commands to the batch: a closure over
         the batch and the channel indices of each list of names, without attribute lookups or nested calls. A
         channel index always goes in before its message (``flush`` drops an index whose message an interrupt cut
-        off).
-        ``index``: the channel index of each (source, channel); ``paced``: a real-time run, whose every step is
-        handed over at once."""
+        off). ``index``: the channel index of each (source, channel); ``paced``: a real-time run, whose every step
+        is handed over at once."""
         channels, batch = self._channels, self._messages
         status_index, flush = self._status, self.flush
         replies_of, commands_of = _ChannelIndices(index, "y"), _ChannelIndices(index, "commands")
