@@ -5,7 +5,7 @@
 time the run leaves), sends it the run's description and waits until it is ready; ``exchange``, the tap
 of the manager's replica (in process, or following a Zenoh run), hands it every message through a pipe —
 the tap only appends the messages and their channels to two lists, and every ``BATCH_MESSAGES``
-messages (after every step of a real-time run) they go down the pipe as one frame, to every observer, so
+messages (every ``HANDOVER_S`` of a real-time run) they go down the pipe as one frame, to every observer, so
 validation, encoding and compression (and the live view) run in the other processes, on the other core.
 A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
 handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
@@ -19,6 +19,7 @@ import os
 import select
 import signal
 import subprocess
+import sys
 import tempfile
 import termios
 import threading
@@ -47,6 +48,7 @@ READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
 FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
 PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
 BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
+HANDOVER_S = 0.01  # and a real-time run's at least every this much run time [s] (a live view's 100 frames/s)
 F_SETPIPE_SZ, F_GETPIPE_SZ = 1031, 1032  # Linux fcntl
 STOP_WAIT_S = 1.0  # a process whose pipe broke has this long to be reaped before its exit is described
 RECORD_LOST = ("stop", "continue")  # what a run does when its recorder process is gone (--record-lost)
@@ -280,9 +282,9 @@ class Recorder:
         self._topics = [spec.topic for spec in specs]
         self._status = status_index(specs)
         index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
-        self.exchange = self._tap(index, realtime)
+        self.exchange = self._tap(index, max(1, round(HANDOVER_S * 1e9 / status.base_step_ns)) if realtime else None)
 
-    def _tap(self, index: dict[tuple[str, str], int], paced: bool
+    def _tap(self, index: dict[tuple[str, str], int], every: int | None
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
         """The Tap of a replica (``manager.scheme.replica``): ``exchange(replies, request)``, once per exchange on
         the stepping loop. It adds the replies (those the last request awaited, in that order), the request's
@@ -290,15 +292,17 @@ class Recorder:
         index: ``flush`` takes the message from the status log) and its commands to the batch: a closure over
         the batch and the channel indices of each list of names, without attribute lookups or nested calls. A
         channel index always goes in before its message (``flush`` drops an index whose message an interrupt cut
-        off). ``index``: the channel index of each (source, channel); ``paced``: a real-time run, whose every step
-        is handed over at once."""
+        off). ``index``: the channel index of each (source, channel); ``every``: a real-time run's batches hold at
+        most this many steps (None: any number)."""
         channels, batch = self._channels, self._messages
         status_index, flush = self._status, self.flush
         replies_of, commands_of = _ChannelIndices(index, "y"), _ChannelIndices(index, "commands")
         awaited: tuple[str, ...] = ()
+        handover = every or sys.maxsize
+        flush_at = handover  # the step whose status a batch is handed over at, at the latest
 
         def exchange(replies: dict[str, bytes] | None, request: Exchange | None) -> None:
-            nonlocal awaited
+            nonlocal awaited, flush_at
             if replies:
                 channels.extend(replies_of[awaited])
                 batch.extend(replies.values())
@@ -306,8 +310,9 @@ class Recorder:
                 return
             sends, awaited, status = request.sends, request.awaits, request.status
             if status is not None:
-                if paced or len(batch) >= BATCH_MESSAGES:
+                if len(batch) >= BATCH_MESSAGES or status >= flush_at:
                     flush()
+                    flush_at = status + handover
                 channels.append(status_index)
             if sends:
                 channels.extend(commands_of[tuple(sends)])

@@ -29,11 +29,11 @@ pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 class CapturingRecorder(Recorder):
     """A tap whose frames are kept here; ``during_write`` runs while a frame is being sent."""
 
-    def __init__(self, tmp_path) -> None:
+    def __init__(self, tmp_path, realtime: bool = False) -> None:
         super().__init__(tmp_path / "unused.mcap")
         plan, _ = plan_scene(load_scene("two_mass_damped"))
-        self.report = StatusReport(plan, False)
-        self._declare(channel_specs(plan, self.report), False, self.report)
+        self.report = StatusReport(plan, realtime)
+        self._declare(channel_specs(plan, self.report), realtime, self.report)
         self.frames: list[bytes] = []
         self.during_write = lambda: None
 
@@ -41,7 +41,7 @@ class CapturingRecorder(Recorder):
         """Step ``step`` ends, as a scheme logs it (δP and δE equal to the step, completed 1 µs after its release);
         the exchange's status."""
         self.report.log_residuals([float(step)] * self.report.n_residuals)
-        self.report.log_times((step, 1000 * step, 1000 * step + 1000, 0))
+        self.report.log_times((step, 1000 * step, 1000 * step + 1000, -step))
         return step
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
@@ -151,3 +151,22 @@ def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_th
     assert [(topic, ("status", _status_of(message)[0]) if topic == "manager/status" else message)
             for topic, message in found] == expected
     assert len(stamps) == step
+
+
+def test_a_real_time_run_is_handed_over_every_10_ms_of_its_steps(tmp_path):
+    """two_mass_damped steps 1 ms: a real-time run's batches go at every tenth status (a live view sees the run
+    at 100 frames per second), each opened by its status, with the lateness the scheme logged."""
+    recorder = CapturingRecorder(tmp_path, realtime=True)
+    for step in range(35):
+        recorder.exchange(None if step == 0 else {"S2": b"y"}, Exchange({"S1": b"c"}, ("S2",), recorder.status(step)))
+    recorder.flush(last=True)
+    held = []
+    for frame in recorder.frames:
+        channels, sizes, stamps, blob = split_batch(frame, recorder._status)
+        ends = np.cumsum(sizes)
+        statuses = [_status_of(blob[end - size:end]) for i, size, end in zip(channels.tolist(), sizes, ends)
+                    if i == recorder._status]
+        assert channels[0] == recorder._status and len(stamps) == len(statuses)
+        held.append([step for step, _ in statuses])
+        assert [values[-1] for _, values in statuses] == [-step * 1e-9 for step, _ in statuses]  # the lateness
+    assert held == [list(range(0, 10)), list(range(10, 20)), list(range(20, 30)), list(range(30, 35))]
