@@ -310,7 +310,7 @@ class Recorder:
                 return
             sends, awaited, status = request.sends, request.awaits, request.status
             if status is not None:
-                if len(batch) >= BATCH_MESSAGES or status >= flush_at:
+                if len(channels) >= BATCH_MESSAGES or status >= flush_at:
                     flush()
                     flush_at = status + handover
                 channels.append(status_index)

@@ -20,7 +20,7 @@ from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.protocol import Kind, decode
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
-from zencosim.recordings.recorder import Recorder
+from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
 from zencosim.recordings.recorder_process import BATCH_HEAD, split_batch
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
@@ -170,3 +170,15 @@ def test_a_real_time_run_is_handed_over_every_10_ms_of_its_steps(tmp_path):
         held.append([step for step, _ in statuses])
         assert [values[-1] for _, values in statuses] == [-step * 1e-9 for step, _ in statuses]  # the lateness
     assert held == [list(range(0, 10)), list(range(10, 20)), list(range(20, 30)), list(range(30, 35))]
+
+
+def test_a_batch_holds_at_most_its_size_in_messages_counting_the_statuses(tmp_path):
+    """Steps at which no subsystem is due (multi-rate) have a status and nothing else: the statuses count towards a
+    batch's size, so the status log a batch takes stays as bounded as its messages."""
+    recorder = CapturingRecorder(tmp_path)
+    for step in range(5000):
+        recorder.exchange(None, Exchange({}, (), recorder.status(step)))
+    recorder.flush(last=True)
+    size = BATCH_MESSAGES
+    assert [_messages_in(frame) for frame in recorder.frames] == [(size, size), (size, size), (5000 - 2 * size,) * 2]
+    assert recorder.report.logged == 0
