@@ -274,8 +274,8 @@ class Recorder:
         return observer, ready
 
     def _declare(self, specs: list[ChannelSpec], realtime: bool, status: StatusReport) -> None:
-        """What the tap needs to know of the channels (``realtime``: the tap hands each step over at once) and the
-        run's status, whose messages it takes from the log its scheme fills."""
+        """What the tap needs to know of the channels (``realtime``: the tap hands a batch over every ``HANDOVER_S``
+        of run time) and the run's status, whose messages it takes from the log its scheme fills."""
         if len(specs) > 255:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
         self._report = status

@@ -8,7 +8,7 @@ the scene and the channels; the last, END, gives the outcome of the run and what
 handed over per channel (the end record compares it with what was written). ``BATCH`` frames hold
 wire messages: ``BATCH_HEAD`` (messages n, of which m are statuses), n channel indices (u8) in the run's
 order, the n - m sizes (u32) of the messages that are not statuses, m wall-clock times (i64, one per status
-message: it and the messages after it were handed over then), those n - m messages one after the other,
+message: when its step completed, the log time of it and of the messages after it), those n - m messages,
 and then the m statuses, all of one size (the tap takes them from the status log: ``manager.wire.status``);
 :func:`split_batch` puts them back in order. The same input serves both buses: on the Zenoh bus the
 manager's replica, which follows the run, is the one tapped.
