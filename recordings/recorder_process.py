@@ -86,19 +86,16 @@ def split_batch(batch: bytes, status: int) -> tuple[np.ndarray, np.ndarray, np.n
     n, m = BATCH_HEAD.unpack_from(batch)
     at = BATCH_HEAD.size
     channels = np.frombuffer(batch, dtype=np.uint8, count=n, offset=at)
-    is_status = channels == status
+    framed = np.argsort(channels == status, kind="stable")  # the messages in the frame's order: the others first
     sizes = np.empty(n, dtype=np.int64)
-    sizes[~is_status] = np.frombuffer(batch, dtype="<u4", count=n - m, offset=at + n)
+    sizes[framed[:n - m]] = np.frombuffer(batch, dtype="<u4", count=n - m, offset=at + n)
     at += n + 4 * (n - m)
     stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at)
     at += 8 * m
     data = np.frombuffer(batch, dtype=np.uint8, offset=at)
-    others = int(sizes[~is_status].sum())
-    sizes[is_status] = (data.size - others) // m if m else 0
-    # where each message lies in ``data``: the others one after the other, then the statuses
-    source = np.empty(n, dtype=np.int64)
-    source[~is_status] = np.cumsum(sizes[~is_status]) - sizes[~is_status]
-    source[is_status] = others + np.cumsum(sizes[is_status]) - sizes[is_status]
+    sizes[framed[n - m:]] = (data.size - int(sizes[framed[:n - m]].sum())) // m if m else 0
+    source = np.empty(n, dtype=np.int64)  # where each message lies in ``data``
+    source[framed] = np.cumsum(sizes[framed]) - sizes[framed]
     starts = np.cumsum(sizes) - sizes
     shift = np.repeat(source - starts, sizes)
     return channels, sizes, stamps, data[shift + np.arange(shift.size)].tobytes()
