@@ -109,7 +109,7 @@ def interleaved_overhead(repeats: int, workdir: Path) -> dict:
     for repeat in range(repeats):
         recorder = Recorder(workdir / f"turns-{repeat}.mcap")
         cpu = _side_by_side([lambda hand_over: execute(scene, "inproc", progress=hand_over),
-                         lambda hand_over: execute(scene, "inproc", progress=hand_over, recorder=recorder)])
+                             lambda hand_over: execute(scene, "inproc", progress=hand_over, recorder=recorder)])
         plain.append(cpu[0] / steps * 1e6)
         recorded.append(cpu[1] / steps * 1e6)
         lost.append(recorder.result["lost"])
