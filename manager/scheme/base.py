@@ -33,12 +33,18 @@ class Exchange(NamedTuple):
     """Send ``sends`` (subsystem name → message) and hand back the replies of ``awaits``; ``status``, when
     the run reports it, is the macro-step that has just ended, whose STATUS message is the next in the log of the
     run's ``StatusReport`` (``manager.wire.status``: ``take`` it); ``step``, when given, the step of the replies
-    awaited (``manager.scheme.replica`` checks it for replies from the network)."""
+    awaited (``manager.scheme.replica`` checks it for replies from the network).
+
+    ``shape``, when given, stands for the names the exchange goes through: two requests of a run with the same
+    shape follow requests that awaited the same subsystems (the replies handed back with them), both report a
+    status or neither, send to the same subsystems in the same order and await the same ones. A tap derives what
+    it needs of the names once per shape (``recordings.recorder``) instead of once per exchange."""
 
     sends: dict[str, bytes]
     awaits: tuple[str, ...]
     status: int | None = None
     step: int | None = None  # the step every awaited OUTPUT or ACK carries (a reply from the network is checked)
+    shape: int | None = None
 
 
 class Corrector(Protocol):

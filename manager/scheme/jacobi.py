@@ -126,7 +126,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
         released_ns = releases.release(tick)
-        replies = yield Exchange(sends, due_names[phase], step_status, next_tick)
+        # after the first step, a step's names are its phase's (the step before it is the phase before)
+        replies = yield Exchange(sends, due_names[phase], step_status, next_tick, phase if tick else None)
         for s in due[phase]:
             readers[s.index].commit(replies[s.name], next_tick)
         if next_tick >= p_window.end:
