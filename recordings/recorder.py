@@ -287,36 +287,45 @@ class Recorder:
     def _tap(self, index: dict[tuple[str, str], int], every: int | None
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
         """The Tap of a replica (``manager.scheme.replica``): ``exchange(replies, request)``, once per exchange on
-        the stepping loop. It adds the replies (those the last request awaited, in that order), the request's
-        status (which opens a macro-step, so a batch handed over before it holds whole steps; only its channel
-        index: ``flush`` takes the message from the status log) and its commands to the batch: a closure over
-        the batch and the channel indices of each list of names, without attribute lookups or nested calls. A
-        channel index always goes in before its message (``flush`` drops an index whose message an interrupt cut
-        off). ``index``: the channel index of each (source, channel); ``every``: a real-time run's batches hold at
-        most this many steps (None: any number)."""
+        the stepping loop. It adds the exchange to the batch: the replies (those the last request awaited, in that
+        order) and the request's commands to the messages, then the channel indices of the replies, of the
+        request's status (only its index: ``flush`` takes the message from the status log) and of the commands —
+        derived from the names once per ``request.shape`` (``Exchange``), else per exchange. A batch holds whole
+        exchanges and is handed over before one that reports a status, so it holds whole steps; a message goes in
+        before its channel index (``flush`` drops messages whose indices an interrupt cut off). ``index``: the
+        channel index of each (source, channel); ``every``: a real-time run's batches hold at most this many steps
+        (None: any number)."""
         channels, batch = self._channels, self._messages
-        status_index, flush = self._status, self.flush
+        flush = self.flush
         replies_of, commands_of = _ChannelIndices(index, "y"), _ChannelIndices(index, "commands")
+        status_byte = bytes([self._status])
+        shaped: dict[int, bytes] = {}  # the channel indices of an exchange, per shape
         awaited: tuple[str, ...] = ()
         handover = every or sys.maxsize
         flush_at = handover  # the step whose status a batch is handed over at, at the latest
 
         def exchange(replies: dict[str, bytes] | None, request: Exchange | None) -> None:
             nonlocal awaited, flush_at
-            if replies:
-                channels.extend(replies_of[awaited])
-                batch.extend(replies.values())
-            if request is None:
+            if request is None:  # the scheme has ended: the replies it took last
+                if replies:
+                    batch.extend(replies.values())
+                    channels.extend(replies_of[awaited])
                 return
-            sends, awaited, status = request.sends, request.awaits, request.status
-            if status is not None:
-                if len(channels) >= BATCH_MESSAGES or status >= flush_at:
-                    flush()
-                    flush_at = status + handover
-                channels.append(status_index)
-            if sends:
-                channels.extend(commands_of[tuple(sends)])
-                batch.extend(sends.values())
+            status = request.status
+            if status is not None and (len(channels) >= BATCH_MESSAGES or status >= flush_at):
+                flush()
+                flush_at = status + handover
+            if replies:
+                batch.extend(replies.values())
+            batch.extend(request.sends.values())
+            indices = shaped.get(request.shape)
+            if indices is None:  # a new shape, or none (never a key)
+                indices = (replies_of[awaited] + (b"" if status is None else status_byte)
+                           + commands_of[tuple(request.sends)])
+                if request.shape is not None:
+                    shaped[request.shape] = indices
+            channels.extend(indices)
+            awaited = request.awaits
         return exchange
 
     def flush(self, last: bool = False) -> None:
@@ -327,17 +336,16 @@ class Recorder:
         (``recorder_process.BATCH``).
 
         SIGINT and SIGTERM end a run by an exception wherever it is (``cli.main``): one that cut the
-        tap (``exchange``) short leaves channel indices without their messages, which are dropped here,
+        tap (``exchange``) short leaves messages without their channel indices, which are dropped here,
         uncounted; and the frame is sent, counted and cleared with those signals deferred, so that it
         is sent whole and counted exactly once."""
         channels, messages = self._channels, self._messages
         if not channels:
+            messages.clear()
             return
         with _interrupts_deferred():
             n_statuses = channels.count(self._status)
-            cut = len(channels) - n_statuses - len(messages)  # the last indices, whose messages never came
-            if cut:
-                del channels[-cut:]
+            del messages[len(channels) - n_statuses:]  # the last messages, whose indices never came
             statuses = self._report.take(n_statuses)
             step = int(statuses.steps[-1]) if n_statuses else self._step
             if self._observers and all(observer.gone for observer in self._observers):  # --record-lost continue

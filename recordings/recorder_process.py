@@ -93,7 +93,11 @@ def split_batch(batch: bytes, status: int) -> tuple[np.ndarray, np.ndarray, np.n
     stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at)
     at += 8 * m
     data = np.frombuffer(batch, dtype=np.uint8, offset=at)
-    sizes[framed[n - m:]] = (data.size - int(sizes[framed[:n - m]].sum())) // m if m else 0
+    statuses_bytes = data.size - int(sizes[framed[:n - m]].sum())  # what the messages leave to the statuses
+    if statuses_bytes < 0 or (statuses_bytes % m if m else statuses_bytes):
+        raise ValueError(f"a batch frame of {n} messages ({m} statuses) whose sizes do not add up to its "
+                         f"{data.size} bytes")
+    sizes[framed[n - m:]] = statuses_bytes // m if m else 0
     source = np.empty(n, dtype=np.int64)  # where each message lies in ``data``
     source[framed] = np.cumsum(sizes[framed]) - sizes[framed]
     starts = np.cumsum(sizes) - sizes

@@ -65,9 +65,10 @@ def _messages_in(frame: bytes) -> tuple[int, int]:
 
 
 class _InterruptedDict(dict):
-    """Messages whose values cannot be taken, as when a signal arrives between two statements of the tap."""
+    """Commands whose names cannot be taken, as when a signal arrives between two statements of the tap: after the
+    exchange's messages went in, before their channel indices."""
 
-    def values(self):
+    def __iter__(self):
         raise KeyboardInterrupt
 
 
@@ -76,8 +77,9 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     for step in range(3):
         recorder.exchange(None if step == 0 else {"S2": b"y%d" % step},
                           Exchange({"S1": b"c%d" % step}, ("S2",), recorder.status(step)))
-    with pytest.raises(KeyboardInterrupt):  # the channel index goes in, the message does not
-        recorder.exchange(_InterruptedDict(S2=b"cut"), None)
+    with pytest.raises(KeyboardInterrupt):  # the messages go in, their channel indices do not
+        recorder.exchange({"S2": b"y3"}, Exchange(_InterruptedDict(S1=b"cut"), ("S2",)))
+    assert len(recorder._messages) == 7
     recorder.flush()  # what finish() does after an interrupted run
     assert [_messages_in(frame) for frame in recorder.frames] == [(8, 3)]
     channels, sizes, stamps, blob = split_batch(recorder.frames[0], recorder._status)
@@ -119,17 +121,18 @@ def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_pa
 _MESSAGE = st.binary(min_size=1, max_size=40)
 _STEP = st.tuples(st.dictionaries(st.sampled_from(["S1", "S2"]), _MESSAGE),  # the replies taken
                   st.dictionaries(st.sampled_from(["S1", "S2"]), _MESSAGE),  # the commands sent
-                  st.booleans())  # whether the exchange reports a status
+                  st.booleans(),  # whether the exchange reports a status
+                  st.booleans())  # whether it has a shape (Exchange.shape: one per set of names)
 
 
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
 @given(exchanges=st.lists(_STEP, min_size=1, max_size=30))
 def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_through_them(tmp_path_factory, exchanges):
     """The frame holds the statuses after the other messages (taken from the status log at the flush); read back,
-    every message is where the replica went through it, whatever the mix of channels and sizes."""
+    every message is where the replica went through it, whatever the mix of channels, sizes and shapes."""
     recorder = CapturingRecorder(tmp_path_factory.mktemp("frames"))
-    expected, step, awaited = [], 0, None
-    for replies, sends, reports in exchanges:
+    expected, step, awaited, shapes = [], 0, None, {}
+    for replies, sends, reports, shaped in exchanges:
         replies = {name: replies.get(name, b"y") for name in awaited} if awaited else None
         for name, reply in (replies or {}).items():
             expected.append((f"{name}/y", reply))
@@ -138,7 +141,9 @@ def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_th
             expected.append(("manager/status", ("status", step)))
             step += 1
         expected += [(f"{name}/commands", command) for name, command in sends.items()]
-        recorder.exchange(replies, Exchange(sends, tuple(sends), status))
+        names = (awaited, reports, tuple(sends))  # with the awaits, which are the sends' names here
+        recorder.exchange(replies, Exchange(sends, tuple(sends), status, None,
+                                            shapes.setdefault(names, len(shapes)) if shaped else None))
         awaited = tuple(sends)
     recorder.flush()
     if not expected:
@@ -155,7 +160,8 @@ def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_th
 
 def test_a_real_time_run_is_handed_over_every_10_ms_of_its_steps(tmp_path):
     """two_mass_damped steps 1 ms: a real-time run's batches go at every tenth status (a live view sees the run
-    at 100 frames per second), each opened by its status, with the lateness the scheme logged."""
+    at 100 frames per second), each holding whole steps — a step's replies, its status with the lateness the
+    scheme logged, the next commands."""
     recorder = CapturingRecorder(tmp_path, realtime=True)
     for step in range(35):
         recorder.exchange(None if step == 0 else {"S2": b"y"}, Exchange({"S1": b"c"}, ("S2",), recorder.status(step)))
@@ -166,7 +172,9 @@ def test_a_real_time_run_is_handed_over_every_10_ms_of_its_steps(tmp_path):
         ends = np.cumsum(sizes)
         statuses = [_status_of(blob[end - size:end]) for i, size, end in zip(channels.tolist(), sizes, ends)
                     if i == recorder._status]
-        assert channels[0] == recorder._status and len(stamps) == len(statuses)
+        assert len(stamps) == len(statuses)
+        assert [recorder._topics[i] for i in channels] == [  # whole steps (step 0 has no replies)
+            topic for step, _ in statuses for topic in ["S2/y"] * (step > 0) + ["manager/status", "S1/commands"]]
         held.append([step for step, _ in statuses])
         assert [values[-1] for _, values in statuses] == [-step * 1e-9 for step, _ in statuses]  # the lateness
     assert held == [list(range(0, 10)), list(range(10, 20)), list(range(20, 30)), list(range(30, 35))]
@@ -182,3 +190,18 @@ def test_a_batch_holds_at_most_its_size_in_messages_counting_the_statuses(tmp_pa
     size = BATCH_MESSAGES
     assert [_messages_in(frame) for frame in recorder.frames] == [(size, size), (size, size), (5000 - 2 * size,) * 2]
     assert recorder.report.logged == 0
+
+
+def test_a_batch_frame_whose_sizes_do_not_add_up_is_refused(tmp_path):
+    """A frame whose message sizes claim more bytes than it holds, or leave its statuses a part of a message, is
+    refused by name — not read as messages of nonsense sizes."""
+    recorder = CapturingRecorder(tmp_path)
+    for step in range(3):
+        recorder.exchange(None if step == 0 else {"S2": b"y%d" % step},
+                          Exchange({"S1": b"c%d" % step}, ("S2",), recorder.status(step)))
+    recorder.flush()
+    (frame,) = recorder.frames
+    split_batch(frame, recorder._status)  # whole, it reads
+    for damaged in (frame[:-recorder.report.size * 3 - 1], frame[:-1]):  # into the last command; into a status
+        with pytest.raises(ValueError, match=r"a batch frame of 8 messages \(3 statuses\) whose sizes do not add up"):
+            split_batch(damaged, recorder._status)
