@@ -52,6 +52,9 @@ HANDOVER_S = 0.01  # and a real-time run's at least every this much run time [s]
 F_SETPIPE_SZ, F_GETPIPE_SZ = 1031, 1032  # Linux fcntl
 STOP_WAIT_S = 1.0  # a process whose pipe broke has this long to be reaped before its exit is described
 RECORD_LOST = ("stop", "continue")  # what a run does when its recorder process is gone (--record-lost)
+# An observer multiplies no matrices: without this, numpy's OpenBLAS starts a worker thread per further CPU, which
+# spins (busy-waits) through numpy's import: 0.11 s of CPU at every start, beside the run's own start
+OBSERVER_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1"}
 
 
 @contextlib.contextmanager
@@ -105,7 +108,8 @@ class _Observer:
         self.lossy = lossy
         self.skipped = [0, 0]  # batches skipped, and the macro-steps they held
         self.log = tempfile.TemporaryFile()
-        self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log)
+        self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
+                                   env={**os.environ, **OBSERVER_ENVIRONMENT})
         self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
         _lowest_priority(self.process.pid)
         fd = self.process.stdin.fileno()

@@ -166,10 +166,12 @@ def _recording_half_a_second(path, run_id: str):
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling priorities")
 def test_the_recorder_runs_at_idle_priority_and_still_records_every_message(tmp_path):
-    """The recorder takes the CPU time the run leaves (SCHED_IDLE), and backpressure keeps every message."""
+    """The recorder takes the CPU time the run leaves (SCHED_IDLE), in one thread (numpy's OpenBLAS starts no
+    worker to spin beside the run), and backpressure keeps every message."""
     with _recording_half_a_second(tmp_path / "idle.mcap", "idle") as (recorder, record):
         (pid,) = recorder.pids  # SCHED_IDLE; where the system refuses it, nice 19 (recordings.recorder)
         assert os.sched_getscheduler(pid) == os.SCHED_IDLE or os.getpriority(os.PRIO_PROCESS, pid) == 19
+        assert os.listdir(f"/proc/{pid}/task") == [str(pid)]
         end = recorder.finish("completed")
     assert end["lost"] == 0 and end["messages"] == sum(recorder.published.values())
     _, _, outputs = read_recording(tmp_path / "idle.mcap").channels["S2/y"].table(Kind.OUTPUT)
