@@ -10,7 +10,7 @@ wire messages: ``BATCH_HEAD`` (messages n, of which m are statuses), n channel i
 order, the n - m sizes (u32) of the messages that are not statuses, m wall-clock times (i64, one per status
 message: when its step completed, the log time of it and of the messages after it), those n - m messages,
 and then the m statuses, all of one size (the tap takes them from the status log: ``manager.wire.status``);
-:func:`split_batch` puts them back in order. The same input serves both buses: on the Zenoh bus the
+:func:`split_batch` gives them in the run's order. The same input serves both buses: on the Zenoh bus the
 manager's replica, which follows the run, is the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
@@ -25,6 +25,7 @@ import select
 import signal
 import struct
 import sys
+from typing import NamedTuple
 
 import numpy as np
 
@@ -80,9 +81,20 @@ class FrameReader:
                 return None
 
 
-def split_batch(batch: bytes, status: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, bytes]:
-    """(channel indices, message sizes, stamps, the messages one after the other, in the run's order) of a BATCH
-    frame; ``status``: the index of the status channel."""
+class Batch(NamedTuple):
+    """The messages of a BATCH frame (:func:`split_batch`), in the run's order: message ``i`` is
+    ``messages[starts[i]:starts[i] + sizes[i]]``."""
+
+    channels: np.ndarray  # the channel index of each
+    sizes: np.ndarray  # [bytes]
+    stamps: np.ndarray  # the wall-clock time [ns] of each status (and of the messages after it)
+    messages: bytes  # as the frame holds them: the statuses after the others
+    starts: np.ndarray  # where each lies in ``messages``
+
+
+def split_batch(batch: bytes, status: int) -> Batch:
+    """The messages of a BATCH frame, in the run's order, where the frame holds them (no copy put in order);
+    ``status``: the index of the status channel. A frame whose sizes do not add up raises ValueError."""
     n, m = BATCH_HEAD.unpack_from(batch)
     at = BATCH_HEAD.size
     channels = np.frombuffer(batch, dtype=np.uint8, count=n, offset=at)
@@ -92,17 +104,15 @@ def split_batch(batch: bytes, status: int) -> tuple[np.ndarray, np.ndarray, np.n
     at += n + 4 * (n - m)
     stamps = np.frombuffer(batch, dtype="<i8", count=m, offset=at)
     at += 8 * m
-    data = np.frombuffer(batch, dtype=np.uint8, offset=at)
-    statuses_bytes = data.size - int(sizes[framed[:n - m]].sum())  # what the messages leave to the statuses
+    messages = batch[at:]
+    statuses_bytes = len(messages) - int(sizes[framed[:n - m]].sum())  # what the messages leave to the statuses
     if statuses_bytes < 0 or (statuses_bytes % m if m else statuses_bytes):
         raise ValueError(f"a batch frame of {n} messages ({m} statuses) whose sizes do not add up to its "
-                         f"{data.size} bytes")
+                         f"{len(messages)} bytes")
     sizes[framed[n - m:]] = statuses_bytes // m if m else 0
-    source = np.empty(n, dtype=np.int64)  # where each message lies in ``data``
-    source[framed] = np.cumsum(sizes[framed]) - sizes[framed]
-    starts = np.cumsum(sizes) - sizes
-    shift = np.repeat(source - starts, sizes)
-    return channels, sizes, stamps, data[shift + np.arange(shift.size)].tobytes()
+    starts = np.empty(n, dtype=np.int64)
+    starts[framed] = np.cumsum(sizes[framed]) - sizes[framed]
+    return Batch(channels, sizes, stamps, messages, starts)
 
 
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:

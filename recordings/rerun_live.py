@@ -92,18 +92,18 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
     """Feed the view every batch until END; return the run's outcome and its last reported step. A batch
     is read with numpy (``recordings.encoding.wire_headers``): each channel's plotted messages become
     arrays at once; only the commands of drawn subsystems are taken one by one, for the mechanism. A
-    batch holds whole steps, each opened by its status: one whose first status is not the step after the
-    last one seen follows batches the manager skipped (this view fell behind, ``recordings.recorder``),
-    which the view says on its timeline."""
+    batch holds whole steps (a step's replies, its status, the next commands): one whose first status is not
+    the step after the last one seen follows batches the manager skipped (this view fell behind,
+    ``recordings.recorder``), which the view says on its timeline."""
     status = status_index(specs)
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             return json.loads(data)["outcome"], last_step
-        channels, sizes, _, messages = split_batch(data, status)
+        channels, sizes, _, messages, starts = split_batch(data, status)
         raw = np.frombuffer(messages, dtype=np.uint8)
-        starts, heads, valid = wire_headers(sizes, raw)
+        _, heads, valid = wire_headers(sizes, raw, starts)
         statuses = np.flatnonzero(valid & (channels == status))
         if statuses.size and int(heads["step"][statuses[0]]) > last_step + 1:
             view.gap(last_step, int(heads["step"][statuses[0]]), macro_step_ns)

@@ -82,9 +82,8 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     assert len(recorder._messages) == 7
     recorder.flush()  # what finish() does after an interrupted run
     assert [_messages_in(frame) for frame in recorder.frames] == [(8, 3)]
-    channels, sizes, stamps, blob = split_batch(recorder.frames[0], recorder._status)
-    ends = np.cumsum(sizes)
-    messages = [blob[end - size:end] for size, end in zip(sizes, ends)]
+    channels, sizes, stamps, blob, starts = split_batch(recorder.frames[0], recorder._status)
+    messages = [blob[start:start + size] for start, size in zip(starts, sizes)]
     assert messages[1::3] == [b"c0", b"c1", b"c2"] and messages[2::3] == [b"y1", b"y2"]  # the replica's order
     # each status encoded from the log: its step, δP and δE as logged, wall time since step 0's release, step time
     assert [_status_of(message) for message in messages[::3]] == [
@@ -150,9 +149,9 @@ def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_th
         assert recorder.frames == []
         return
     (frame,) = recorder.frames
-    channels, sizes, stamps, blob = split_batch(frame, recorder._status)
-    ends = np.cumsum(sizes)
-    found = [(recorder._topics[i], blob[end - size:end]) for i, size, end in zip(channels.tolist(), sizes, ends)]
+    channels, sizes, stamps, blob, starts = split_batch(frame, recorder._status)
+    found = [(recorder._topics[i], blob[start:start + size])
+             for i, start, size in zip(channels.tolist(), starts, sizes)]
     assert [(topic, ("status", _status_of(message)[0]) if topic == "manager/status" else message)
             for topic, message in found] == expected
     assert len(stamps) == step
@@ -168,9 +167,8 @@ def test_a_real_time_run_is_handed_over_every_10_ms_of_its_steps(tmp_path):
     recorder.flush(last=True)
     held = []
     for frame in recorder.frames:
-        channels, sizes, stamps, blob = split_batch(frame, recorder._status)
-        ends = np.cumsum(sizes)
-        statuses = [_status_of(blob[end - size:end]) for i, size, end in zip(channels.tolist(), sizes, ends)
+        channels, sizes, stamps, blob, starts = split_batch(frame, recorder._status)
+        statuses = [_status_of(blob[start:start + size]) for i, start, size in zip(channels.tolist(), starts, sizes)
                     if i == recorder._status]
         assert len(stamps) == len(statuses)
         assert [recorder._topics[i] for i in channels] == [  # whole steps (step 0 has no replies)
