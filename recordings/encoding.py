@@ -20,12 +20,9 @@ from typing import Callable
 
 import numpy as np
 
-from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode_header
+from zencosim.manager.wire.protocol import HEADER, HEADER_DTYPE, VERSION, Kind, ProtocolError, decode_header
 from zencosim.recordings.schema import HEADER_FIELDS, ChannelSchema, tag, varint
 
-WIRE_HEADER = np.dtype([("version", "u1"), ("kind", "u1"), ("rows", "<u2"), ("count", "<u4"), ("step", "<i8"),
-                        ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4")])
-assert WIRE_HEADER.itemsize == HEADER.size
 _KINDS = np.zeros(256, dtype=bool)
 _KINDS[[kind.value for kind in Kind]] = True
 _MCAP_MESSAGE = struct.Struct("<BQHI")  # opcode, record length, channel id, sequence; then log and publish time
@@ -112,9 +109,9 @@ def wire_headers(sizes: np.ndarray, data: np.ndarray, starts: np.ndarray | None 
     if starts is None:
         starts = np.cumsum(sizes, dtype=np.int64) - sizes
     whole = sizes >= HEADER.size
-    heads = np.zeros(sizes.size, dtype=WIRE_HEADER)
+    heads = np.zeros(sizes.size, dtype=HEADER_DTYPE)
     if whole.any():
-        heads[whole] = data[starts[whole, None] + np.arange(HEADER.size)].view(WIRE_HEADER).ravel()
+        heads[whole] = data[starts[whole, None] + np.arange(HEADER.size)].view(HEADER_DTYPE).ravel()
     kinds = heads["kind"]
     item = np.where(kinds == Kind.ERROR, 1, 8)
     valid = (whole & (heads["version"] == VERSION) & _KINDS[kinds]

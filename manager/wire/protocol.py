@@ -18,6 +18,9 @@ from zencosim.manager.wire.text import printable
 
 VERSION = 2
 HEADER = struct.Struct("<BBHIqqI4x")
+HEADER_DTYPE = np.dtype([("version", "u1"), ("kind", "u1"), ("rows", "<u2"), ("count", "<u4"), ("step", "<i8"),
+                         ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4")])  # HEADER as a numpy record
+assert HEADER_DTYPE.itemsize == HEADER.size
 
 
 class Kind(IntEnum):

@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan
-from zencosim.manager.wire.protocol import VERSION, Kind
+from zencosim.manager.wire.protocol import HEADER_DTYPE, VERSION, Kind
 
 TIMES = 4  # what a scheme logs per step in ``log_times``: (step, released, completed [ns, perf_counter_ns], lateness [ns])
 
@@ -64,9 +64,7 @@ class StatusReport:
         self.log_residuals = self._residuals.extend
         self.log_times = self._times.extend
         self._start_ns: int | None = None  # the release of step 0: the first step logged was released then
-        self._table = np.dtype([("version", "u1"), ("kind", "u1"), ("rows", "<u2"), ("count", "<u4"),
-                                ("step", "<i8"), ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4"),
-                                ("values", "<f8", (len(self.fields),))])  # a message: HEADER, then the values
+        self._table = np.dtype([("header", HEADER_DTYPE), ("values", "<f8", (len(self.fields),))])  # a message
         self.size = self._table.itemsize  # [bytes] of a message
 
     @property
@@ -89,8 +87,9 @@ class StatusReport:
             self._start_ns = int(times[0, 1])
         steps, released, completed = times[:, 0], times[:, 1], times[:, 2]
         table = np.zeros(count, dtype=self._table)
-        table["version"], table["kind"], table["count"] = VERSION, Kind.STATUS, len(self.fields)
-        table["step"], table["time_ns"] = steps, steps * self.base_step_ns
+        header = table["header"]
+        header["version"], header["kind"], header["count"] = VERSION, Kind.STATUS, len(self.fields)
+        header["step"], header["time_ns"] = steps, steps * self.base_step_ns
         values, n = table["values"], self.n_residuals
         values[:, :n] = residuals.reshape(count, n)
         values[:, n] = (completed - self._start_ns) * 1e-9
