@@ -20,14 +20,14 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_recording import stepping_loop
 from rich.console import Console
 from rich.table import Table
 
-sys.path.insert(0, str(Path(__file__).parent))
-from bench_recording import stepping_loop  # noqa: E402
-
-from zencosim.manager.assembly import plan_scene  # noqa: E402
-from zencosim.manager.scene.load import load_scene  # noqa: E402
+from zencosim.manager.assembly import plan_scene
+from zencosim.manager.scene.load import load_scene
 
 STEPS = 2000
 NEIGHBOURS = {"spin": "while True: pass",
