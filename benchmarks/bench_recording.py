@@ -132,11 +132,13 @@ def live_overhead(repeats: int, workdir: Path) -> dict:
 
 
 class _NullRecorder(Recorder):
-    """The in-process tap with no recorder process: its batches are dropped."""
+    """The in-process tap with no recorder process: its batches are dropped. As a started recorder, it holds
+    SIGINT and SIGTERM during a flush (in the main thread) until ``close``."""
 
     def __init__(self, plan, status: StatusReport) -> None:
         super().__init__(os.devnull)
         self._declare(channel_specs(plan, status), False, status)
+        self._hold_signals()
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
         pass
@@ -148,8 +150,12 @@ def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], 
     (which encodes the statuses; its batches dropped); ``progress`` as ``make_scheme``'s. bench_instructions.py
     counts its instructions."""
     status = None if what == "plain" else StatusReport(plan, False)
-    return run_in_process(make_scheme(scene, plan, status=status, progress=progress), plan, subsystems,
-                          _NullRecorder(plan, status) if what == "tap" else None)
+    tap = _NullRecorder(plan, status) if what == "tap" else None
+    try:
+        return run_in_process(make_scheme(scene, plan, status=status, progress=progress), plan, subsystems, tap)
+    finally:
+        if tap is not None:
+            tap.close()
 
 
 def _side_by_side(runs: list[Callable[[Callable[[int], None]], object]]) -> list[float]:

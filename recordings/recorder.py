@@ -17,7 +17,6 @@ import fcntl
 import json
 import os
 import select
-import signal
 import subprocess
 import sys
 import tempfile
@@ -25,7 +24,6 @@ import termios
 import threading
 import time
 from array import array
-from collections import Counter
 from pathlib import Path
 from time import time_ns
 from typing import Callable
@@ -34,7 +32,7 @@ import numpy as np
 import tomli_w
 
 from zencosim.manager.bus.children import exit_reason, process_state, start_child
-from zencosim.manager.bus.signals import SignalNote
+from zencosim.manager.bus.signals import DeferredSignals
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
@@ -55,30 +53,6 @@ RECORD_LOST = ("stop", "continue")  # what a run does when its recorder process 
 # An observer multiplies no matrices: without this, numpy's OpenBLAS starts a worker thread per further CPU, which
 # spins (busy-waits) through numpy's import: 0.11 s of CPU at every start, beside the run's own start
 OBSERVER_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1"}
-
-
-@contextlib.contextmanager
-def _interrupts_deferred():
-    """SIGINT and SIGTERM that arrive inside the block act when it ends.
-
-    Python runs signal handlers, and raises their KeyboardInterrupt, only in the main thread; so only
-    there is anything deferred (a recorded Zenoh run flushes from the follower thread)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
-    arrived = SignalNote(*previous)
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        if arrived.signum is not None:
-            handler = previous[arrived.signum]
-            if callable(handler):
-                handler(arrived.signum, None)
-            elif handler == signal.SIG_DFL:
-                signal.raise_signal(arrived.signum)
 
 
 def _lowest_priority(pid: int) -> None:
@@ -244,10 +218,12 @@ class Recorder:
         self._channels = bytearray()  # the batch being tapped: channel index of each message
         self._messages: list[bytes] = []  # and the messages but the statuses (in the status log until the flush)
         self._report: StatusReport | None = None  # the run's status, whose log the flush takes the statuses from
-        self._tapped: Counter[int] = Counter()  # messages handed over, per channel index
+        self._tapped = np.zeros(0, dtype=np.int64)  # messages handed over, per channel index
+        self._signals: DeferredSignals | None = None  # SIGINT and SIGTERM held during a flush, from start to close
 
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start the recorder process and the live view, and wait until they are ready."""
+        self._hold_signals()
         specs = channel_specs(plan, status)
         self._declare(specs, realtime, status)
         self._stall_s = scene.manager.timeout
@@ -277,6 +253,12 @@ class Recorder:
             raise RecordingError(ready.get("reason", f"{what} failed to start"))
         return observer, ready
 
+    def _hold_signals(self) -> None:
+        """From now until ``close``, SIGINT and SIGTERM that arrive during a flush act when it ends (in the main
+        thread, the only one Python runs handlers in)."""
+        if threading.current_thread() is threading.main_thread():
+            self._signals = DeferredSignals()
+
     def _declare(self, specs: list[ChannelSpec], realtime: bool, status: StatusReport) -> None:
         """What the tap needs to know of the channels (``realtime``: the tap hands a batch over every ``HANDOVER_S``
         of run time) and the run's status, whose messages it takes from the log its scheme fills."""
@@ -284,6 +266,7 @@ class Recorder:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
         self._report = status
         self._topics = [spec.topic for spec in specs]
+        self._tapped = np.zeros(len(specs), dtype=np.int64)
         self._status = status_index(specs)
         index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
         self.exchange = self._tap(index, max(1, round(HANDOVER_S * 1e9 / status.base_step_ns)) if realtime else None)
@@ -347,7 +330,7 @@ class Recorder:
         if not channels:
             messages.clear()
             return
-        with _interrupts_deferred():
+        with self._signals.held() if self._signals is not None else contextlib.nullcontext():
             n_statuses = channels.count(self._status)
             del messages[len(channels) - n_statuses:]  # the last messages, whose indices never came
             statuses = self._report.take(n_statuses)
@@ -360,9 +343,7 @@ class Recorder:
                                                array("I", map(len, messages)).tobytes(), statuses.stamps.tobytes(),
                                                *messages, statuses.messages)),
                               None if last else step - self._step)
-            counts = np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics))
-            for index in range(len(self._topics)):
-                self._tapped[index] += int(counts[index])
+            self._tapped += np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics))
             self._step = step
             channels.clear()
             messages.clear()
@@ -380,7 +361,7 @@ class Recorder:
     @property
     def published(self) -> dict[str, int]:
         """The messages the tap handed over, per channel."""
-        return {topic: self._tapped[index] for index, topic in enumerate(self._topics)}
+        return dict(zip(self._topics, self._tapped.tolist()))
 
     def finish(self, outcome: str) -> dict | None:
         """Tell the recorder and the live view how the run ended and what the tap handed over; wait for the
@@ -436,6 +417,9 @@ class Recorder:
         finally:
             for observer in self._observers:
                 observer.close()
+            if self._signals is not None:
+                self._signals.restore()
+                self._signals = None
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
         """Send a frame to every observer (``steps``: a batch of that many macro-steps, which the live view

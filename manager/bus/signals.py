@@ -9,7 +9,9 @@ forever. The handler here only stores the signal's name; the main thread acts on
 """
 from __future__ import annotations
 
+import contextlib
 import signal
+import threading
 
 
 class SignalNote:
@@ -28,3 +30,60 @@ class SignalNote:
     def received(self) -> str | None:
         """``"signal SIGTERM"`` (say) once a signal arrived, else None."""
         return None if self.signum is None else f"signal {signal.Signals(self.signum).name}"
+
+
+class DeferredSignals:
+    """SIGINT and SIGTERM handlers for the length of a run (install in the main thread; ``restore`` puts back the
+    handlers that were there): inside ``held()``, entered in the thread that installed them, a signal that
+    arrives is noted and acts when the block ends; anywhere else it acts at once. It acts as the handler that was
+    there before would have: a function is called (Python's SIGINT handler raises KeyboardInterrupt), the
+    default action is taken, an ignored signal is ignored.
+
+    Holding is a flag, not a swap of handlers: ``signal.signal`` costs microseconds per call (its conversions to
+    enums), which a recorder's flush, several times a second, paid for both signals twice."""
+
+    SIGNUMS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.thread = threading.get_ident()
+        self.previous = {signum: signal.getsignal(signum) for signum in self.SIGNUMS}
+        self._holding = False
+        self._arrived: int | None = None
+        for signum in self.SIGNUMS:
+            signal.signal(signum, self._arrive)
+
+    def _arrive(self, signum: int, frame) -> None:
+        if self._holding:
+            if self._arrived is None:
+                self._arrived = signum
+            return
+        self._act(signum, frame)
+
+    def _act(self, signum: int, frame) -> None:
+        handler = self.previous[signum]
+        if callable(handler):
+            handler(signum, frame)
+        elif handler == signal.SIG_DFL:
+            signal.signal(signum, signal.SIG_DFL)
+            signal.raise_signal(signum)
+
+    @contextlib.contextmanager
+    def held(self):
+        """Signals that arrive inside the block act when it ends (only in the installing thread: Python runs
+        handlers in the main thread, so elsewhere no signal can cut the block short)."""
+        if threading.get_ident() != self.thread:
+            yield
+            return
+        self._holding = True
+        try:
+            yield
+        finally:
+            self._holding = False
+            if self._arrived is not None:
+                signum, self._arrived = self._arrived, None
+                self._act(signum, None)
+
+    def restore(self) -> None:
+        """Put back the handlers that were there before."""
+        for signum, handler in self.previous.items():
+            signal.signal(signum, handler)

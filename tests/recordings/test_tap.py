@@ -29,11 +29,13 @@ pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 class CapturingRecorder(Recorder):
     """A tap whose frames are kept here; ``during_write`` runs while a frame is being sent."""
 
-    def __init__(self, tmp_path, realtime: bool = False) -> None:
+    def __init__(self, tmp_path, realtime: bool = False, hold_signals: bool = False) -> None:
         super().__init__(tmp_path / "unused.mcap")
         plan, _ = plan_scene(load_scene("two_mass_damped"))
         self.report = StatusReport(plan, realtime)
         self._declare(channel_specs(plan, self.report), realtime, self.report)
+        if hold_signals:  # as start() does; close() puts the handlers back
+            self._hold_signals()
         self.frames: list[bytes] = []
         self.during_write = lambda: None
 
@@ -96,8 +98,6 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
 
 
 def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_path):
-    recorder = CapturingRecorder(tmp_path)
-    recorder.exchange(None, Exchange({"S1": b"c"}, ("S1",), recorder.status(0)))
     sent_before_interrupt = []
 
     def interrupt(*_) -> None:  # as cli.main's SIGTERM handler
@@ -105,16 +105,23 @@ def test_a_signal_during_a_flush_acts_after_the_frame_is_sent_and_counted(tmp_pa
         raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGTERM, interrupt)
-    recorder.during_write = lambda: os.kill(os.getpid(), signal.SIGTERM)
     try:
+        recorder = CapturingRecorder(tmp_path, hold_signals=True)
+        recorder.exchange(None, Exchange({"S1": b"c"}, ("S1",), recorder.status(0)))
+        recorder.during_write = lambda: os.kill(os.getpid(), signal.SIGTERM)
         with pytest.raises(KeyboardInterrupt):
             recorder.flush()
+        assert sent_before_interrupt == [1]  # the handler ran once, after the frame was sent
+        assert [_messages_in(frame) for frame in recorder.frames] == [(2, 1)]
+        assert sum(recorder.published.values()) == 2 and not recorder._messages  # counted and cleared once
+        recorder.during_write = lambda: None
+        with pytest.raises(KeyboardInterrupt):  # outside a flush the handler acts at once
+            os.kill(os.getpid(), signal.SIGTERM)
+        assert sent_before_interrupt == [1, 1]
+        recorder.close()
+        assert signal.getsignal(signal.SIGTERM) is interrupt  # the run's handlers put back
     finally:
         signal.signal(signal.SIGTERM, previous)
-    assert sent_before_interrupt == [1]  # the handler ran once, after the frame was sent
-    assert [_messages_in(frame) for frame in recorder.frames] == [(2, 1)]
-    assert sum(recorder.published.values()) == 2 and not recorder._messages  # counted and cleared once
-    assert signal.getsignal(signal.SIGTERM) is previous
 
 
 _MESSAGE = st.binary(min_size=1, max_size=40)
