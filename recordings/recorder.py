@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import json
+import marshal
 import os
 import select
 import subprocess
@@ -339,9 +340,9 @@ class Recorder:
                 channels.clear()
                 messages.clear()
                 return
-            self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(len(channels), n_statuses), channels,
-                                               array("I", map(len, messages)).tobytes(), statuses.stamps.tobytes(),
-                                               *messages, statuses.messages)),
+            self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(len(channels), n_statuses, len(statuses.messages)),
+                                               channels, statuses.stamps.tobytes(), statuses.messages,
+                                               marshal.dumps(messages))),
                               None if last else step - self._step)
             self._tapped += np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics))
             self._step = step

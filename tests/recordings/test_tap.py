@@ -6,6 +6,7 @@ counted as handed over must be exactly what was sent.
 """
 from __future__ import annotations
 
+import marshal
 import os
 import signal
 
@@ -60,7 +61,7 @@ def _status_of(message: bytes) -> tuple[int, list[float]]:
 
 def _messages_in(frame: bytes) -> tuple[int, int]:
     """(messages, status stamps) a batch frame declares; checks that its channel indices agree."""
-    n, stamps = BATCH_HEAD.unpack_from(frame)
+    n, stamps, _ = BATCH_HEAD.unpack_from(frame)
     channels = frame[BATCH_HEAD.size:BATCH_HEAD.size + n]
     assert len(channels) == n
     return n, stamps
@@ -197,9 +198,9 @@ def test_a_batch_holds_at_most_its_size_in_messages_counting_the_statuses(tmp_pa
     assert recorder.report.logged == 0
 
 
-def test_a_batch_frame_whose_sizes_do_not_add_up_is_refused(tmp_path):
-    """A frame whose message sizes claim more bytes than it holds, or leave its statuses a part of a message, is
-    refused by name — not read as messages of nonsense sizes."""
+def test_a_batch_frame_that_does_not_hold_what_its_head_says_is_refused(tmp_path):
+    """A frame cut short, whose statuses' bytes are no whole number of statuses, or whose list of messages holds
+    another number of messages or something else than messages, is refused by name — not read as nonsense."""
     recorder = CapturingRecorder(tmp_path)
     for step in range(3):
         recorder.exchange(None if step == 0 else {"S2": b"y%d" % step},
@@ -207,6 +208,12 @@ def test_a_batch_frame_whose_sizes_do_not_add_up_is_refused(tmp_path):
     recorder.flush()
     (frame,) = recorder.frames
     split_batch(frame, recorder._status)  # whole, it reads
-    for damaged in (frame[:-recorder.report.size * 3 - 1], frame[:-1]):  # into the last command; into a status
-        with pytest.raises(ValueError, match=r"a batch frame of 8 messages \(3 statuses\) whose sizes do not add up"):
+    n, m, statuses_bytes = BATCH_HEAD.unpack_from(frame)
+    others_at = BATCH_HEAD.size + n + 8 * m + statuses_bytes
+    for damaged in (frame[:-1],  # cut short in the list of messages
+                    BATCH_HEAD.pack(n, m, statuses_bytes - 1) + frame[BATCH_HEAD.size:],  # statuses: a byte less
+                    frame[:others_at] + marshal.dumps([b"c0", b"c1"]),  # a message less
+                    frame[:others_at] + marshal.dumps([1, 2, 3, 4, 5])):  # numbers, not messages
+        with pytest.raises(ValueError, match=r"a batch frame of 8 messages \(3 statuses, \d+ bytes\) that does not "
+                                             r"hold them"):
             split_batch(damaged, recorder._status)
