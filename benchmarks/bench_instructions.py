@@ -6,7 +6,9 @@ Wall time on a shared machine swings with what else runs; the number of instruct
 does not. Each figure is the difference of two runs under ``valgrind --tool=cachegrind`` (``STEPS``
 macro-steps apart) divided by the difference in steps, so start-up and imports cancel. numpy's BLAS
 runs on one thread (``OPENBLAS_NUM_THREADS=1``): its idle worker threads spin for a while after each
-call, and their instructions made two counts of the same run differ by a third. ``--tree DIR``
+call, and their instructions made two counts of the same run differ by a third. String hashes are fixed
+(``PYTHONHASHSEED=0``): with random ones, dict probes differ from run to run (two counts of the same step
+were 80 instructions apart, with the seed fixed 1). ``--tree DIR``
 (repeatable) counts the in-process step of another source tree too (see bench_runtime.py).
 ``--recording`` counts what recording adds to the stepping loop: the loop alone, with the manager's
 status, and with the status and the recorder's tap (its frames dropped: no recorder process). Needs valgrind.
@@ -49,7 +51,7 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
                              sys.executable, "-c", program, what, str(steps), layout],
                             env={**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1",
-                                 "OMP_NUM_THREADS": "1"}, capture_output=True, text=True)
+                                 "OMP_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}, capture_output=True, text=True)
     if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
         raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
                          f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
