@@ -46,10 +46,12 @@ class DeferredSignals:
 
     def __init__(self) -> None:
         self.thread = threading.get_ident()
-        self.previous = {signum: signal.getsignal(signum) for signum in self.SIGNUMS}
+        # a handler installed from outside Python (getsignal: None) is left alone: it could not be put back
+        self.previous = {signum: handler for signum in self.SIGNUMS
+                         if (handler := signal.getsignal(signum)) is not None}
         self._holding = False
         self._arrived: int | None = None
-        for signum in self.SIGNUMS:
+        for signum in self.previous:
             signal.signal(signum, self._arrive)
 
     def _arrive(self, signum: int, frame) -> None:
