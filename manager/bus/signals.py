@@ -34,8 +34,8 @@ class SignalNote:
 
 class DeferredSignals:
     """SIGINT and SIGTERM handlers for the length of a run (install in the main thread; ``restore`` puts back the
-    handlers that were there): inside ``held()``, entered in the thread that installed them, a signal that
-    arrives is noted and acts when the block ends; anywhere else it acts at once. It acts as the handler that was
+    handlers that were there): inside ``held()``, entered in the thread that installed them, the signals that
+    arrive are noted and act when the block ends, in the order they came; anywhere else a signal acts at once. It acts as the handler that was
     there before would have: a function is called (Python's SIGINT handler raises KeyboardInterrupt), the
     default action is taken, an ignored signal is ignored.
 
@@ -50,14 +50,14 @@ class DeferredSignals:
         self.previous = {signum: handler for signum in self.SIGNUMS
                          if (handler := signal.getsignal(signum)) is not None}
         self._holding = False
-        self._arrived: int | None = None
+        self._arrived: list[int] = []  # while holding, in order of arrival, each once
         for signum in self.previous:
             signal.signal(signum, self._arrive)
 
     def _arrive(self, signum: int, frame) -> None:
         if self._holding:
-            if self._arrived is None:
-                self._arrived = signum
+            if signum not in self._arrived:
+                self._arrived.append(signum)
             return
         self._act(signum, frame)
 
@@ -81,8 +81,8 @@ class DeferredSignals:
             yield
         finally:
             self._holding = False
-            if self._arrived is not None:
-                signum, self._arrived = self._arrived, None
+            arrived, self._arrived = self._arrived, []
+            for signum in arrived:
                 self._act(signum, None)
 
     def restore(self) -> None:
