@@ -269,8 +269,8 @@ def writer_ceiling(messages: list[tuple[int, bytes]], path: Path) -> dict:
 def _overhead(figures: dict) -> str:
     low, high = figures["overhead_range"]
     ci_low, ci_high = figures["overhead_ci95"]
-    return (f"{figures['overhead'] * 100:.1f} % (95 % CI {ci_low * 100:.1f} … {ci_high * 100:.1f}; range {low * 100:.1f} "
-            f"… {high * 100:.1f} %)")
+    return (f"{figures['overhead'] * 100:.1f} % (95 % CI {ci_low * 100:.1f} … {ci_high * 100:.1f}; "
+            f"range {low * 100:.1f} … {high * 100:.1f} %)")
 
 
 def main() -> None:

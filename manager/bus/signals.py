@@ -35,9 +35,9 @@ class SignalNote:
 class DeferredSignals:
     """SIGINT and SIGTERM handlers for the length of a run (install in the main thread; ``restore`` puts back the
     handlers that were there): inside ``held()``, entered in the thread that installed them, the signals that
-    arrive are noted and act when the block ends, in the order they came; anywhere else a signal acts at once. It acts as the handler that was
-    there before would have: a function is called (Python's SIGINT handler raises KeyboardInterrupt), the
-    default action is taken, an ignored signal is ignored.
+    arrive are noted and act when the block ends, in the order they came; anywhere else a signal acts at once.
+    A signal acts as the handler that was there before would have: a function is called (Python's SIGINT
+    handler raises KeyboardInterrupt), the default action is taken, an ignored signal is ignored.
 
     Holding is a flag, not a swap of handlers: ``signal.signal`` costs microseconds per call (its conversions to
     enums), which a recorder's flush, several times a second, paid for both signals twice."""
