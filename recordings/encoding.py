@@ -101,13 +101,10 @@ class _GroupLayout:
         return table[:, self.gather]
 
 
-def wire_headers(sizes: np.ndarray, data: np.ndarray, starts: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(start, header and validity of each message) of the wire messages of ``sizes`` in ``data`` (uint8), at
-    ``starts`` (None: one after the other); a message is valid as ``manager.wire.protocol.decode_header`` would
-    accept it."""
-    if starts is None:
-        starts = np.cumsum(sizes, dtype=np.int64) - sizes
+def wire_headers(sizes: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(start, header and validity of each message) of wire messages one after the other in ``data`` (uint8),
+    of ``sizes``; a message is valid as ``manager.wire.protocol.decode_header`` would accept it."""
+    starts = np.cumsum(sizes, dtype=np.int64) - sizes
     whole = sizes >= HEADER.size
     heads = np.zeros(sizes.size, dtype=HEADER_DTYPE)
     if whole.any():
@@ -140,13 +137,12 @@ class BatchEncoder:
         self._layouts: dict[tuple[int, int, int, int], _GroupLayout] = {}
 
     def encode(self, channels: np.ndarray, sizes: np.ndarray, stamps: np.ndarray, blob: bytes, carry: int,
-               describe: Callable[[int], str], starts: np.ndarray | None = None) -> EncodedBatch:
-        """The records of the messages ``blob`` holds (``sizes``; at ``starts``, None: one after the other), of
-        ``channels``; a status message takes the next of ``stamps``; ``describe(i)`` names message ``i`` in an
-        error."""
+               describe: Callable[[int], str]) -> EncodedBatch:
+        """The records of the messages ``blob`` holds one after the other (``sizes``), of ``channels``; a
+        status message takes the next of ``stamps``; ``describe(i)`` names message ``i`` in an error."""
         data = np.frombuffer(blob, dtype=np.uint8)
         n = channels.size
-        starts, heads, valid = wire_headers(sizes, data, starts)
+        starts, heads, valid = wire_headers(sizes, data)
         kinds = heads["kind"]
         malformed = [_fault(blob[starts[i]:starts[i] + sizes[i]], describe(i)) for i in np.flatnonzero(~valid).tolist()]
         status_rank = np.cumsum(channels == self.status)

@@ -85,19 +85,17 @@ class FrameReader:
 
 
 class Batch(NamedTuple):
-    """The messages of a BATCH frame (:func:`split_batch`), in the run's order: message ``i`` is
-    ``messages[starts[i]:starts[i] + sizes[i]]``."""
+    """The messages of a BATCH frame (:func:`split_batch`), in the run's order, one after the other."""
 
     channels: np.ndarray  # the channel index of each
     sizes: np.ndarray  # [bytes]
     stamps: np.ndarray  # the wall-clock time [ns] of each status (and of the messages after it)
-    messages: bytes  # as the frame holds them: the statuses after the others
-    starts: np.ndarray  # where each lies in ``messages``
+    messages: bytes
 
 
 def split_batch(batch: bytes, status: int) -> Batch:
-    """The messages of a BATCH frame, in the run's order, where the frame holds them (no copy put in order);
-    ``status``: the index of the status channel. A frame that does not hold what its head says raises
+    """The messages of a BATCH frame, put back in the run's order (the statuses among the others) as they are
+    joined; ``status``: the index of the status channel. A frame that does not hold what its head says raises
     ValueError."""
     n, m, statuses_bytes = BATCH_HEAD.unpack_from(batch)
     at = BATCH_HEAD.size
@@ -109,17 +107,17 @@ def split_batch(batch: bytes, status: int) -> Batch:
         others = marshal.loads(memoryview(batch)[at + statuses_bytes:])
     except (EOFError, ValueError, TypeError):
         others = None
+    is_status = channels == status
     if (len(statuses) != statuses_bytes or (statuses_bytes % m if m else statuses_bytes) or type(others) is not list
-            or len(others) != n - m or not all(type(message) is bytes for message in others)):
+            or len(others) != n - m or not all(type(message) is bytes for message in others)
+            or int(np.count_nonzero(is_status)) != m):
         raise ValueError(f"a batch frame of {n} messages ({m} statuses, {statuses_bytes} bytes) that does not "
                          f"hold them")
-    framed = np.argsort(channels == status, kind="stable")  # the messages in the frame's order: the others first
-    sizes = np.empty(n, dtype=np.int64)
-    sizes[framed[:n - m]] = np.fromiter(map(len, others), dtype=np.int64, count=n - m)
-    sizes[framed[n - m:]] = statuses_bytes // m if m else 0
-    starts = np.empty(n, dtype=np.int64)
-    starts[framed] = np.cumsum(sizes[framed]) - sizes[framed]
-    return Batch(channels, sizes, stamps, b"".join((*others, statuses)), starts)
+    size = statuses_bytes // m if m else 0
+    statuses_in_order = (statuses[start:start + size] for start in range(0, statuses_bytes, size or 1))
+    others_in_order = iter(others)
+    ordered = [next(statuses_in_order if at_status else others_in_order) for at_status in is_status.tolist()]
+    return Batch(channels, np.fromiter(map(len, ordered), dtype=np.int64, count=n), stamps, b"".join(ordered))
 
 
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:

@@ -101,9 +101,9 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
         kind, data, _ = frame
         if kind == CONTROL:
             return json.loads(data)["outcome"], last_step
-        channels, sizes, _, messages, starts = split_batch(data, status)
+        channels, sizes, _, messages = split_batch(data, status)
         raw = np.frombuffer(messages, dtype=np.uint8)
-        _, heads, valid = wire_headers(sizes, raw, starts)
+        starts, heads, valid = wire_headers(sizes, raw)
         statuses = np.flatnonzero(valid & (channels == status))
         if statuses.size and int(heads["step"][statuses[0]]) > last_step + 1:
             view.gap(last_step, int(heads["step"][statuses[0]]), macro_step_ns)

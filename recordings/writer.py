@@ -62,16 +62,14 @@ class RecordingWriter:
         self.malformed: list[str] = []  # why each rejected message was rejected
         self._last_flush = time.monotonic()
 
-    def write(self, channels: np.ndarray, sizes: np.ndarray, stamps: np.ndarray, messages: bytes,
-              starts: np.ndarray | None = None) -> None:
-        """Record a batch: the ``messages`` of ``sizes`` (at ``starts`` in it; None: one after the other), of
-        channel indices ``channels``; each status message takes the next wall-clock stamp [ns] of ``stamps``,
-        which is the log time of it and the messages after it. A malformed message is counted and described,
-        not recorded."""
+    def write(self, channels: np.ndarray, sizes: np.ndarray, stamps: np.ndarray, messages: bytes) -> None:
+        """Record a batch: ``messages`` one after the other (``sizes``), of channel indices ``channels``; each
+        status message takes the next wall-clock stamp [ns] of ``stamps``, which is the log time of it and
+        the messages after it. A malformed message is counted and described, not recorded."""
         for index, count in enumerate(np.bincount(channels, minlength=len(self.channels)).tolist()):
             self.received[index] += count
         batch = self._encoder.encode(channels, sizes, stamps, messages, self._stamp,
-                                     lambda i: self.channels[int(channels[i])].topic, starts)
+                                     lambda i: self.channels[int(channels[i])].topic)
         self._stamp = batch.carry
         self.malformed += batch.malformed
         self._mcap.messages(batch.records, self._ids[batch.channels], batch.log_times, batch.offsets)

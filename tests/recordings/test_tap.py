@@ -59,6 +59,12 @@ def _status_of(message: bytes) -> tuple[int, list[float]]:
     return decoded.step, decoded.values.tolist()
 
 
+def _each(sizes, blob: bytes) -> list[bytes]:
+    """The messages of a batch (``split_batch``: one after the other)."""
+    ends = np.cumsum(sizes).tolist()
+    return [blob[end - size:end] for end, size in zip(ends, sizes.tolist())]
+
+
 def _messages_in(frame: bytes) -> tuple[int, int]:
     """(messages, status stamps) a batch frame declares; checks that its channel indices agree."""
     n, stamps, _ = BATCH_HEAD.unpack_from(frame)
@@ -85,8 +91,8 @@ def test_a_tap_cut_short_by_an_interrupt_leaves_no_half_message(tmp_path):
     assert len(recorder._messages) == 7
     recorder.flush()  # what finish() does after an interrupted run
     assert [_messages_in(frame) for frame in recorder.frames] == [(8, 3)]
-    channels, sizes, stamps, blob, starts = split_batch(recorder.frames[0], recorder._status)
-    messages = [blob[start:start + size] for start, size in zip(starts, sizes)]
+    channels, sizes, stamps, blob = split_batch(recorder.frames[0], recorder._status)
+    messages = _each(sizes, blob)
     assert messages[1::3] == [b"c0", b"c1", b"c2"] and messages[2::3] == [b"y1", b"y2"]  # the replica's order
     # each status encoded from the log: its step, δP and δE as logged, wall time since step 0's release, step time
     assert [_status_of(message) for message in messages[::3]] == [
@@ -157,9 +163,8 @@ def test_a_batch_frame_gives_back_every_message_in_the_order_the_replica_went_th
         assert recorder.frames == []
         return
     (frame,) = recorder.frames
-    channels, sizes, stamps, blob, starts = split_batch(frame, recorder._status)
-    found = [(recorder._topics[i], blob[start:start + size])
-             for i, start, size in zip(channels.tolist(), starts, sizes)]
+    channels, sizes, stamps, blob = split_batch(frame, recorder._status)
+    found = [(recorder._topics[i], message) for i, message in zip(channels.tolist(), _each(sizes, blob))]
     assert [(topic, ("status", _status_of(message)[0]) if topic == "manager/status" else message)
             for topic, message in found] == expected
     assert len(stamps) == step
@@ -175,8 +180,8 @@ def test_a_real_time_run_is_handed_over_every_10_ms_of_its_steps(tmp_path):
     recorder.flush(last=True)
     held = []
     for frame in recorder.frames:
-        channels, sizes, stamps, blob, starts = split_batch(frame, recorder._status)
-        statuses = [_status_of(blob[start:start + size]) for i, start, size in zip(channels.tolist(), starts, sizes)
+        channels, sizes, stamps, blob = split_batch(frame, recorder._status)
+        statuses = [_status_of(message) for i, message in zip(channels.tolist(), _each(sizes, blob))
                     if i == recorder._status]
         assert len(stamps) == len(statuses)
         assert [recorder._topics[i] for i in channels] == [  # whole steps (step 0 has no replies)
