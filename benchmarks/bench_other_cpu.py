@@ -5,10 +5,11 @@
 CPU µs per macro-step of two_mass_damped's stepping loop (bench_recording.stepping_loop, plain, 2 000 steps),
 pinned to CPU 0, with CPU 1 idle and with a process pinned to CPU 1 that spins in Python, compresses with
 zstd (as the recorder does) or copies memory; the kinds take turns within each repeat, and each is reported
-as the median over repeats and its ratio to the idle median. On a machine whose two CPUs share a core (SMT
-siblings, or a hypervisor's), what the recorder does there slows the run beside it. On the 2-vCPU host of
-docs/recording.md one invocation found +25, +48 and +34 % (spin, zstd, memcpy), two later ones −17 to −6 %:
-that host's own swings are larger than the effect.
+as the median over repeats and, as bench_recording.py reports an overhead, the median of its ratios to the
+idle run of the same repeat, with that median's 95 % confidence interval and the ratios' range. On a machine
+whose two CPUs share a core (SMT siblings, or a hypervisor's), what the recorder does there slows the run
+beside it. On the 2-vCPU host of docs/recording.md one invocation found +25, +48 and +34 % (spin, zstd,
+memcpy; ratios of medians), two later ones −17 to −6 %: that host's own swings are larger than the effect.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_recording import stepping_loop
+from bench_recording import _overhead, _overhead_of, stepping_loop
 from rich.console import Console
 from rich.table import Table
 
@@ -60,13 +61,12 @@ def main() -> None:
                 if neighbour is not None:
                     neighbour.kill()
                     neighbour.wait()
-    idle = statistics.median(found["idle"])
     table = Table(title=f"two_mass_damped stepping loop on CPU 0, medians of {args.repeats}")
-    for column in ("CPU 1", "CPU µs per macro-step", "against idle"):
+    for column in ("CPU 1", "CPU µs per macro-step", "against idle (median of ratios; 95 % CI; range)"):
         table.add_column(column, justify="right")
     for kind, values in found.items():
-        median = statistics.median(values)
-        table.add_row(kind, f"{median:.1f}", f"{(median / idle - 1) * 100:+.1f} %")
+        table.add_row(kind, f"{statistics.median(values):.1f}",
+                      "" if kind == "idle" else _overhead(_overhead_of(values, found["idle"])))
     Console().print(table)
 
 
