@@ -6,7 +6,9 @@
    ``--record``, on the in-process bus and over Zenoh, and over Zenoh without and with the live view
    (``--rerun connect=`` to a headless ``rerun --serve-grpc`` started here); each repeat runs both, in
    turn first, and the overhead is the median over repeats of the pairs' ratios (medians of the rates are
-   shown too), with a 95 % confidence interval of that median (bootstrap) and the ratios' range. Also
+   shown too), with a 95 % confidence interval of that median (bootstrap) and the ratios' range; in process
+   a third run of each repeat has the tap and no recorder process, which parts the tap's cost from what the
+   recorder process's work on the other core costs the run. Also
    the time until the recording is complete (the recorder finishing after the last step) and the
    messages lost. On a shared machine these depend on what else runs; so, also, the cost on the
    stepping loop alone: CPU time per step of the in-process run plain, with the status, and with the
@@ -80,10 +82,12 @@ def _overhead_of(costs: list[float], baselines: list[float]) -> dict:
 def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> dict:
     """Steps/s without and with recording, time to a complete file, losses; with ``live`` (a ``--rerun`` target)
     the cost of the live view alone instead of the recording, and as losses the macro-steps not sent to it
-    because it had fallen behind. Each repeat runs the two one after the other (``_in_turn``), and the overhead
-    is the median over repeats of each pair's ratio."""
+    because it had fallen behind. Each repeat runs the kinds one after the other (``_in_turn``), and the overhead
+    is the median over repeats of each pair's ratio. In process, a third kind runs with the tap and no recorder
+    process (``_NullRecorder``): what the tap costs the run, apart from what the recorder process's work on the
+    other core does to it (``tap_only``)."""
     scene = load_scene(SCENE)
-    plain, recorded, complete, lost = [], [], [], []
+    plain, recorded, tapped, complete, lost = [], [], [], [], []
 
     def run_plain(_repeat: int) -> None:
         record, wall = execute(scene, bus)
@@ -97,12 +101,23 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
         recorded.append(record.plan.n_ticks / wall)
         lost.append(recorder.live_skipped[1] if live else recorder.result["lost"])
 
+    def run_tapped(_repeat: int) -> None:
+        tap = _NullRecorder()
+        try:
+            record, wall = execute(scene, bus, recorder=tap)
+        finally:
+            tap.close()
+        tapped.append(record.plan.n_ticks / wall)
+
+    kinds = [run_plain, run_recorded] + ([run_tapped] if bus == "inproc" and not live else [])
     for repeat in range(repeats):
-        for run in _in_turn([run_plain, run_recorded], repeat):
+        for run in _in_turn(kinds, repeat):
             run(repeat)
     return {"steps": plan_scene(scene)[0].n_ticks, "steps_per_s_without": statistics.median(plain),
             "steps_per_s_with": statistics.median(recorded),
             **_overhead_of(plain, recorded),  # of rates: without / with is the ratio of times with / without
+            **({"tap_only": {"steps_per_s": statistics.median(tapped), **_overhead_of(plain, tapped)}}
+               if tapped else {}),
             "recording_complete_s": statistics.median(complete),
             "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
 
@@ -141,16 +156,24 @@ def live_overhead(repeats: int, workdir: Path) -> dict:
 
 
 class _NullRecorder(Recorder):
-    """The in-process tap with no recorder process: its batches are dropped. As a started recorder, it holds
-    SIGINT and SIGTERM during a flush (in the main thread) until ``close``."""
+    """The tap with no recorder process: its batches are dropped. As a started recorder, it holds SIGINT and
+    SIGTERM during a flush (in the main thread) until ``close``."""
 
-    def __init__(self, plan, status: StatusReport) -> None:
+    def __init__(self) -> None:
         super().__init__(os.devnull)
-        self._declare(channel_specs(plan, status), False, status)
+
+    def start(self, scene, plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
+        self._declare(channel_specs(plan, status), realtime, status)
         self._hold_signals()
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
         pass
+
+    def finish(self, outcome: str) -> dict:
+        self.flush(last=True)
+        self.finished = True
+        self.result = {"outcome": outcome, "lost": 0}
+        return self.result
 
 
 def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], None] | None = None) -> RunRecord:
@@ -159,7 +182,9 @@ def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], 
     (which encodes the statuses; its batches dropped); ``progress`` as ``make_scheme``'s. bench_instructions.py
     counts its instructions."""
     status = None if what == "plain" else StatusReport(plan, False)
-    tap = _NullRecorder(plan, status) if what == "tap" else None
+    tap = _NullRecorder() if what == "tap" else None
+    if tap is not None:
+        tap.start(scene, plan, status, "inproc", "", False)
     try:
         return run_in_process(make_scheme(scene, plan, status=status, progress=progress), plan, subsystems, tap)
     finally:
@@ -310,6 +335,10 @@ def main() -> None:
         table.add_row(f"{bus}: macro-steps/s without / with --record",
                       f"{f['steps_per_s_without']:.0f} / {f['steps_per_s_with']:.0f}")
         table.add_row(f"{bus}: overhead of recording (target <= 10 %; median of ratios, CI, range)", _overhead(f))
+        if "tap_only" in f:
+            table.add_row(f"{bus}: macro-steps/s with the tap alone (no recorder process), in turn with the above",
+                          f"{f['tap_only']['steps_per_s']:.0f}")
+            table.add_row(f"{bus}: overhead of the tap alone (median of ratios, CI, range)", _overhead(f["tap_only"]))
         table.add_row(f"{bus}: run to complete recording [s]", f"{f['recording_complete_s']:.2f}")
         table.add_row(f"{bus}: messages lost per run", ", ".join(map(str, f["lost"])))
         table.add_row(f"{bus}: file size [bytes]", f"{f['file_bytes']}")
