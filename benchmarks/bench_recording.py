@@ -172,7 +172,7 @@ class _NullRecorder(Recorder):
     def finish(self, outcome: str) -> dict:
         self.flush(last=True)
         self.finished = True
-        self.result = {"outcome": outcome, "lost": 0}
+        self.result = {"outcome": outcome}
         return self.result
 
 
