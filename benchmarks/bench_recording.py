@@ -102,11 +102,7 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
         lost.append(recorder.live_skipped[1] if live else recorder.result["lost"])
 
     def run_tapped(_repeat: int) -> None:
-        tap = _NullRecorder()
-        try:
-            record, wall = execute(scene, bus, recorder=tap)
-        finally:
-            tap.close()
+        record, wall = execute(scene, bus, recorder=_NullRecorder())
         tapped.append(record.plan.n_ticks / wall)
 
     kinds = [run_plain, run_recorded] + ([run_tapped] if bus == "inproc" and not live else [])
