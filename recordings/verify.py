@@ -4,7 +4,8 @@ The re-run is the in-process replica with a tap that compares each message, as i
 the next recorded message of the same channel: kind, step, time, rows, reference, and every float64
 value by its bits (NaN included). The status's measured fields (wall-clock times) are not compared. The first
 difference stops the re-run and is reported with its channel, step, value name and both values; a
-recording that ends early (a failed or interrupted run) is compared up to its last message.
+recording that ends early (a failed or interrupted run) is compared up to its last message; one with no
+message to compare never passes (it verifies nothing).
 
 The re-run is planned for no more macro-steps than the recording holds statuses (plus one), so what
 it allocates is bounded by the file's size (``recordings.mcap_read`` bounds what the file may hold),
@@ -53,9 +54,14 @@ class Verification:
     damage: tuple[str, ...]  # every check the file failed (Recording.damage)
 
     @property
+    def empty(self) -> bool:
+        """No message was compared: the recording holds none to verify (or none the re-run reached)."""
+        return not sum(self.compared.values())
+
+    @property
     def passed(self) -> bool:
         return (self.divergence is None and not (self.completed_run and self.note) and self.truncated is None
-                and not self.damage)
+                and not self.damage and not self.empty)
 
 
 class _Stop(Exception):

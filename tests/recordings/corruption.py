@@ -1,8 +1,9 @@
 """Damage a recording's bytes the ways a disk, a copy or a person does: bit flips, truncation, two chunks
 swapped, a byte range zeroed, and a flip inside one of the records outside the chunks (metadata, scene,
-schemas, channels, end record, summary, footer); and a crafted recording whose scene claims a longer
-run than it holds (``claiming_duration``). Used by the fuzz test (tests/recordings/test_damaged_recordings.py)
-and by ``benchmarks/corrupt_recordings.py``; each function takes the intact bytes and returns a damaged copy.
+schemas, channels, end record, summary, footer); a crafted recording whose scene claims a longer
+run than it holds (``claiming_duration``), and one that holds no message (``emptied``). Used by the fuzz test
+(tests/recordings/test_damaged_recordings.py) and by ``benchmarks/corrupt_recordings.py``; each function takes the
+intact bytes and returns a damaged copy.
 """
 from __future__ import annotations
 
@@ -109,4 +110,15 @@ def claiming_duration(recording_path: Path, out: Path, duration_s: float) -> Pat
     writer = RecordingWriter(out, {**recording.info, "scene_digest": scene.digest}, toml,
                              [c.spec for c in recording.channels.values()])
     writer.finish("completed", {})
+    return out
+
+
+def emptied(recording_path: Path, out: Path, outcome: str) -> Path:
+    """A well-formed, intact recording at ``out`` with the metadata, scene and channels of ``recording_path``,
+    no messages, and an end record saying the run ended ``outcome`` (completed, failed, interrupted)."""
+    from zencosim.recordings.reader import read_recording
+    from zencosim.recordings.writer import RecordingWriter
+    recording = read_recording(recording_path)
+    writer = RecordingWriter(out, recording.info, recording.scene_toml, [c.spec for c in recording.channels.values()])
+    writer.finish(outcome, {})
     return out

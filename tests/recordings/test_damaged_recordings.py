@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 
 import zencosim
 from tests.conftest import REPO
-from tests.recordings.corruption import KINDS, claiming_duration, corrupt, records
+from tests.recordings.corruption import KINDS, claiming_duration, corrupt, emptied, records
 from zencosim.recordings import RecordingError
 from zencosim.recordings.reader import describe, read_recording
 from zencosim.recordings.verify import verify
@@ -121,3 +121,20 @@ def test_a_small_file_claiming_a_huge_run_allocates_nothing_of_it(tmp_path):
         tracemalloc.stop()
     assert peak < 64 << 20, peak
     assert not result.passed and result.completed_run and "holds no message" in result.note, result
+
+
+def test_a_recording_without_messages_never_passes(tmp_path):
+    """A run that failed or was interrupted before its first message leaves an intact file with no message: it
+    verifies nothing, so it fails (exit 1) with a line that says so, whatever its end record says."""
+    small = tmp_path / "small.mcap"
+    zencosim.run(zencosim.load_scene("two_mass_damped", ["manager.duration=0.01"]), record=small)
+    for outcome in ("failed", "interrupted", "completed"):
+        empty = emptied(small, tmp_path / f"{outcome}.mcap", outcome)
+        result = verify(read_recording(empty))
+        assert result.empty and not result.passed, (outcome, result)
+    result = _zencosim("replay", str(empty), "--verify")
+    assert result.returncode == 1, result
+    assert result.stdout.strip() == f"verify FAILED: {empty} holds no messages to verify", result.stdout
+    result = _zencosim("replay", str(tmp_path / "failed.mcap"), "--verify")
+    assert result.returncode == 1 and "holds no messages to verify" in result.stdout, result.stdout
+    assert "Traceback" not in result.stderr

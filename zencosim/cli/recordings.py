@@ -36,8 +36,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
         from zencosim.recordings.verify import verify
         result = verify(recording)
         compared = sum(result.compared.values())
-        held = (f"the {compared} messages it holds up to step {result.last_step} are bit-identical to a re-run"
-                if result.divergence is None else f"first divergence at {result.divergence}")
+        held = (f"first divergence at {result.divergence}" if result.divergence is not None
+                else "it holds no messages to verify" if result.empty
+                else f"the {compared} messages it holds up to step {result.last_step} are bit-identical to a re-run")
         if result.damage:
             say(f"verify FAILED: the file is damaged: {'; '.join(result.damage)}"
                 + (f"; {result.truncated}" if result.truncated else "") + f"; {held}")
@@ -46,6 +47,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 + (", the end record among it" if recording.end is None else "") + f"; {held}")
         elif result.divergence is not None:
             say(f"verify FAILED: first divergence at {result.divergence}")
+        elif result.empty:
+            say(f"verify FAILED: {recording.path} holds no messages to verify")
         elif not result.passed:
             say(f"verify FAILED: {result.note}")
         else:
