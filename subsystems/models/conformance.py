@@ -3,7 +3,8 @@
 :func:`check_subsystem` drives a subsystem with seeded random input polynomials and reports what it
 finds wrong, each as a sentence that names the port, step or method:
 
-* every port has a coherent SI unit and a unique name;
+* every port has a coherent SI unit and a unique name (an FMU's units with a factor and offset are
+  converted at its boundary; a variable without a unit is named, and checked with its value as it is);
 * the outputs are finite;
 * two instances give bit-identical outputs (no hidden randomness or shared state);
 * an output that does not declare direct feedthrough does not change when only the inputs change;
@@ -24,8 +25,15 @@ import numpy as np
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.models import model_traits
-from zencosim.subsystems.models.external.fmu import FmuError
-from zencosim.subsystems.models.external.model import ExternalSettings, ExternalSpec, FmuModel, python_model, read_start
+from zencosim.subsystems.models.external.fmu import FmuError, FmuFileError
+from zencosim.subsystems.models.external.model import (
+    ExternalSettings,
+    ExternalSpec,
+    FmuModel,
+    apply_units,
+    python_model,
+    read_start,
+)
 from zencosim.subsystems.models.external.python_model import ModelClassError
 from zencosim.subsystems.params import Problems
 from zencosim.subsystems.subsystem import Subsystem
@@ -94,20 +102,36 @@ def _feedthrough_problems(subsystem: Subsystem, rng: np.random.Generator) -> lis
             if not port.feedthrough and port.quantity != "energy" and here[j] != there[j]]
 
 
-def check_component(reference: str, start: dict[str, float], micro_step_ns: int = 1_000_000) -> list[str]:
+class UnusableModel(ValueError):
+    """A reference ``check-model`` cannot check at all: no such file, not an FMU, a class it cannot find."""
+
+
+def check_component(reference: str, start: dict[str, float], micro_step_ns: int = 1_000_000,
+                    units: dict[str, str] | None = None) -> list[str]:
     """``zencosim check-model``: the conformance of a user's class (``module:Class`` or a registered name) or
-    of an FMU (a path ending in ``.fmu``), with a port for each of its variables: the problems it has,
-    its declarations first (nothing else is checked when those fail)."""
+    of an FMU (a path ending in ``.fmu``), with a port for each of its variables: the problems it has. The
+    declarations come first; a variable without a unit zencosim can read is named (``units``, variable ->
+    SI unit, gives it as a scene's ``units`` table does) and the check goes on with its value as it is;
+    any other declaration problem ends the check. :class:`UnusableModel` when there is nothing to check."""
     is_fmu = reference.endswith(".fmu")
     try:
         model = FmuModel if is_fmu else python_model(reference)
+    except ModelClassError as error:
+        raise UnusableModel(str(error)) from None
+    try:
         description, source = model.describe(ExternalSettings(fmu=reference if is_fmu else None), Path.cwd())
+    except FmuFileError as error:
+        raise UnusableModel(str(error)) from None
     except (FmuError, ModelClassError) as error:
         return [str(error)]
     problems = Problems()
+    description = apply_units(units or None, description, "unit", problems)
     values = read_start(start, description, "start", problems)
     if problems:
         return [str(p) for p in problems]
+    found = [f"{v.causality} {name}: {v.unit_problem}; its values are passed on as they are (declare its SI unit: "
+             f"--unit {name}=UNIT here, units = {{ {name} = \"UNIT\" }} in a scene)"
+             for name, v in description.variables.items() if v.causality in ("input", "output") and v.exponents is None]
     spec = ExternalSpec(model.name, description, source, values, None, {})
     integrator = INTEGRATORS[model_traits(model, spec).default_integrator]
 
@@ -115,6 +139,6 @@ def check_component(reference: str, start: dict[str, float], micro_step_ns: int 
         return Subsystem(reference, model(spec, expose_all=True), integrator, micro_step_ns)
 
     try:
-        return check_subsystem(make, micro_step_ns, description.can_save_state)
+        return found + check_subsystem(make, micro_step_ns, description.can_save_state)
     except Exception as error:  # instantiating it failed: the user's constructor, the FMU's initialisation
-        return [f"building it failed: {type(error).__name__}: {error}"]
+        return found + [f"building it failed: {type(error).__name__}: {error}"]

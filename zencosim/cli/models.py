@@ -9,7 +9,7 @@ from zencosim.manager.scene.overrides import parse_override
 
 
 def cmd_check_model(args: argparse.Namespace) -> int:
-    from zencosim.subsystems.models.conformance import check_component
+    from zencosim.subsystems.models.conformance import UnusableModel, check_component
     start = {}
     for text in args.start:
         try:
@@ -19,7 +19,16 @@ def cmd_check_model(args: argparse.Namespace) -> int:
         if rest or not isinstance(value, (int, float)) or isinstance(value, bool):
             raise UsageError(f"--start {text}: expected NAME=NUMBER")
         start[name] = value
-    problems = check_component(args.model, start)
+    units = {}
+    for text in args.unit:
+        name, _, unit = text.partition("=")
+        if not name.strip() or not unit.strip():
+            raise UsageError(f"--unit {text}: expected NAME=UNIT (an SI unit, e.g. fc=N)")
+        units[name.strip()] = unit.strip()
+    try:
+        problems = check_component(args.model, start, units=units)
+    except UnusableModel as error:
+        raise UsageError(str(error)) from None
     for problem in problems:
         say(f"FAILED: {problem}")
     if not problems:
@@ -46,6 +55,9 @@ def add_parsers(commands) -> None:
                                      "or a path to an FMU")
     check.add_argument("--start", action="append", default=[], metavar="NAME=VALUE",
                        help="a parameter or start value for the check (repeatable)")
+    check.add_argument("--unit", action="append", default=[], metavar="NAME=UNIT",
+                       help="the SI unit of a variable that declares none, as a scene's units table gives it "
+                            "(repeatable)")
     check.set_defaults(handler=cmd_check_model)
 
     example = commands.add_parser(

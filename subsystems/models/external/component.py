@@ -30,10 +30,21 @@ class Variable:
 
     name: str
     causality: str  # "input", "output", "parameter", "local", …
-    unit: str | None  # as the component declares it
-    exponents: Exponents | None  # its SI base-unit exponents; None when undeclared or not SI
+    unit: str | None  # as the component declares it (or the scene, where the component declares none)
+    exponents: Exponents | None  # its SI base-unit exponents; None when undeclared or unknown
     unit_problem: str | None  # why ``exponents`` is None
     depends_on: tuple[str, ...] | None = None  # an output's direct dependence on inputs; None: on every input
+    factor: float = 1.0  # the unit in SI: value_SI = factor * value + offset (FMI's BaseUnit)
+    offset: float = 0.0
+
+    @property
+    def converted(self) -> bool:
+        """Whether its values are converted at the component's boundary (its unit is not the SI one)."""
+        return self.factor != 1.0 or self.offset != 0.0
+
+    def to_component(self, si_value: float) -> float:
+        """An SI value in the component's unit: (value - offset) / factor."""
+        return (si_value - self.offset) / self.factor if self.converted else si_value
 
 
 @dataclass(frozen=True)

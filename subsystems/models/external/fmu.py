@@ -1,8 +1,8 @@
 """FMUs as components, through fmpy: FMI 2.0 and 3.0 Co-Simulation, FMI 2.0 Model Exchange.
 
 :func:`describe_fmu` reads an FMU's modelDescription at scene time: its real variables with causality,
-unit (resolved through the unit definitions' base-unit exponents, or read as an SI unit string) and
-the outputs' direct dependence on inputs (ModelStructure); its interfaces and whether it can save and
+unit (resolved through the unit definitions' base-unit exponents, factor and offset, or read as an SI
+unit string) and the outputs' direct dependence on inputs (ModelStructure); its interfaces and whether it can save and
 restore its state; its GUID (FMI 3.0: instantiation token) and the sha256 of the file, which identify
 it to the other processes of a run. :func:`open_fmu` instantiates it for one subsystem.
 
@@ -39,6 +39,10 @@ class FmuError(RuntimeError):
     """An FMU that cannot be used, or an FMI call that failed; the message names the FMU."""
 
 
+class FmuFileError(FmuError):
+    """A file that cannot be read as an FMU at all: missing, not a zip archive, no readable modelDescription."""
+
+
 def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
     """The FMU at ``path`` with the interface asked for (``"co-simulation"``, ``"model-exchange"``; None:
     co-simulation when it offers it); :class:`FmuError` saying why it cannot be used."""
@@ -60,16 +64,20 @@ def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
         if binary not in archive.namelist():
             raise FmuError(f"FMU {path}: has no binary for this platform ({binary})")
     units = {unit.name: unit for unit in model.unitDefinitions}
+    relative_quantities = _relative_quantities(path)
     dependencies = {unknown.variable.name: unknown.dependencies for unknown in model.outputs}
     variables = {}
     for v in model.modelVariables:
         if v.type not in REAL_TYPES:
             continue
-        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-        found, problem = _si_exponents(unit, units)
+        declared = v.declaredType
+        unit = v.unit or (declared.unit if declared is not None else None)
+        relative = v.name in relative_quantities if v.relativeQuantity is None else bool(v.relativeQuantity)
+        relative = relative or bool(declared is not None and getattr(declared, "relativeQuantity", False))
+        found, factor, offset, problem = _si_exponents(unit, units, relative)
         depends = dependencies.get(v.name)
         variables[v.name] = Variable(v.name, v.causality, unit, found, problem,
-                                     None if depends is None else tuple(d.name for d in depends))
+                                     None if depends is None else tuple(d.name for d in depends), factor, offset)
     kind = f"FMI {model.fmiVersion} {'Co-Simulation' if chosen == 'co-simulation' else 'Model Exchange'}"
     can_save = chosen == "model-exchange" or bool(capability.canGetAndSetFMUstate)
     return ComponentDescription(kind, "ode" if chosen == "model-exchange" else "co-simulation", variables, can_save,
@@ -79,16 +87,31 @@ def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
 def _model_description(path: Path):
     from fmpy import read_model_description
     if not path.is_file():
-        raise FmuError(f"FMU {path}: no such file")
+        raise FmuFileError(f"FMU {path}: no such file")
     if not zipfile.is_zipfile(path):
-        raise FmuError(f"FMU {path}: not an FMU (not a zip archive)")
+        raise FmuFileError(f"FMU {path}: not an FMU (not a zip archive)")
     try:
         model = read_model_description(str(path), validate=False)
     except Exception as error:  # fmpy raises plain exceptions for any malformed part
-        raise FmuError(f"FMU {path}: its modelDescription.xml cannot be read: {error}") from None
+        raise FmuFileError(f"FMU {path}: its modelDescription.xml cannot be read: {error}") from None
     if model.fmiVersion not in ("2.0", "3.0"):
         raise FmuError(f"FMU {path}: FMI version {model.fmiVersion}; expected 2.0 or 3.0")
     return model
+
+
+def _relative_quantities(path: Path) -> set[str]:
+    """The variables whose own element says ``relativeQuantity="true"`` (fmpy 0.3 reads the attribute of a
+    type definition, but not of a variable)."""
+    from lxml import etree  # fmpy's dependency
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False)
+    with zipfile.ZipFile(path) as archive:
+        root = etree.fromstring(archive.read("modelDescription.xml"), parser)
+    found = set()
+    for element in root.iterfind("ModelVariables/*"):
+        value = element.find("Real") if element.tag == "ScalarVariable" else element  # FMI 2.0, 3.0
+        if value is not None and value.get("relativeQuantity") in ("true", "1"):
+            found.add(element.get("name"))
+    return found
 
 
 def _binary_name(version: str, identifier: str) -> str:
@@ -96,21 +119,25 @@ def _binary_name(version: str, identifier: str) -> str:
     return f"binaries/{platform}/{identifier}.so"
 
 
-def _si_exponents(unit: str | None, definitions: dict) -> tuple[tuple[int, ...] | None, str | None]:
-    """The SI exponents of a variable's unit, from its unit definition (base-unit exponents, factor 1,
-    offset 0) or, without a definition, from the unit's name; else (None, why)."""
+def _si_exponents(unit: str | None, definitions: dict,
+                  relative: bool = False) -> tuple[tuple[int, ...] | None, float, float, str | None]:
+    """The SI exponents of a variable's unit with the factor and offset that convert its values to SI
+    (value_SI = factor * value + offset), from its unit definition (FMI's BaseUnit; a relative quantity,
+    such as a temperature difference, ignores the offset) or, without a definition, from the unit's name
+    read as a coherent SI unit (factor 1, offset 0); else (None, 1, 0, why)."""
     if not unit:
-        return None, "declares no unit"
+        return None, 1.0, 0.0, "declares no unit"
     definition = definitions.get(unit)
     base = definition.baseUnit if definition is not None else None
     if base is not None:
-        if base.factor != 1.0 or base.offset != 0.0:
-            return None, f"unit {unit!r} is not SI (factor {base.factor:g}, offset {base.offset:g})"
-        return tuple(int(getattr(base, name)) for name in BASE), None
+        factor, offset = float(base.factor), 0.0 if relative else float(base.offset)
+        if not (np.isfinite(factor) and np.isfinite(offset)) or factor == 0.0:
+            return None, 1.0, 0.0, f"unit {unit!r} has factor {factor:g} and offset {offset:g}: not a conversion"
+        return tuple(int(getattr(base, name)) for name in BASE), factor, offset, None
     try:
-        return exponents(unit), None
+        return exponents(unit), 1.0, 0.0, None
     except UnitError as error:
-        return None, f"unit {error}"
+        return None, 1.0, 0.0, f"unit {error}"
 
 
 def _sha256(path: Path) -> str:

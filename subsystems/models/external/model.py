@@ -1,25 +1,30 @@
 """External models: an FMU or a user's Python model as a zencosim subsystem model (docs/models.md).
 
 A scene names the component (``model = "fmu"`` with ``fmu = "path.fmu"``, or ``model =
-"package.module:Class"``), its start values and parameters (``start.<variable> = value``), an optional
-energy output (``energy = "<variable>"``, [J]) and, per point, the variables that play each coupling
+"package.module:Class"``), its start values and parameters (``start.<variable> = value``, SI), an
+optional energy output (``energy = "<variable>"``, [J]), the SI units of variables the component
+declares none for (``units.<variable> = "unit"``) and, per point, the variables that play each coupling
 role (``points.<point> = { role = "<variable>", … }``, ``subsystems.models.external.points``). The
 model's ports are then made from what the couplings attach to each point, exactly as for a built-in
 model; their names are the couplings' signals, their units the roles' SI quantities, and the
-component's declared units must be those (a mismatch is a scene error naming the variable).
+component's units must be of those quantities (a mismatch is a scene error naming the variable).
+
+Units with a factor and offset (an FMU's unit definition: value_SI = factor * value + offset, such as
+``mm``, ``bar`` or ``degC``) are converted at the component's boundary: an output to SI before zencosim
+uses it, an input and a start value from SI into the component's unit, ``(value - offset) / factor``.
 
 The component computes a coupling force itself (``provides_force``): a force–displacement coupling on
 an external force side has no coupling element of zencosim's.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
-from zencosim.subsystems.models.external.component import ComponentDescription
+from zencosim.subsystems.models.external.component import ComponentDescription, Variable
 from zencosim.subsystems.models.external.fmu import FmuError, describe_fmu, open_fmu
 from zencosim.subsystems.models.external.points import ROLES, PointMap
 from zencosim.subsystems.models.external.python_model import (
@@ -30,7 +35,7 @@ from zencosim.subsystems.models.external.python_model import (
 )
 from zencosim.subsystems.params import Problems, check_value, read_table
 from zencosim.subsystems.ports import UNITS, Attachments, Port
-from zencosim.subsystems.units import describe, exponents
+from zencosim.subsystems.units import UnitError, describe, exponents
 
 
 @dataclass(frozen=True)
@@ -115,7 +120,7 @@ class ExternalModel:
     def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> ExternalSpec | None:
         """The component, its start values, energy variable and points; every problem recorded under ``key``."""
         before = len(problems)
-        settings = read_table(ExternalSettings, table, key, problems, skip=("start", "points"))
+        settings = read_table(ExternalSettings, table, key, problems, skip=("start", "points", "units"))
         if settings is None:
             return None
         try:
@@ -123,6 +128,7 @@ class ExternalModel:
         except (FmuError, ModelClassError) as error:
             problems.add(f"{key}.{'fmu' if settings.fmu else 'model'}", str(error))
             return None
+        description = apply_units(table.get("units"), description, f"{key}.units", problems)
         start = read_start(table.get("start", {}), description, f"{key}.start", problems)
         point_maps = {}
         points = table.get("points")
@@ -151,7 +157,11 @@ class ExternalModel:
         self.effects: tuple[str, ...] = ()
         self.second_order = spec.second_order
         self._u_columns, self._u_scale = np.array(ports.u_columns, dtype=np.intp), np.array(ports.u_scale)
+        self._u_factor, self._u_offset = np.array(ports.u_factor), np.array(ports.u_offset)
+        self._u_convert = bool(np.any(self._u_factor != 1.0) or np.any(self._u_offset != 0.0))
         self._y = ports.assembly()
+        variables = spec.description.variables
+        self.component_start = {name: variables[name].to_component(value) for name, value in spec.start.items()}
         self.instance = self._open(ports.component_inputs, ports.component_outputs)
         if self.second_order:
             self.n_dof = len(self.instance.initial_state()) // 2
@@ -160,7 +170,11 @@ class ExternalModel:
         raise NotImplementedError
 
     def _u(self, w: np.ndarray) -> np.ndarray:
-        return w[self._u_columns] * self._u_scale
+        """The component's inputs from zencosim's: signed, and converted into the component's units."""
+        u = w[self._u_columns] * self._u_scale
+        if self._u_convert:
+            u = (u - self._u_offset) / self._u_factor
+        return u
 
     def initial_state(self) -> np.ndarray:
         return self.instance.initial_state()
@@ -176,11 +190,14 @@ class ExternalModel:
 
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         component = self.instance.outputs(t, z, self._u(w))
-        rows, indices, scales, input_rows, input_columns, constant_rows, constants = self._y
+        a = self._y
         y = np.empty(len(self.outputs))
-        y[rows] = component[indices] * scales
-        y[input_rows] = w[input_columns]
-        y[constant_rows] = constants
+        if a.convert:  # to SI, then signed
+            y[a.rows] = (component[a.indices] * a.factors + a.offsets) * a.scales
+        else:
+            y[a.rows] = component[a.indices] * a.scales
+        y[a.input_rows] = w[a.input_columns]
+        y[a.constant_rows] = a.constants
         return y
 
     def save_state(self) -> object | None:
@@ -205,7 +222,7 @@ class FmuModel(ExternalModel):
         return describe_fmu(path, settings.interface), path
 
     def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
-        return open_fmu(self.spec.source, self.spec.description, self.spec.start, inputs, outputs,
+        return open_fmu(self.spec.source, self.spec.description, self.component_start, inputs, outputs,
                         f"zencosim:{self.spec.source.name}")
 
 
@@ -221,7 +238,7 @@ class PythonModel(ExternalModel):
         return describe_python(cls.name, cls.model_class), cls.model_class
 
     def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
-        return PythonInstance(self.spec.source, self.spec.description, self.spec.start, inputs, outputs)
+        return PythonInstance(self.spec.source, self.spec.description, self.component_start, inputs, outputs)
 
 
 _PYTHON_MODELS: dict[str, type] = {}
@@ -256,6 +273,40 @@ def read_start(table: Any, description: ComponentDescription, key: str, problems
     return start
 
 
+def apply_units(table: Any, description: ComponentDescription, key: str,
+                problems: Problems) -> ComponentDescription:
+    """The description with the scene's ``units`` table (variable -> SI unit) applied: the unit of a variable
+    the component declares none for, or one zencosim cannot read. Where the component declares a unit it
+    reads, the scene's must be of the same quantity and the component's (with its factor and offset) is used."""
+    if table is None:
+        return description
+    if not isinstance(table, dict):
+        problems.add(key, 'expected a table of variable = "SI unit", e.g. units = { x_in = "m", fc = "N" }')
+        return description
+    variables = dict(description.variables)
+    for name, unit in table.items():
+        variable = variables.get(name)
+        if variable is None:
+            problems.add(f"{key}.{name}", f"the {description.kind} has no real variable {name!r}")
+            continue
+        if not isinstance(unit, str):
+            problems.add(f"{key}.{name}", f'expected an SI unit as a string (e.g. "m", "N", "m/s"), got {unit!r}')
+            continue
+        try:
+            found = exponents(unit)
+        except UnitError as error:
+            problems.add(f"{key}.{name}", f"{error}; the scene gives SI units only (a unit with a factor or an "
+                                          "offset comes from the component's unit definitions)")
+            continue
+        if variable.exponents is None:
+            variables[name] = replace(variable, unit=unit, exponents=found, unit_problem=None, factor=1.0, offset=0.0)
+        elif variable.exponents != found:
+            problems.add(f"{key}.{name}", f"{name}: the {description.kind} declares [{variable.unit}] "
+                                          f"({describe(variable.exponents)}), the scene [{unit}] ({describe(found)}): "
+                                          "not the same quantity")
+    return replace(description, variables=variables)
+
+
 def _check_variable(name: str, causality: str, quantity: str, description: ComponentDescription, key: str,
                     problems: Problems) -> None:
     """``name`` is a variable of ``causality`` in the unit of ``quantity`` (SI)."""
@@ -270,7 +321,8 @@ def _check_variable(name: str, causality: str, quantity: str, description: Compo
                      f"{description.kind}; expected an {causality}")
     expected = UNITS[quantity]
     if variable.exponents is None:
-        problems.add(key, f"{name}: {variable.unit_problem}; expected [{expected}] ({quantity})")
+        problems.add(key, f"{name}: {variable.unit_problem}; expected [{expected}] ({quantity}): declare it in the "
+                     f'subsystem\'s units table, units = {{ {name} = "{expected}" }}')
     elif variable.exponents != exponents(expected):
         problems.add(key, f"{name} is in [{variable.unit}] ({describe(variable.exponents)}); expected [{expected}] "
                      f"({quantity})")
@@ -294,10 +346,12 @@ class _Ports:
     outputs: list[Port] = field(default_factory=list)
     u_columns: list[int] = field(default_factory=list)  # per component input: the zencosim input column
     u_scale: list[float] = field(default_factory=list)  # and the sign it is applied with
+    u_factor: list[float] = field(default_factory=list)  # and its unit: SI = factor * value + offset
+    u_offset: list[float] = field(default_factory=list)
     component_inputs: list[str] = field(default_factory=list)
     component_outputs: list[str] = field(default_factory=list)
-    output_sources: list[tuple] = field(default_factory=list)  # per output: ("variable", index, scale),
-    # ("input", column) or ("constant", value)
+    output_sources: list[tuple] = field(default_factory=list)  # per output: ("variable", index, scale, factor,
+    # offset), ("input", column) or ("constant", value)
 
     def __post_init__(self) -> None:
         if self.expose_all:
@@ -333,9 +387,7 @@ class _Ports:
         description = self.spec.description
         for name in description.inputs:
             self.inputs.append(_port_of(name, description))
-            self.component_inputs.append(name)
-            self.u_columns.append(len(self.inputs) - 1)
-            self.u_scale.append(1.0)
+            self._component_input(name, 1.0)
         for name in description.outputs:
             self._variable_output(_port_of(name, description), name, 1.0)
 
@@ -344,9 +396,16 @@ class _Ports:
             if variable in self.component_inputs:
                 raise ValueError(f"input {variable} of the component is fed twice (ports {port} and another)")
             self.inputs.append(Port(port, quantity))
-            self.component_inputs.append(variable)
-            self.u_columns.append(len(self.inputs) - 1)
-            self.u_scale.append(sign)
+            self._component_input(variable, sign)
+
+    def _component_input(self, variable: str, sign: float) -> None:
+        """The component input ``variable`` fed by the last zencosim input, times ``sign``."""
+        unit = self.spec.description.variables[variable]
+        self.component_inputs.append(variable)
+        self.u_columns.append(len(self.inputs) - 1)
+        self.u_scale.append(sign)
+        self.u_factor.append(unit.factor)
+        self.u_offset.append(unit.offset)
 
     def _direct_inputs(self, variable: str) -> tuple[str, ...]:
         """The zencosim input ports a component output depends on at the same instant."""
@@ -359,7 +418,9 @@ class _Ports:
             self.component_outputs.append(variable)
         direct = self._direct_inputs(variable)
         self.outputs.append(Port(port.name, port.quantity, bool(direct), port.signal_unit, direct))
-        self.output_sources.append(("variable", self.component_outputs.index(variable), scale))
+        unit = self.spec.description.variables[variable]
+        self.output_sources.append(("variable", self.component_outputs.index(variable), scale, unit.factor,
+                                    unit.offset))
 
     def _output(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, scale: float = 1.0) -> None:
         for port, variable in zip(ports, point_map.variables(role)):
@@ -382,22 +443,57 @@ class _Ports:
         else:
             self._output(side.inverse_masses, point_map, "inverse_mass", "inverse_mass")
 
-    def assembly(self) -> tuple:
+    def assembly(self) -> _Assembly:
         """Index arrays that assemble the outputs from the component's outputs and the inputs."""
         def select(kind: str, position: int):
             return [s[position] for s in self.output_sources if s[0] == kind]
 
         rows = {kind: np.array([i for i, s in enumerate(self.output_sources) if s[0] == kind], dtype=np.intp)
                 for kind in ("variable", "input", "constant")}
-        return (rows["variable"], np.array(select("variable", 1), dtype=np.intp), np.array(select("variable", 2)),
-                rows["input"], np.array(select("input", 1), dtype=np.intp), rows["constant"],
-                np.array(select("constant", 1)))
+        factors, offsets = np.array(select("variable", 3)), np.array(select("variable", 4))
+        return _Assembly(rows["variable"], np.array(select("variable", 1), dtype=np.intp),
+                         np.array(select("variable", 2)), factors, offsets,
+                         bool(np.any(factors != 1.0) or np.any(offsets != 0.0)),
+                         rows["input"], np.array(select("input", 1), dtype=np.intp), rows["constant"],
+                         np.array(select("constant", 1)))
+
+
+class _Assembly(NamedTuple):
+    """How an external model's outputs are assembled, as index arrays (one numpy operation per kind):
+    ``y[rows] = (component[indices] * factors + offsets) * scales`` (to SI, then signed; without the
+    conversion where ``convert`` is false), ``y[input_rows] = w[input_columns]``, ``y[constant_rows] =
+    constants``."""
+
+    rows: np.ndarray
+    indices: np.ndarray
+    scales: np.ndarray
+    factors: np.ndarray
+    offsets: np.ndarray
+    convert: bool
+    input_rows: np.ndarray
+    input_columns: np.ndarray
+    constant_rows: np.ndarray
+    constants: np.ndarray
 
 
 def _port_of(name: str, description: ComponentDescription) -> Port:
-    """A port for a component variable: a coupling quantity when its unit is one, else a signal in its unit."""
+    """A port for a component variable: a coupling quantity when its unit is one, else a signal in its SI unit
+    (a variable without a unit zencosim can read, which ``check-model`` reports, is passed on as it is: "1")."""
     variable = description.variables[name]
+    if variable.exponents is None:
+        return Port(name, "signal", signal_unit="1")
     for quantity, unit in UNITS.items():
         if variable.exponents == exponents(unit):
             return Port(name, quantity)
-    return Port(name, "signal", signal_unit=variable.unit)
+    return Port(name, "signal", signal_unit=_si_name(variable))
+
+
+def _si_name(variable: Variable) -> str:
+    """The SI unit of a variable: as declared where that is an SI unit string, else its base units."""
+    if not variable.converted:
+        try:
+            if exponents(variable.unit) == variable.exponents:
+                return variable.unit
+        except UnitError:
+            pass
+    return describe(variable.exponents)
