@@ -199,3 +199,29 @@ def test_an_offset_and_a_factor_convert_inputs_outputs_and_start_values_both_way
     scale = np.max(np.abs(a), axis=0)
     assert np.all(np.abs(b - a) <= ROUNDING * scale), np.max(np.abs(b - a) / scale, axis=0)
     assert a[0, 0] != pytest.approx(a[-1, 0], abs=1e-3)  # the position moved
+
+
+# -- system imports --------------------------------------------------------------------------------------------
+
+def test_an_osp_system_whose_fmu_declares_no_units_imports_with_the_units_its_groups_give(fmus, tmp_path):
+    """The OSP model description states the units of its port groups' variables (fc in N, v in m/s, …): the
+    imported scene says them in units tables, loads and runs as the system with the FMU that declares them."""
+    from tests.manager.test_system_imports import OSP_MODEL_DESCRIPTION, osp_system
+    from zencosim.manager.scene.imports import import_system
+    unitless = ("fc", "f_in", "v", "v_in")
+    runs = []
+    for name, variables in (("declared", {}), ("unitless", dict.fromkeys(unitless))):
+        directory = tmp_path / name
+        directory.mkdir()
+        rewrite_units(fmus / "oscillator_fmi2.fmu", directory / "oscillator.fmu", variables)
+        (directory / "zencosim oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)
+        (directory / "OspSystemStructure.xml").write_text(osp_system())
+        document, notes = import_system(directory / "OspSystemStructure.xml", 1.0)
+        if name == "unitless":
+            assert document["subsystems"]["S1"]["units"] == {"fc": "N", "v_in": "m/s"}
+            assert document["subsystems"]["S2"]["units"] == {"f_in": "N", "v": "m/s"}
+            assert any(note.startswith("subsystems.S1.units = ") for note in notes)
+        else:
+            assert all("units" not in table for table in document["subsystems"].values())
+        runs.append(zencosim.run(zencosim.load_scene(directory / "OspSystemStructure.xml", {"manager.duration": 1.0})))
+    assert np.array_equal(runs[0].signal("c1.x").values, runs[1].signal("c1.x").values)

@@ -504,6 +504,20 @@ def _names_of(names: tuple[str, ...]) -> str | list[str]:
     return names[0] if len(names) == 1 else list(names)
 
 
+def _units_not_declared(link: Link, units: dict[str, dict[str, str]]) -> None:
+    """The SI unit of the link's quantity for each of its variables whose FMU declares no unit (the quantity
+    comes from the system description's units or from the variable's partner, which a connection copies
+    unchanged), into ``units[subsystem][variable]``."""
+    if link.quantity not in QUANTITIES:
+        return
+    unit = QUANTITIES[link.quantity][0]
+    for component, names in ((link.source, link.outputs), (link.target, link.inputs)):
+        for name in names:
+            variable = component.fmu.variables.get(name)
+            if variable is not None and not variable_unit(variable):
+                units[component.name][name] = unit
+
+
 def build_document(name: str, description: str, base_step: float, duration: float, components: list[Component],
                    bonds: list[Bond], notes: list[str]) -> dict:
     """The scene document of FMU subsystems and force–displacement couplings."""
@@ -530,8 +544,11 @@ def build_document(name: str, description: str, base_step: float, duration: floa
                                                                     f"the port of {side.name}", notes)
     point_counter = 0
     couplings, signals = {}, []
+    units: dict[str, dict[str, str]] = {c.name: {} for c in components}
     for bond in bonds:
         coupling = coupling_names[id(bond)]
+        for link in (bond.force, bond.velocity, *bond.displacement):
+            _units_not_declared(link, units)
         side_points = []
         for side in (bond.force_side, bond.motion_side):
             point = declared_points.get((id(bond), side.name))
@@ -571,6 +588,10 @@ def build_document(name: str, description: str, base_step: float, duration: floa
         energy = energy_output(component, notes)
         if energy is not None:
             table["energy"] = energy
+        if units[component.name]:
+            table["units"] = units[component.name]
+            notes.append(f"subsystems.{component.name}.units = {units[component.name]!r}: the FMU declares no unit "
+                         "for these variables; the system description's connections give their quantities")
         table["points"] = points[component.name]
         subsystems[component.name] = table
     notes.append("outputs.reference = 'none': FMU subsystems have no reference solution; outputs.signals: each "
