@@ -225,3 +225,13 @@ def test_an_osp_system_whose_fmu_declares_no_units_imports_with_the_units_its_gr
             assert all("units" not in table for table in document["subsystems"].values())
         runs.append(zencosim.run(zencosim.load_scene(directory / "OspSystemStructure.xml", {"manager.duration": 1.0})))
     assert np.array_equal(runs[0].signal("c1.x").values, runs[1].signal("c1.x").values)
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+def test_a_scene_with_converted_units_gives_the_same_digest_over_zenoh(fmus):
+    """Each subsystem process reads the units (the scene's and the FMU's) and converts as the manager does."""
+    rewrite_units(fmus / "mm.fmu", fmus / "mm_no_fc.fmu", {"fc": None})
+    scene = zencosim.load_scene(_scene(fmus, "mm_zenoh.toml", "mm_no_fc.fmu", 'units = { fc = "N" }'),
+                                {"manager.duration": 0.2})
+    assert zencosim.run(scene, "zenoh").digest == zencosim.run(scene).digest
