@@ -125,10 +125,10 @@ def check_component(reference: str, start: dict[str, float], micro_step_ns: int 
     except (FmuError, ModelClassError) as error:
         return [str(error)]
     problems = Problems()
-    description = apply_units(units or None, description, "unit", problems)
-    values = read_start(start, description, "start", problems)
+    description = apply_units(units or None, description, "--unit", problems)
+    values = read_start(start, description, "--start", problems)
     if problems:
-        return [str(p) for p in problems]
+        return [str(p).replace(".", " ", 1) for p in problems]  # --unit fc: …
     found = [f"{v.causality} {name}: {v.unit_problem}; its values are passed on as they are (declare its SI unit: "
              f"--unit {name}=UNIT here, units = {{ {name} = \"UNIT\" }} in a scene)"
              for name, v in description.variables.items() if v.causality in ("input", "output") and v.exponents is None]

@@ -295,8 +295,8 @@ def apply_units(table: Any, description: ComponentDescription, key: str,
         try:
             found = exponents(unit)
         except UnitError as error:
-            problems.add(f"{key}.{name}", f"{error}; the scene gives SI units only (a unit with a factor or an "
-                                          "offset comes from the component's unit definitions)")
+            problems.add(f"{key}.{name}", f"{error}; give an SI unit (a unit with a factor or an offset comes "
+                                          "from the component's own unit definitions)")
             continue
         if variable.exponents is None:
             variables[name] = replace(variable, unit=unit, exponents=found, unit_problem=None, factor=1.0, offset=0.0)
