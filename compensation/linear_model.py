@@ -8,8 +8,9 @@ to know about scenes, Zenoh or MCAP).
 Sign convention of a force–displacement bond (paper 000 Fig. 2, paper 002 Fig. 8): the coupling
 element (spring ``stiffness``, damper ``damping``) lives in the force-side subsystem, acts on DOF
 ``force_dof`` and reads the exchanged displacement and velocity of DOF ``motion_dof``; the force it
-exerts on ``force_dof`` is ``fc = -k (x_f - x_m*) - c (v_f - v_m*)`` and the motion side applies
-``-fc*``.
+exerts on ``force_dof`` is ``fc = -k (x_f - x_m*) - c (v_f - v_m*)`` (the paper's sign) and the
+motion side feels ``-fc*``. The runtime's force signal is that ``-fc``, the force on the motion DOF,
+which the motion side applies as it receives it (``subsystems.ports``); the maths here is the paper's.
 """
 from __future__ import annotations
 

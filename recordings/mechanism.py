@@ -6,8 +6,8 @@ gives back its replies bit for bit (``zencosim replay --verify`` checks the same
 and its state after each one. After every reply with outputs, the model sketches itself
 (``subsystems.sketch``); the sketches of bodies on a line are moved into lanes of their own; every
 coupling is a line between the anchors of its two points, and a force–displacement coupling's force
-is an arrow at its motion side's point (the force the coupling exerts there: the reaction ``−f`` of
-the force side's output ``f``), scaled so that the largest force seen so far is ``ARROW`` long.
+is an arrow at its motion side's point (the force the coupling exerts there: the force side's output
+``f`` as the motion side receives it), scaled so that the largest force seen so far is ``ARROW`` long.
 
 Both the replay and the live view feed the commands step by step (each subsystem's in its order) and
 the recorded outputs of the couplings' force sides; a subsystem whose
@@ -131,7 +131,7 @@ class Mechanism:
             outputs = None if force is None else forces.get(force[0])
             if outputs is not None:
                 f = outputs[list(force[1])]
-                vector = -(f[0] * np.array(b.direction) if f.size == 1 else f[:2])
+                vector = f[0] * np.array(b.direction) if f.size == 1 else f[:2]
                 scale = ARROW / self._largest_force if self._largest_force > 0 else 0.0
                 arrow = (np.array(b.position), vector * scale)
             frame.couplings[name] = (line, arrow)

@@ -1,10 +1,13 @@
 """Ports: the named, unit-carrying signals a subsystem exchanges, and how couplings attach to a model.
 
-Sign convention of power through a port (the one place it is stated): a force port carries the force
-that a coupling element exerts on the point it acts on; the power that flows *into* a subsystem
-through a force input is ``force · velocity`` of the point the force is applied to (a dot product
-for a point in the plane, whose signals have one port per component). Residual power is computed
-from these ports by :func:`manager.scheme.residual.residual_power` only.
+Sign convention of power through a port (the one place it is stated): a connection copies an output's
+value into the input unchanged, as FMI, SSP and OSP define it. The force signal of a power bond is the
+force that acts on the receiving (motion) side's point, which that side applies as it is; the force
+side exerts it on the remote point and feels its reaction ``−f`` on its own. The power that flows
+*into* a subsystem through a force input is ``force · velocity`` of the point the force is applied to,
+and the power that leaves the force side is its force output times the velocity it received (a dot
+product for a point in the plane, whose signals have one port per component). Residual power is
+computed from these ports by :func:`manager.scheme.residual.residual_power` only.
 """
 from __future__ import annotations
 
@@ -55,8 +58,8 @@ class Terminal:
 
 @dataclass(frozen=True)
 class ForceInput:
-    """An input force (one port per component) applied to a local point, multiplied by ``sign``
-    (−1 for the reaction of a coupling force)."""
+    """An input force (one port per component) applied to a local point, multiplied by ``sign`` (+1 for
+    the force of a power bond, which arrives as the force on this point)."""
 
     ports: tuple[str, ...]
     point: str
@@ -74,10 +77,11 @@ class MotionOutput:
 
 @dataclass(frozen=True)
 class EffectForceOutput:
-    """Outputs the total force (one port per component) that the named effects exert on a local point.
+    """Outputs the force (one port per component) that the named effects, acting between a local point
+    and the remote one, exert on the remote point: the reaction of their force on the local ``point``.
 
-    With no effects named, the model itself provides the force at the point (a force-side model whose
-    coupling force is part of its own physics, e.g. a hydraulic actuator)."""
+    With no effects named, the model itself provides the force (a force-side model whose coupling force
+    is part of its own physics, e.g. a hydraulic actuator), also as the force on the remote point."""
 
     ports: tuple[str, ...]
     point: str
@@ -87,8 +91,8 @@ class EffectForceOutput:
 @dataclass(frozen=True)
 class RestState:
     """The state of a coupling point of the motion side when the whole system starts at rest: its
-    position (one value per component) and the coupling force (our sign convention: the force-side
-    output) that holds the motion side in static equilibrium there. Given to force-side models that
+    position (one value per component) and the coupling force (the bond's force signal: the force on
+    the motion side's point) that holds the motion side in static equilibrium there. Given to force-side models that
     start in equilibrium with their load (``starts_at_rest``)."""
 
     point: str

@@ -13,9 +13,10 @@ every force ``u`` acting on DOF ``p`` (``r = s^2 d + s f + g``) inside the subsy
   the architecture fixes its gain at zero (``full_feedback(..., exchanged_acceleration=False)``);
 * non-collocated (``p`` the bond's motion DOF ``j``, ``m`` on the force side: Eqs. 37–40): a
   ``Feedback`` effect on the terminal of ``j`` in the force side, relayed through the coupling
-  force. The motion side applies ``σ f̃_c*`` (``σ = -1``, the coupling's ``ForceInput`` sign) and
-  must receive ``σ f_c* + u_{2,1}*``, so ``f̃_c = f_c + u_{2,1} / σ = f_c - u_{2,1}``: the term
-  joins the coupling force with the sign ``1/σ``, not "added" as §5.1's prose says.
+  force. The motion side applies ``σ f̃_c*`` (``σ``, the coupling's ``ForceInput`` sign: +1, as a
+  connection copies a value unchanged; the paper's ``f_c`` acts on the force side, so the runtime's
+  signal is ``-f_c``) and must receive ``σ f_c* + u_{2,1}*``, so the term joins the coupling force with
+  the sign ``1/σ`` (with the paper's ``f_c``: subtracted, not "added" as §5.1's prose says).
 
 Discrete correction. ``D(s)`` models the exchange but not this runtime exactly: the feedthrough
 output ``f_c(t_{k+1})`` uses ``x_j(t_k)`` (``D(s) e^{-sT}`` rather than Eq. 13's ``D^2`` on that

@@ -35,9 +35,9 @@ class Route:
 class Bond:
     """A power bond across the interface: a force and the velocity it works on, as seen by each side.
 
-    ``force`` is computed by ``force_side`` from the received ``velocity_input``; ``motion_side``
-    applies the received ``force_input`` (as a reaction, sign −1) and outputs ``velocity``. Each is a
-    tuple of component signal names (one for a scalar bond); the power is their dot product.
+    ``force`` is computed by ``force_side`` from the received ``velocity_input``: the force on the motion
+    side's point; ``motion_side`` applies the received ``force_input`` as it is and outputs ``velocity``.
+    Each is a tuple of component signal names (one for a scalar bond); the power is their dot product.
     """
 
     name: str
@@ -77,7 +77,7 @@ class ForceDisplacementSettings:
     type: Literal["force_displacement"]
     force_side: str  # "<subsystem>.<point>": computes the force (direct feedthrough)
     motion_side: str  # "<subsystem>.<point>": applies the force, outputs displacement and velocity
-    force: str | tuple[str, ...]  # force signal [N]: force of the coupling element on the force-side point
+    force: str | tuple[str, ...]  # force signal [N]: force of the coupling element on the motion-side point
     displacement: str | tuple[str, ...]  # displacement signal [m] of the motion-side point
     velocity: str | tuple[str, ...]  # velocity signal [m/s] of the motion-side point
 
@@ -99,11 +99,13 @@ class ForceDisplacement:
 
     The force side holds the coupling element (spring–damper) between its point and a terminal that
     moves with the received displacement and velocity ``x*, v*`` of the motion side; it outputs
-    ``fc = -k (x_f - x*) - c (v_f - v*)`` (for linear elements), which depends on its inputs (direct
-    feedthrough). The motion side applies ``-fc*`` and outputs its displacement and velocity.
-    A coupling without effects has a force-side model that computes the force itself from its own
-    state and the received motion (the hydraulic actuator of paper 002 Eq. 25); it still outputs the
-    force on its own side, so the motion side applies ``-fc*`` in every case.
+    the force the element exerts on the motion side's point, ``fc = k (x_f - x*) + c (v_f - v*)`` (for
+    linear elements; the element pulls the force-side point with ``-fc``), which depends on its inputs
+    (direct feedthrough). The motion side applies ``fc*`` as it receives it (a connection copies a value
+    unchanged, as FMI, SSP and OSP define it) and outputs its displacement and velocity. A coupling
+    without effects has a force-side model that computes the force itself from its own state and the
+    received motion (the hydraulic actuator of paper 002 Eq. 25); it outputs the force on the motion
+    side's point too.
     """
 
     kind = "force_displacement"
@@ -182,7 +184,7 @@ class ForceDisplacement:
                 force_outputs=(EffectForceOutput(self.force, self.force_point, tuple(e.name for e in self.effects)),),
                 effects=tuple((e.name, e.effect, (self.force_point, terminal.name)) for e in self.effects)),
             self.motion_sub: Attachments(
-                force_inputs=(ForceInput(starred(self.force), self.motion_point, -1.0),),
+                force_inputs=(ForceInput(starred(self.force), self.motion_point, 1.0),),
                 motion_outputs=(MotionOutput(self.motion_point, self.displacement, self.velocity),)),
         }
 

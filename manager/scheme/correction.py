@@ -6,11 +6,11 @@ is ``ζ = Σ_b μ_b δE_b`` over its last macro-step (each bond's residual is ta
 its uncorrected coupling force is the sum of the bonds' forces, and its velocity is the point's.
 The macro-step H of a group is the interval between the points where all its sides communicate.
 
-Sign: our force ports carry the force on the force side's point; the motion side applies ``-fc*``.
-The paper's ``f`` (the force on the receiving subsystem) is therefore ``-Σ fc``, and its ``f_corr``
-(``compensation.energy_correction``) is applied by sending ``fc* - f_corr`` on the group's first
-force input: the motion side then applies ``-fc* + f_corr``. Logged forces are the paper's
-``f_corr``: the force the correction exerts on the receiving point.
+Sign: a bond's force signal is the force on the receiving point, which the motion side applies as it
+receives it (``subsystems.ports``). The paper's ``f`` (the force on the receiving subsystem) is
+therefore ``Σ fc``, and its ``f_corr`` (``compensation.energy_correction``) is applied by sending
+``fc* + f_corr`` on the group's first force input. Logged forces are the paper's ``f_corr``: the force
+the correction exerts on the receiving point.
 
 The correction is added to the constant coefficient of the input polynomial of every step of the
 receiving subsystem that starts in [t_{k+1}, t_{k+2}); the residual power is still evaluated with the
@@ -112,7 +112,7 @@ class EnergyCorrector:
     def adjust(self, sub: int, tick: int, coefficients: np.ndarray) -> np.ndarray:
         corrected = coefficients.copy()
         for group in self._by_target[sub]:
-            corrected[0, group.force_input] -= group.law.force
+            corrected[0, group.force_input] += group.law.force
         return corrected
 
     def observe(self, tick: int, trajectories: list[RowWindow], residual_energy: RowWindow) -> None:
@@ -132,8 +132,8 @@ class EnergyCorrector:
             zeta = sum(mu * (residual_energy.row(tick)[b] - residual_energy.row(group.last_tick)[b])
                        for mu, b in zip(group.mu, group.bonds))
             velocity = trajectories[group.motion].row(tick // ratio)[group.velocity]
-            coupling_force = -sum(trajectories[side].row(tick // side_ratio)[outputs]
-                                  for side, side_ratio, outputs in group.forces)
+            coupling_force = sum(trajectories[side].row(tick // side_ratio)[outputs]
+                                 for side, side_ratio, outputs in group.forces)
             force = group.law.update(float(zeta), velocity, coupling_force, group.macro_step)
             start = tick - group.force.offset
             group.force.array[start:start + group.interval] = force

@@ -1,11 +1,13 @@
 """Residual power of a power bond (paper 002 Eqs. 7–9, 12) — the one place it is computed.
 
-With the sign convention of ``subsystems.ports``: the force side's coupling element exerts ``f`` on
-its own point and ``-f`` on the terminal that moves with the received velocity ``v*``, so the power
-leaving the force side through the interface is ``-f v*``; the motion side applies ``-f*`` to a body
-moving with ``v``, receiving ``-f* v``. The interface creates energy at the rate
+With the sign convention of ``subsystems.ports`` (a connection copies a value unchanged): the force
+side outputs the force ``f`` its coupling element exerts on the remote point, which moves with the
+received velocity ``v*``, so the power leaving the force side through the interface is ``f v*``; the
+motion side applies the received ``f*`` to a body moving with ``v``, receiving ``f* v``. This is the
+power bond of OSP and of libcosim's ECCO algorithm (input times output on each side). The interface
+creates energy at the rate
 
-    δP = (power into the motion side) − (power out of the force side) = f v* − f* v,
+    δP = (power into the motion side) − (power out of the force side) = f* v − f v*,
 
 which vanishes when nothing is extrapolated (``f* = f``, ``v* = v``). Both inputs are the values the
 subsystems actually used at the communication point ``t_{k+1}``: the input polynomials they received
@@ -22,4 +24,4 @@ def residual_power(force: float, velocity_input: float, force_input: float, velo
     For a bond in the plane, call it per component and add: the power is a dot product, and the
     vector bond is one power bond (its components are not bonds to be monitored apart).
     """
-    return force * velocity_input - force_input * velocity
+    return force_input * velocity - force * velocity_input

@@ -145,12 +145,12 @@ class CraneArmModel:
         return sketch
 
     def rest_state(self, point: str) -> RestState:
-        """The actuator length at t = 0 and the coupling force (``-F``: the motion side applies ``-fc*``)
-        that holds the arm at rest there; link 2 must hang at rest by itself."""
+        """The actuator length at t = 0 and the coupling force ``F`` (the force on the actuator point, which
+        the arm applies as it receives it) that holds the arm at rest there; link 2 must hang at rest by itself."""
         theta1, theta2 = self.spec.angle1_0, self.spec.angle2_0
         if abs(self._weight2 * math.cos(theta2)) > 1e-9 * max(self._weight2, 1e-300):
             raise ValueError(f"the {self.name} model does not start at rest: link 2 at θ2(0) = {theta2} rad is "
                              "not hanging vertically")
         length, J = self.actuator(theta1)
         force = float(self._weight1 * math.cos(theta1) / J)  # F with J F = −Q_g1 [N]
-        return RestState(point, (float(length),), (-force,))
+        return RestState(point, (float(length),), (force,))

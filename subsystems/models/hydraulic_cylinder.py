@@ -12,8 +12,8 @@ element: the force is the cylinder's own, paper 002 Fig. 19)::
     a_i = A_v γ,  a_o = A_v (1 − γ),  A_v = 5·10⁻⁴ m²                      (Eqs. 31–32)
 
 (a flow whose pressure difference is negative is zero: the δ of the paper). f extends the actuator;
-with the sign convention of ``subsystems.ports`` the model outputs the force on its own side,
-``fc = −f``, and the arm applies ``−fc* = f*``. It has direct feedthrough through ``c ṡ*``.
+with the sign convention of ``subsystems.ports`` the model outputs the force on the arm's actuator
+point, ``fc = f``, which the arm applies as it receives it. It has direct feedthrough through ``c ṡ*``.
 
 Spool law (Eq. 33): ``γ = γ0 (1 − A(t) sin(2π ω t))`` with ``A`` rising linearly to ``amplitude`` over
 ``[0, ramp_end]``, held until ``hold_end``, falling linearly to 0 at ``stop``. Reading taken: the
@@ -121,7 +121,7 @@ class HydraulicCylinderModel:
         self.effects: tuple[str, ...] = ()
         rest = attachments.rest_states[0]
         self.initial_length = rest.position[0]  # s0 [m]
-        self.initial_force = -rest.force[0]  # f0 [N], extending the actuator
+        self.initial_force = rest.force[0]  # f0 [N], extending the actuator
         self.neutral_opening, self._p0 = self.equilibrium(self.initial_force)
         self._flow_gain = spec.discharge_coefficient * spec.valve_area * math.sqrt(2.0 / spec.density)
 
@@ -164,6 +164,6 @@ class HydraulicCylinderModel:
         return np.array([self.bulk_modulus(p1) * q1 / (a_p * l4), self.bulk_modulus(p2) * q2 / (a_p * l5)])
 
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """``fc = −f`` (Eq. 25, sign convention above), then the energy (not modelled: 0 J)."""
+        """``fc = f`` (Eq. 25, sign convention above), then the energy (not modelled: 0 J)."""
         f = self.spec.piston_area * (float(z[1]) - float(z[0])) - self.spec.friction * float(w[1])
-        return np.array([-f, 0.0])
+        return np.array([f, 0.0])

@@ -224,21 +224,22 @@ class MassesModel:
         return rows
 
     def _add_force_outputs(self, attachments: Attachments, layout: "_Layout", placed: list, rows: "_Rows") -> None:
-        """Each coupling force: the force of its coupling effects on its point, plus relayed feedback terms."""
+        """Each coupling force: the force its coupling effects exert on the remote point (the reaction of their
+        force on the output's own point), plus relayed feedback terms."""
         n, n_in, point_index, input_index = layout.n, layout.n_in, layout.point_index, layout.input_index
         unknown = {r.port for r in attachments.relayed_forces} - {out.ports[0] for out in attachments.force_outputs}
         if unknown:
             raise ValueError(f"relayed forces name outputs {sorted(unknown)}; expected force outputs of this subsystem")
         nonlinear_index = {e.name: k for k, e in enumerate(e for e in placed if e.effect.kind == "nonlinear")}
-        self._nonlinear_outputs = []  # (output row, nonlinear element, sign of its force on the output's point)
+        self._nonlinear_outputs = []  # (output row, nonlinear element, sign of its force's reaction on the point)
         for out in attachments.force_outputs:
             Ke, Ce = layout.stamped([layout.by_name[name] for name in out.effects if name in layout.by_name])
             i = point_index[out.point]
-            row_z = np.concatenate((-Ke[i, :n], -Ce[i, :n]))
+            row_z = np.concatenate((Ke[i, :n], Ce[i, :n]))
             row_w = np.zeros(n_in)
             for j, t in enumerate(layout.terminals):
-                row_w[input_index[t.position_inputs[0]]] = -Ke[i, n + j]
-                row_w[input_index[t.velocity_inputs[0]]] = -Ce[i, n + j]
+                row_w[input_index[t.position_inputs[0]]] = Ke[i, n + j]
+                row_w[input_index[t.velocity_inputs[0]]] = Ce[i, n + j]
             row_f = np.zeros(rows.n_external)
             for relay in attachments.relayed_forces:
                 if relay.port == out.ports[0]:
@@ -249,7 +250,7 @@ class MassesModel:
                 if name in nonlinear_index:
                     endpoints = layout.by_name[name].endpoints
                     self._nonlinear_outputs.append((len(rows.ports), nonlinear_index[name],
-                                                    1.0 if endpoints[0] == out.point else -1.0))
+                                                    -1.0 if endpoints[0] == out.point else 1.0))
                     through_elements += [port for p in endpoints if p is not None and point_index[p] >= n
                                          for port in layout.terminal_inputs(p)]
             rows.add(Port(out.ports[0], "force"), row_z, row_w, row_f, through=tuple(through_elements))

@@ -124,12 +124,13 @@ class PendulumModel:
         return np.array([moment / (spec.mass * spec.length ** 2)])
 
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """Tip position and velocity, coupling forces, then the energy [J] (gravity zero at y = 0)."""
+        """Tip position and velocity, coupling forces (those the coupling elements exert on the remote point:
+        the reaction of their force on the tip), then the energy [J] (gravity zero at y = 0)."""
         r, v, _ = self.tip(z)
         elements = self._element_forces(r, v, w)
         values = [*r, *v] * self._motion_outputs
         for members in self._force_outputs:
-            values += list(sum((elements[k][0] for k in members), np.zeros(2)))
+            values += list(-sum((elements[k][0] for k in members), np.zeros(2)))
         spec = self.spec
         energy = 0.5 * spec.mass * (spec.length * float(z[1])) ** 2 + spec.mass * spec.gravity * float(r[1])
         energy += sum(potential for _, potential in elements)

@@ -120,8 +120,8 @@ class Oscillator:
 def formulas(p: dict[str, float], x: float, v: float, x_in: float, v_in: float, f_in: float) -> dict[str, float]:
     """The model's outputs written out in Python (the operations in the order the C code does them)."""
     m, k, c, kc, cc = (p[n] for n in ("m", "k", "c", "kc", "cc"))
-    fc = -kc * (x - x_in) - cc * (v - v_in)
-    return {"x": x, "v": v, "a": (-k * x - c * v + fc + f_in) / m, "fc": fc, "inverse_mass": 1 / m,
+    fc = kc * (x - x_in) + cc * (v - v_in)  # on the terminal: the mass feels -fc
+    return {"x": x, "v": v, "a": (-k * x - c * v - fc + f_in) / m, "fc": fc, "inverse_mass": 1 / m,
             "E": 0.5 * m * v * v + 0.5 * k * x * x + 0.5 * kc * (x - x_in) * (x - x_in)}
 
 
@@ -163,7 +163,7 @@ def test_the_model_descriptions_offer_the_interfaces_asked_for(fmu2, fmu2_me, fm
         assert fmu.md.coSimulation.canGetAndSetFMUstate and fmu.md.coSimulation.canSerializeFMUstate
         assert [(d.variable.derivative.name, d.variable.name) for d in fmu.md.derivatives] == [("x", "v"), ("v", "a")]
     assert fmu2.md.numberOfEventIndicators == 0
-    assert (fmu2.md.guid, fmu3.md.guid) == ("{zencosim-oscillator-fmi2-1}", "{zencosim-oscillator-fmi3-1}")
+    assert (fmu2.md.guid, fmu3.md.guid) == ("{zencosim-oscillator-fmi2-2}", "{zencosim-oscillator-fmi3-2}")
     with pytest.raises(ValueError, match="interfaces"):
         build_fmu(Path("unused.fmu"), fmi_version=3, interfaces=("cs", "me"))
 
@@ -239,7 +239,7 @@ def test_a_free_oscillation_is_the_symplectic_euler_recurrence(fmu2):
             states.append(osc.get("x", "v"))
         assert osc.get("time") == [pytest.approx(n * h, rel=1e-15)]
     states = np.array(states)
-    # the same method in C and in numpy, but the C code adds fc + f_in (both zero here) and may order the
+    # the same method in C and in numpy, but the C code adds -fc + f_in (both zero here) and may order the
     # operations differently: agreement to a few rounding errors, not necessarily to the bit
     for column, reference in ((states[:, 0], x), (states[:, 1], v)):
         np.testing.assert_allclose(column, reference, rtol=1e-12, atol=1e-12 * np.abs(reference).max())

@@ -104,16 +104,16 @@ def test_caps_limit_the_force_to_a_fraction_of_the_coupling_force_and_an_absolut
     assert law.update(10.0, np.array([0.0]), np.array([-500.0]), 0.01)[0] == 0.0  # v = 0: no direction, no force
 
 
-def test_the_manager_applies_the_paper_force_as_a_reaction_on_the_motion_side():
-    # our force port carries the force on the force side; the motion side applies -fc*: a correction f_corr on
-    # the receiving body is sent as fc* - f_corr
+def test_the_manager_adds_the_paper_force_to_the_force_the_motion_side_receives():
+    # a bond's force signal is the force on the receiving body, which applies it unchanged: a correction f_corr
+    # on that body is sent as fc* + f_corr
     scene = load_scene("double_oscillator", CORRECTED)
     plan, _ = plan_scene(scene)
     corrector = EnergyCorrector(plan, scene.manager.correction)
     (group,) = corrector.groups
     group.law.force = np.array([3.0])
     sent = np.array([[7.0]])
-    assert corrector.adjust(group.motion, 0, sent)[0, 0] == 4.0 and sent[0, 0] == 7.0  # a copy is adjusted
+    assert corrector.adjust(group.motion, 0, sent)[0, 0] == 10.0 and sent[0, 0] == 7.0  # a copy is adjusted
 
 
 def test_work_injected_accounts_for_the_energy_removed():

@@ -127,11 +127,11 @@ def test_the_mechanism_moves_as_the_recorded_outputs_say(replayed):
     # positions; S2 is the second lane, 1 m below the first (y = -1 m, drawn as +1: Rerun's y points down)
     assert centers[:, 0].astype(np.float32).tobytes() == outputs[:, 0].astype(np.float32).tobytes()
     assert set(centers[:, 1].tolist()) == {1.0}
-    # the coupling force on m2 is the reaction to S1's fc: the arrow points against it
+    # S1's fc is the coupling force on m2, which m2 receives unchanged: the arrow points along it
     _, _, s1 = recording.channels["S1/y"].table(Kind.OUTPUT)
     arrows = data["/mechanism/forces/c"].filter(pc.is_valid(data["/mechanism/forces/c"]["sim_time"]))
     vectors = np.array([row[0] for row in arrows.sort_by("sim_time")["Arrows2D:vectors"].to_pylist()])
-    assert np.all(np.sign(vectors[:, 0]) == -np.sign(s1[:, 0])) and np.all(vectors[:, 1] == 0.0)
+    assert np.all(np.sign(vectors[:, 0]) == np.sign(s1[:, 0])) and np.all(vectors[:, 1] == 0.0)
     assert _values(data["/events"], "TextLog:text") == [["run completed"]]
 
 

@@ -33,10 +33,11 @@ def test_point_masses_with_nonlinear_coupling_give_the_force_law_and_feedthrough
     m1 = subs["M1"]
     (force_port,) = [p for p in m1.outputs if p.quantity == "force"]
     assert force_port.feedthrough  # the sqrt spring depends on the received x2*
-    # at x1 = 0 with x2* = -4 m: eta = x1 - x2* = 4 m, f = -100 sqrt(4) = -200 N; energy: kinetic 5000 J,
+    # at x1 = 0 with x2* = -4 m: eta = x1 - x2* = 4 m, the spring pulls m1 with -100 sqrt(4) = -200 N and m2
+    # with +200 N, the force the output carries (what m2 receives); energy: kinetic 5000 J,
     # coupling spring (2/3) 100 * 4^1.5 = 533.3 J, ground spring 0
     y = m1.output_values(np.array([-4.0, 0.0]))
-    assert y[0] == pytest.approx(-200.0)
+    assert y[0] == pytest.approx(200.0)
     assert y[-1] == pytest.approx(5000.0 + 2.0 / 3.0 * 100.0 * 8.0)
 
 

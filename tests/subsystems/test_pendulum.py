@@ -47,4 +47,5 @@ def test_the_coupling_spring_pulls_along_the_line_between_the_tips():
     direction = np.array([0.6, 0.8])
     terminal = tip1 + (8.75623673623616 + 1.0) * direction  # stretched by 1 m
     y = m1.output_values(np.array([*terminal, 0.0, 0.0]))
-    assert y[:2] == pytest.approx(6.0 * 1.0 * direction)  # kappa = 6 N/m towards the other tip
+    # kappa = 6 N/m: it pulls tip 1 towards the other tip and the other tip back, which is what the output carries
+    assert y[:2] == pytest.approx(-6.0 * 1.0 * direction)

@@ -2,7 +2,10 @@
 ground, a coupling spring–damper towards a remote point whose motion arrives as inputs, and an
 applied force. The same model as the example FMUs (``zencosim.examples.fmus``)::
 
-    m a = -k x - c v + fc + f_in,     fc = -kc (x - x_in) - cc (v - v_in)
+    m a = -k x - c v - fc + f_in,     fc = kc (x - x_in) + cc (v - v_in)
+
+``fc`` is the force of the coupling element on the remote point (what a connection hands the other
+side, unchanged); the mass feels its reaction ``-fc``.
 
 Use it in a scene as ``model = "zencosim.examples.oscillator:Oscillator"``; a copy of this file in your
 own package works the same way with your module's name.
@@ -30,11 +33,11 @@ class Oscillator:
         return np.array([self.x0, self.v0])
 
     def _coupling_force(self, z: np.ndarray, u: np.ndarray) -> float:
-        return -self.kc * (z[0] - u[0]) - self.cc * (z[1] - u[1])
+        return self.kc * (z[0] - u[0]) + self.cc * (z[1] - u[1])
 
     def acceleration(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         x, v = z
-        return np.array([(-self.k * x - self.c * v + self._coupling_force(z, u) + u[2]) / self.m])
+        return np.array([(-self.k * x - self.c * v - self._coupling_force(z, u) + u[2]) / self.m])
 
     def outputs_at(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         x, v = z

@@ -7,7 +7,8 @@ roles its side needs:
 ============================  ============================================================  =========  ========
 role                          meaning                                                       causality  quantity
 ============================  ============================================================  =========  ========
-``force``                     force of the coupling element on the point (force side)        output     force
+``force``                     force of the coupling element on the other side's point       output     force
+                              (force side; the reaction acts on this point)
 ``position_input``            position of the other side, received (force side)              input      position
 ``velocity_input``            velocity of the other side, received (force side)              input      velocity
 ``force_input``               force applied to the point (motion side; joint, force drive)  input      force
@@ -20,8 +21,8 @@ role                          meaning                                           
                               or a number)
 ============================  ============================================================  =========  ========
 
-A received force is applied with the sign its coupling gives (the reaction of a coupling force: −1),
-so the component sees the force that acts on its point.
+A connection copies a value unchanged, as FMI, SSP and OSP define it: a received force is the force
+that acts on the component's point (a force-driven joint side's input is applied with the side's sign).
 """
 from __future__ import annotations
 

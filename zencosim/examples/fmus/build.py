@@ -23,7 +23,7 @@ HERE = Path(__file__).resolve().parent
 MODEL_NAME = "zencosim oscillator"
 GENERATION_TOOL = "zencosim.examples.fmus.build"
 MODEL_IDENTIFIER = {2: "zencosim_oscillator", 3: "zencosim_oscillator3"}
-INSTANTIATION_TOKEN = {2: "{zencosim-oscillator-fmi2-1}", 3: "{zencosim-oscillator-fmi3-1}"}
+INSTANTIATION_TOKEN = {2: "{zencosim-oscillator-fmi2-2}", 3: "{zencosim-oscillator-fmi3-2}"}
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}  # the binaries/ folder of a 64-bit Linux library
 SOURCE = {2: HERE / "oscillator_fmi2.c", 3: HERE / "oscillator_fmi3.c"}
 CFLAGS = ["-shared", "-fPIC", "-O2", "-ffp-contract=off", "-std=c99", "-Wall", "-Werror"]
@@ -76,9 +76,10 @@ VARIABLES: tuple[Variable, ...] = (
     Variable("f_in", "input", "N", "applied force", 0.0),
     Variable("x", "output", "m", "position (continuous state)", uses=("x",)),
     Variable("v", "output", "m/s", "velocity (continuous state)", uses=("v",), derivative_of="x"),
-    Variable("a", "output", "m/s2", "acceleration (a = (-k*x - c*v + fc + f_in)/m)",
+    Variable("a", "output", "m/s2", "acceleration (a = (-k*x - c*v - fc + f_in)/m)",
              uses=("m", "k", "c", "kc", "cc", "x", "v", "x_in", "v_in", "f_in"), derivative_of="v"),
-    Variable("fc", "output", "N", "force of the coupling element on the mass (fc = -kc*(x - x_in) - cc*(v - v_in))",
+    Variable("fc", "output", "N",
+             "force of the coupling element on the terminal (fc = kc*(x - x_in) + cc*(v - v_in))",
              uses=("kc", "cc", "x", "v", "x_in", "v_in")),
     Variable("inverse_mass", "output", "1/kg", "1/m", uses=("m",)),
     Variable("E", "output", "J", "energy in the mass, the spring to ground and the coupling spring",

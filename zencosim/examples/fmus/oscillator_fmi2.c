@@ -3,8 +3,9 @@
    One point mass on a line, with a spring and damper to ground, a coupling spring-damper towards a
    "terminal" whose motion arrives as inputs (x_in, v_in), and an applied input force f_in:
 
-     fc           = -kc*(x - x_in) - cc*(v - v_in)      force of the coupling element on the mass
-     a            = (-k*x - c*v + fc + f_in) / m
+     fc           = kc*(x - x_in) + cc*(v - v_in)      force of the coupling element on the terminal (the remote mass);
+                                                        the mass feels its reaction -fc
+     a            = (-k*x - c*v - fc + f_in) / m
      inverse_mass = 1/m
      E            = 0.5*m*v*v + 0.5*k*x*x + 0.5*kc*(x - x_in)*(x - x_in)
 
@@ -87,8 +88,8 @@ static void update_outputs(Instance *inst) {
     update_states(inst);
     x = p[VR_x];
     v = p[VR_v];
-    p[VR_fc] = -p[VR_kc] * (x - x_in) - p[VR_cc] * (v - p[VR_v_in]);
-    p[VR_a] = (-p[VR_k] * x - p[VR_c] * v + p[VR_fc] + p[VR_f_in]) / p[VR_m];
+    p[VR_fc] = p[VR_kc] * (x - x_in) + p[VR_cc] * (v - p[VR_v_in]);
+    p[VR_a] = (-p[VR_k] * x - p[VR_c] * v - p[VR_fc] + p[VR_f_in]) / p[VR_m];
     p[VR_inverse_mass] = 1.0 / p[VR_m];
     p[VR_E] = 0.5 * p[VR_m] * v * v + 0.5 * p[VR_k] * x * x + 0.5 * p[VR_kc] * (x - x_in) * (x - x_in);
 }

@@ -3,8 +3,8 @@
    The model and its arithmetic are those of oscillator_fmi2.c (described there), statement for
    statement, so that both FMUs give the same trajectories bit for bit:
 
-     fc           = -kc*(x - x_in) - cc*(v - v_in)
-     a            = (-k*x - c*v + fc + f_in) / m
+     fc           = kc*(x - x_in) + cc*(v - v_in)
+     a            = (-k*x - c*v - fc + f_in) / m
      inverse_mass = 1/m
      E            = 0.5*m*v*v + 0.5*k*x*x + 0.5*kc*(x - x_in)*(x - x_in)
 
@@ -77,8 +77,8 @@ static void update_outputs(Instance *inst) {
     update_states(inst);
     x = p[VR_x];
     v = p[VR_v];
-    p[VR_fc] = -p[VR_kc] * (x - x_in) - p[VR_cc] * (v - p[VR_v_in]);
-    p[VR_a] = (-p[VR_k] * x - p[VR_c] * v + p[VR_fc] + p[VR_f_in]) / p[VR_m];
+    p[VR_fc] = p[VR_kc] * (x - x_in) + p[VR_cc] * (v - p[VR_v_in]);
+    p[VR_a] = (-p[VR_k] * x - p[VR_c] * v - p[VR_fc] + p[VR_f_in]) / p[VR_m];
     p[VR_inverse_mass] = 1.0 / p[VR_m];
     p[VR_E] = 0.5 * p[VR_m] * v * v + 0.5 * p[VR_k] * x * x + 0.5 * p[VR_kc] * (x - x_in) * (x - x_in);
 }
