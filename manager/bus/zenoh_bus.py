@@ -15,6 +15,7 @@ child process outlives the bus.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
@@ -31,6 +32,7 @@ from zencosim.manager.bus.backlog import Backlog
 from zencosim.manager.bus.children import cpu_time_s, process_state, start_child
 from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
+from zencosim.manager.bus.signals import DeferredSignals
 from zencosim.manager.bus.zenoh_session import (
     ZenohOptions,
     concrete_endpoint,
@@ -461,11 +463,28 @@ class ZenohBus:
 
     # -- shutdown --------------------------------------------------------------------------------
     def close(self) -> None:
-        """Stop every subsystem process, then make sure none is left; close the session."""
+        """Stop every subsystem process, then make sure none is left; close the session.
+
+        An interrupt (SIGINT, SIGTERM: ``cli.main`` raises KeyboardInterrupt) while it waits for the processes
+        kills those left at once, and the session is closed in any case, with the signals held meanwhile: an
+        open session keeps Zenoh's callback threads, which are not daemons, and the process would hang at its
+        exit waiting for them."""
         self._driving = False
-        publishers = getattr(self, "_publishers", {})
+        try:
+            self._stop_children()
+        except BaseException:
+            for child in self.children.values():
+                if child.poll() is None:
+                    child.kill()
+                    child.wait()
+            raise
+        finally:
+            self._close_session()
+
+    def _stop_children(self) -> None:
+        """STOP every subsystem process; terminate, then kill, those that do not exit in ``STOP_GRACE_S``."""
         if self._session is not None:
-            for publisher in publishers.values():
+            for publisher in getattr(self, "_publishers", {}).values():
                 publisher.put(encode(Kind.STOP, 0, 0))
         deadline = time.monotonic() + STOP_GRACE_S
         for child in self.children.values():
@@ -480,12 +499,23 @@ class ZenohBus:
                 except subprocess.TimeoutExpired:
                     child.kill()
                     child.wait()
-        if self._session is not None:
-            for entity in reversed(self._entities):
-                entity.undeclare()
-            for publisher in publishers.values():
-                publisher.undeclare()
-            self._go.undeclare()
-            self._session.close()
-            self._session = None
-        self._logs.cleanup()
+
+    def _close_session(self) -> None:
+        """Undeclare what the session declared and close it (also after a start-up cut short: only what was
+        declared), with SIGINT and SIGTERM held until it is closed (in the main thread)."""
+        signals = DeferredSignals() if threading.current_thread() is threading.main_thread() else None
+        try:
+            with signals.held() if signals is not None else contextlib.nullcontext():
+                if self._session is not None:
+                    for entity in reversed(self._entities):
+                        entity.undeclare()
+                    for publisher in getattr(self, "_publishers", {}).values():
+                        publisher.undeclare()
+                    if getattr(self, "_go", None) is not None:
+                        self._go.undeclare()
+                    self._session.close()
+                    self._session = None
+                self._logs.cleanup()
+        finally:
+            if signals is not None:
+                signals.restore()

@@ -21,11 +21,12 @@ def measure_tasks(tasks: list[dict], workers: int) -> Iterator[tuple[str, dict]]
     """``(key, measured)`` of every task, in the order they finish, measured by ``workers`` processes; a task
     that fails raises ``RuntimeError`` naming its point."""
     pending = list(reversed(tasks))
-    processes = [subprocess.Popen([sys.executable, "-m", "zencosim.manager.study.workers"], stdin=subprocess.PIPE,
-                                  stdout=subprocess.PIPE, text=True, bufsize=1)
-                 for _ in range(min(workers, len(tasks)))]
+    processes: list[subprocess.Popen] = []  # filled one by one: an interrupt while they start ends those started
     selector = selectors.DefaultSelector()
     try:
+        for _ in range(min(workers, len(tasks))):
+            processes.append(subprocess.Popen([sys.executable, "-m", "zencosim.manager.study.workers"],
+                                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1))
         for process in processes:
             _give(process, pending)
             selector.register(process.stdout, selectors.EVENT_READ, process)

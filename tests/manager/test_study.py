@@ -5,12 +5,13 @@ from __future__ import annotations
 import json
 import re
 import signal
+import time
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.conftest import REPO, alive, children_of, wait_for
+from tests.conftest import REPO, alive, children_of, cmdline, wait_for
 from tests.manager.test_cli import zencosim
 from zencosim.manager.analysis.scene_analysis import analyze_scene
 from zencosim.manager.assembly import plan_scene
@@ -103,6 +104,31 @@ def test_an_interrupted_study_resumes_with_the_missing_points_only(tmp_path, pro
     assert resumed.returncode == 0, resumed.stderr
     run = json.loads((tmp_path / "report" / "study.json").read_text())["run"]
     assert (run["ran"], run["cached"]) == (4 - measured, measured)
+
+
+def _subsystem_processes(pid: int) -> list[int]:
+    return [child for child in children_of(pid) if "zencosim subsystem" in cmdline(child)]
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(60)
+def test_sigterm_ends_a_study_over_zenoh_promptly_with_its_processes(tmp_path, processes):
+    """A SIGTERM while the study starts a point's subsystem processes, and a second one while it waits for them to
+    stop (they are still starting: they get no STOP and are terminated after 2 s): exit 130 promptly, no process
+    left. The second interrupt once cut the closing of the Zenoh session short; its callback threads, which are
+    not daemons, then held the study at its exit for good after it printed ``interrupted``."""
+    study = processes("study", "two_mass_damped", "--set", "manager.duration=0.2", "--vary", "manager.macro_step=1e-3",
+                      "--repeats", "1", "--zenoh", "all", "--zenoh-repeats", "3",
+                      "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "report"))
+    subsystems = wait_for(lambda: _subsystem_processes(study.pid), 30, "the point's subsystem processes")
+    study.send_signal(signal.SIGTERM)
+    time.sleep(0.5)
+    study.send_signal(signal.SIGTERM)
+    started = time.monotonic()
+    assert study.wait(15) == 130
+    assert time.monotonic() - started < 5
+    assert study.stderr.read().strip().endswith("interrupted")
+    assert not any(alive(pid) for pid in subsystems)
 
 
 def documented_keys() -> set[str]:
