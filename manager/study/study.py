@@ -39,7 +39,8 @@ class StudyOptions:
 def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptions(), cache_root: str = ".zencosim-study",
               progress: Callable[[str, int, int], None] | None = None) -> dict:
     """Measure the grid ``axes`` of ``scene`` and return the study (docs/study.md); ``progress(phase, done,
-    total)`` after every point (phases ``inproc`` and ``zenoh``)."""
+    total)`` before a phase's first point (``done``: those the cache holds) and after every point (phases
+    ``inproc`` and ``zenoh``)."""
     started = time.perf_counter()
     signal_name = options.signal or scene.outputs.signals[0]
     points, skipped = expand(scene, axes)
@@ -55,6 +56,8 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     answers = {_cheapest(rows, target) for target in TARGETS} if options.zenoh == "answers" else set()
     chosen = [r for r in rows if r["failed"] is None
               and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]) or r["key"] in answers)]
+    if progress is not None and chosen:
+        progress("zenoh", 0, len(chosen))
     for done, row in enumerate(chosen, 1):
         entry = entries[row["key"]]
         if entry.get("zenoh") is None or entry["zenoh"]["repeats"] != options.zenoh_repeats:

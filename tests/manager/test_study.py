@@ -131,6 +131,28 @@ def test_sigterm_ends_a_study_over_zenoh_promptly_with_its_processes(tmp_path, p
     assert not any(alive(pid) for pid in subsystems)
 
 
+@pytest.mark.multiprocess
+def test_a_study_whose_output_is_not_a_terminal_says_a_line_per_finished_point(tmp_path):
+    """Captured output (not a terminal): the points of each phase, with those the cache holds, then a line per
+    finished point, before the result; --quiet: nothing."""
+    def study(steps: str, zenoh: str, *more: str) -> tuple[list[str], str]:
+        result = zencosim("study", "two_mass_damped", "--set", "manager.duration=0.1", "--vary",
+                          f"manager.macro_step={steps}", "--repeats", "1", "--zenoh", zenoh,
+                          "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "report"), *more)
+        assert result.returncode == 0, result.stderr
+        return [re.sub(r" \(\d+ s\)$", "", line) for line in result.stdout.splitlines()], result.stdout
+
+    lines, stdout = study("1e-3,2e-3", "none")
+    assert lines[:3] == ["two_mass_damped: 2 points in process", "two_mass_damped: point 1/2 in process done",
+                         "two_mass_damped: point 2/2 in process done"], stdout
+    assert lines[3].startswith("2 points (2 measured, 0 from the cache") and "done (" in stdout
+    lines, stdout = study("1e-3", "all")
+    assert lines[:3] == ["two_mass_damped: 1 point in process, all from the cache",
+                         "two_mass_damped: 1 point over Zenoh", "two_mass_damped: point 1/1 over Zenoh done"], stdout
+    assert lines[3].startswith("1 points (0 measured, 1 from the cache"), stdout
+    assert study("1e-3", "none", "--quiet") == ([], "")
+
+
 def documented_keys() -> set[str]:
     """The key paths of docs/study.md's table: ``a.b``, ``a[].b``, with ``<name>`` for keys that name things;
     a row's ``.x`` continues the path of its first key."""
