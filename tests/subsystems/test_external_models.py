@@ -10,6 +10,7 @@ which a damped run of 10 000 steps keeps near 1e-13 relative (measured 3.5e-14 f
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -224,6 +225,35 @@ def test_a_scene_with_a_broken_model_names_the_subsystem_and_the_defect(user_mod
     with pytest.raises(zencosim.SceneError, match=r"subsystems\.S2\.model: model 'nowhere:Spring': cannot import "
                                                   r"module 'nowhere'"):
         zencosim.load_scene(_user_scene(user_module, "nowhere:Spring"))
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+def test_a_model_in_the_working_directory_is_found_as_python_m_finds_it(tmp_path):
+    """``mymodels.msd:Spring`` where ``mymodels/`` is the working directory's, without PYTHONPATH and with the
+    working directory kept off the path as the installed ``zencosim`` command keeps it (``-P``): check-model,
+    ``check`` and a run over Zenoh (whose subsystem processes search it too) find it; a module that cannot be
+    imported, or exits while imported, is bad input (exit 2) in one line."""
+    (tmp_path / "mymodels").mkdir()
+    (tmp_path / "mymodels" / "__init__.py").write_text("")
+    (tmp_path / "mymodels" / "msd.py").write_text(USER_MODEL)
+    (tmp_path / "mymodels" / "exits.py").write_text("import sys\nsys.exit(1)\n")
+    scene = _user_scene(tmp_path, "mymodels.msd:Spring")
+    environment = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+
+    def cli(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-P", "-m", "zencosim", *args], capture_output=True, text=True,
+                              cwd=tmp_path, env=environment, timeout=100)
+
+    checked = cli("check-model", "mymodels.msd:Spring")
+    assert checked.returncode == 0 and "conforms" in checked.stdout, checked.stderr
+    ran = cli("run", scene.name, "--bus", "zenoh", "--set", "manager.duration=0.05")
+    assert ran.returncode == 0, ran.stderr
+    for reference, reason in (("mymodels.nowhere:Spring", "cannot import module 'mymodels.nowhere': No module named"),
+                              ("mymodels.exits:Spring", "importing 'mymodels.exits' failed: SystemExit: 1")):
+        result = cli("check-model", reference)
+        assert result.returncode == 2 and len(result.stderr.splitlines()) == 1, result.stderr
+        assert result.stderr.startswith(f"error: model '{reference}': {reason}"), result.stderr
 
 
 # -- bad FMUs ------------------------------------------------------------------------------------------------

@@ -1,13 +1,16 @@
 """A user's Python model as a component (docs/models.md): a class that states its inputs, outputs and
 parameters with SI units and gives its state derivative; zencosim's integrator advances its state.
 
-The class is found by ``"package.module:ClassName"`` or by the name a package registers in the
-entry-point group ``zencosim.models``. :func:`describe_python` checks what can be checked without
-running it (attributes, methods, units) and reports every problem at once.
+The class is found by ``"package.module:ClassName"`` (the working directory searched after the installed
+packages) or by the name a package registers in the entry-point group ``zencosim.models``.
+:func:`describe_python` checks what can be checked without running it (attributes, methods, units) and
+reports every problem at once.
 """
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from importlib.metadata import entry_points
 
 import numpy as np
@@ -22,6 +25,16 @@ class ModelClassError(ValueError):
     """A model class that cannot be used; the message says what is missing or wrong."""
 
 
+def search_working_directory() -> None:
+    """Put the working directory on the import path, as ``python -m`` does, so that ``mymodels.msd:Model`` is found
+    where ``mymodels/`` is; but last, not first: a folder where the user works cannot shadow zencosim's or an
+    installed package's modules (``manager.bus.children`` starts subsystem processes with ``-P`` for that reason;
+    they inherit the working directory and search it the same way)."""
+    directory = os.getcwd()
+    if directory not in sys.path:
+        sys.path.append(directory)
+
+
 def find_class(reference: str) -> type:
     """The class ``"package.module:ClassName"``, or the one a package registered under ``reference``."""
     if ":" not in reference:
@@ -32,11 +45,12 @@ def find_class(reference: str) -> type:
                                   + (f" ({', '.join(sorted(registered))})" if registered else ""))
         reference = registered[reference].value
     module_name, _, class_name = reference.partition(":")
+    search_working_directory()
     try:
         module = importlib.import_module(module_name)
     except ImportError as error:
         raise ModelClassError(f"model {reference!r}: cannot import module {module_name!r}: {error}") from None
-    except Exception as error:  # the user's module failed while it was imported
+    except (Exception, SystemExit) as error:  # the user's module failed (or called sys.exit) while it was imported
         raise ModelClassError(f"model {reference!r}: importing {module_name!r} failed: "
                               f"{type(error).__name__}: {error}") from None
     cls = getattr(module, class_name, None)
