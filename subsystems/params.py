@@ -67,11 +67,31 @@ def _bounds_text(meta: dict) -> str:
     return (" " + " and ".join(parts) if parts else "") + unit
 
 
+INT64_LIMIT = 2**63  # an integer parameter is used as an int64
+
+
+def _too_large(value: Any, integer: bool) -> bool:
+    """An integer that no int64 holds (an integer parameter), or no float (a number: 400 digits, say)."""
+    if not isinstance(value, int):
+        return False
+    if integer:
+        return not -INT64_LIMIT <= value < INT64_LIMIT
+    try:
+        float(value)
+    except OverflowError:
+        return True
+    return False
+
+
 def _check_number(value: Any, key: str, meta: dict, problems: Problems, integer: bool) -> Any:
     kind = "an integer" if integer else "a number"
     ok = isinstance(value, int) if integer else isinstance(value, (int, float))
     if isinstance(value, bool) or not ok:
         problems.add(key, f"expected {kind}{_bounds_text(meta)}, got {_type_name(value)}")
+        return None
+    if _too_large(value, integer):
+        problems.add(key, f"expected {'an integer' if integer else 'a finite number'}{_bounds_text(meta)}, got an "
+                          f"integer of {len(str(abs(value)))} digits")
         return None
     number = value if integer else float(value)
     if not integer and number != number or number in (float("inf"), float("-inf")):

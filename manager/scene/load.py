@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import sys
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -123,6 +124,9 @@ def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scen
         document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise SceneError(path, [_problem("scene", f"not valid TOML: {error}")]) from None
+    except ValueError:  # Python reads no integer of more than sys.get_int_max_str_digits() digits
+        raise SceneError(path, [_problem("scene", f"an integer of more than {sys.get_int_max_str_digits()} digits; "
+                                                  "expected a number a float holds")]) from None
     except RecursionError:  # tomllib parses nested arrays and tables recursively
         raise SceneError(path, [_problem("scene", f"arrays or tables nested too deeply; expected at most "
                                          f"{DEEPEST} levels")]) from None

@@ -122,3 +122,25 @@ def test_help_shows_examples_for_the_tool_and_each_command():
     for command in ("run", "check", "analyze", "stability", "subsystem", "replay", "inspect", "export"):
         result = zencosim(command, "--help")
         assert result.returncode == 0 and f"zencosim {command}" in result.stdout.split("examples:")[1], command
+
+
+def test_a_run_whose_reference_energy_is_not_finite_prints_its_summary():
+    """v0 = 1e300: the values overflow (exit 3, diverged), the reference's energy too; the summary says so."""
+    result = zencosim("run", "two_mass_damped", "--set", "subsystems.S1.bodies.m1.v0=1e300",
+                      "--set", "manager.duration=0.01")
+    assert result.returncode == 3 and "Traceback" not in result.stderr, result.stderr
+    assert "energy final, reference [J]" in result.stdout and "not available (not finite)" in result.stdout
+
+
+def test_integers_too_large_for_a_float_are_one_line_errors(tmp_path):
+    """An integer of 400 digits (no float holds it) and one of 5000 (more than Python reads from text): exit 2,
+    naming the file and key, never a traceback."""
+    text = (REPO / "scenes" / "two_mass_damped.toml").read_text()
+    for digits, message in ((400, "subsystems.S1.bodies.m1.mass: expected a finite number > 0.0 [kg], got an "
+                                  "integer of 400 digits"),
+                            (5000, "scene: an integer of more than 4300 digits")):
+        scene = tmp_path / f"big{digits}.toml"
+        scene.write_text(text.replace("mass = 1.0, x0 = 0.0, v0 = 100.0", f"mass = {'9' * digits}, x0 = 0.0, v0 = 100.0"))
+        result = zencosim("check", str(scene))
+        assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+        assert f"{scene}: {message}" in result.stderr, result.stderr
