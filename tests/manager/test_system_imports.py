@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from zencosim.manager.scene.imports import import_system
-from zencosim.manager.scene.load import SceneError, scene_from_text
+from zencosim.manager.scene.load import SceneError, load_scene, scene_from_text
 
 SCENE = """
 name = "two_mass_damped_fmu"
@@ -269,8 +269,25 @@ def test_osp_refuses_an_unknown_algorithm(osp_dir):
     key = f"Algorithm (line {line(text, '<Algorithm>')})"
     assert osp_refusal(osp_dir, text) == {key: "unknown algorithm 'jacobiWithRollback'; expected fixedStep"}
     problems = osp_refusal(osp_dir, osp_system(algorithm="ecco"))
-    assert problems[key].startswith("algorithm 'ecco' (adaptive step size) is not supported: zencosim steps at a "
-                                    "fixed macro step")
+    assert problems[key].startswith("algorithm 'ecco' (energy-controlled adaptive step size) is not supported yet: "
+                                    "zencosim steps at a fixed macro step; run it at its base step with "
+                                    "--set manager.algorithm=fixed")
+
+
+def test_osp_ecco_runs_at_its_base_step_when_the_user_asks_for_the_fixed_step_algorithm(osp_dir):
+    text = osp_system(algorithm="ecco")
+    fixed, notes = osp_import(osp_dir, text, algorithm="fixed")
+    assert fixed == osp_import(osp_dir, osp_system())[0]  # the same scene as the file with fixedStep
+    assert f"Algorithm (line {line(text, '<Algorithm>')}): 'ecco' (adaptive step size) run with the fixed-step " \
+           "algorithm at the base step, as asked (manager.algorithm = 'fixed')" in notes
+    path = osp_dir / "OspSystemStructure.xml"
+    with pytest.raises(SceneError) as caught:  # the FMUs here have no binary: the algorithm was taken, the rest not
+        load_scene(str(path), ["manager.algorithm=fixed", "manager.duration=0.01"])
+    assert {p.key for p in caught.value.problems} == {"subsystems.S1.fmu", "subsystems.S2.fmu"}
+    with pytest.raises(SceneError) as caught:
+        load_scene(str(path), ["manager.algorithm=ecco"])
+    assert [(p.key, p.reason) for p in caught.value.problems] == [
+        ("manager.algorithm", "expected one of fixed, got 'ecco'")]
 
 
 def test_osp_refuses_a_plain_connection_outside_a_bond(osp_dir):

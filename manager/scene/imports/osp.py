@@ -128,10 +128,11 @@ class _ModelDescription:
 class _Import:
     """One OSP system structure being read; problems and notes collect as it goes."""
 
-    def __init__(self, path: Path, duration: float | None) -> None:
+    def __init__(self, path: Path, duration: float | None, algorithm: str | None = None) -> None:
         self.path = path
         self.directory = path.parent
         self.duration = duration
+        self.algorithm = algorithm  # "fixed": the user asks for the fixed-step algorithm whatever the file says
         self.problems = Problems()
         self.notes: list[str] = []
         self.components: dict[str, Component] = {}
@@ -230,14 +231,19 @@ class _Import:
         if "Algorithm" in elements:
             algorithm = (elements["Algorithm"][0].text or "").strip()
             key = where(elements["Algorithm"][0])
-            if algorithm.lower() == "ecco":
-                self.problems.add(key, "algorithm 'ecco' (adaptive step size) is not supported: zencosim steps at a "
-                                       "fixed macro step; use fixedStep (zencosim monitors, and can correct, the "
-                                       "energy of the power bonds instead: manager.correction)")
+            if algorithm.lower() == "ecco" and self.algorithm == "fixed":
+                self.notes.append(f"{key}: 'ecco' (adaptive step size) run with the fixed-step algorithm at the base "
+                                  "step, as asked (manager.algorithm = 'fixed')")
+                algorithm = "fixedStep"
+            elif algorithm.lower() == "ecco":
+                self.problems.add(key, "algorithm 'ecco' (energy-controlled adaptive step size) is not supported yet: "
+                                       "zencosim steps at a fixed macro step; run it at its base step with "
+                                       "--set manager.algorithm=fixed (zencosim monitors, and can correct, the "
+                                       "energy of the power bonds: manager.correction)")
             elif algorithm.lower() != "fixedstep":
                 self.problems.add(key, f"unknown algorithm {algorithm!r}; expected fixedStep")
         if "EccoConfiguration" in elements and algorithm.lower() == "fixedstep":
-            self.notes.append("EccoConfiguration ignored: the algorithm is fixedStep")
+            self.notes.append("EccoConfiguration ignored: the algorithm is fixed step")
         declared = None
         if end is not None:
             if end <= (start or 0.0):
@@ -532,7 +538,8 @@ class _Import:
         return [bond for bond in bonds if check_bond(bond, self.problems)]
 
 
-def import_osp(path: Path, duration: float | None = None) -> tuple[dict, list[str]]:
-    """The scene document of the OSP system structure at ``path`` and the notes on its mapping; raises
-    :class:`SceneError` listing whatever cannot be mapped."""
-    return _Import(Path(path), duration).run()
+def import_osp(path: Path, duration: float | None = None, algorithm: str | None = None) -> tuple[dict, list[str]]:
+    """The scene document of the OSP system structure at ``path`` and the notes on its mapping (``algorithm``:
+    as :func:`~zencosim.manager.scene.imports.import_system` takes it); raises :class:`SceneError` listing
+    whatever cannot be mapped."""
+    return _Import(Path(path), duration, algorithm).run()
