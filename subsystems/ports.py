@@ -140,6 +140,16 @@ class JointSide:
 
 
 @dataclass(frozen=True)
+class SignalPort:
+    """A port of a signal connection on a component variable of an external model: the output ``port``
+    publishes the variable's value, or the input ``port`` (``<signal>*``) sets it (SI at the port; the
+    component's own unit inside)."""
+
+    port: str
+    variable: str
+
+
+@dataclass(frozen=True)
 class Attachments:
     """Everything couplings add to one subsystem: terminals, input forces, outputs, coupling effects."""
 
@@ -151,6 +161,8 @@ class Attachments:
     rest_states: tuple[RestState, ...] = ()
     relayed_forces: tuple[RelayedForce, ...] = ()
     joint_sides: tuple[JointSide, ...] = ()
+    signal_outputs: tuple[SignalPort, ...] = ()  # signal connections (external models only)
+    signal_inputs: tuple[SignalPort, ...] = ()
 
     def __add__(self, other: "Attachments") -> "Attachments":
         """Both sets of attachments; an output two couplings share (one motion side) appears once."""
@@ -158,4 +170,4 @@ class Attachments:
 
     def _parts(self) -> tuple:
         return (self.terminals, self.force_inputs, self.motion_outputs, self.force_outputs, self.effects,
-                self.rest_states, self.relayed_forces, self.joint_sides)
+                self.rest_states, self.relayed_forces, self.joint_sides, self.signal_outputs, self.signal_inputs)

@@ -23,7 +23,7 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
         for sub, added in coupling.attachments().items():
             result[sub] = result[sub] + added
     for coupling in scene.couplings.values():
-        if coupling.kind == "rigid_joint":  # no force side: both sides are driven by the joint's variables
+        if coupling.kind != "force_displacement":  # a joint's sides are driven by its variables; a signal has none
             continue
         if scene.subsystems[coupling.force_sub].traits.starts_at_rest:
             motion = _model(scene, coupling.motion_sub, result[coupling.motion_sub])

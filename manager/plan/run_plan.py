@@ -11,6 +11,7 @@ from zencosim.manager.plan.memory import memory_problem
 from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.params import Problem, Problems
 from zencosim.subsystems.ports import Port
+from zencosim.subsystems.units import UnitError, exponents
 
 
 @dataclass(frozen=True)
@@ -91,6 +92,17 @@ class Plan:
         return frozenset(local).union(*(self.sources(i) for i in local))
 
 
+def same_unit(a: str, b: str) -> bool:
+    """Whether two SI unit strings name one unit (``Pa`` and ``N/m2``; unit strings zencosim cannot read must
+    be equal)."""
+    if a == b:
+        return True
+    try:
+        return exponents(a) == exponents(b)
+    except UnitError:
+        return False
+
+
 def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Port, ...], tuple[str, ...]]]) -> Plan:
     """Build the plan; ``ports[name] = (inputs, outputs, effects)`` of each built subsystem.
 
@@ -114,7 +126,7 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
         source_port = ports[route.source][1][port_index[route.source][1][route.output]]
         target_in = port_index[route.target][0][route.input]
         target_port = ports[route.target][0][target_in]
-        if source_port.unit != target_port.unit:
+        if not same_unit(source_port.unit, target_port.unit):
             problems.add("couplings", f"{route.source}.{route.output} [{source_port.unit}] feeds "
                          f"{route.target}.{route.input} [{target_port.unit}]: units differ")
         fed[route.target][target_in] = (index[route.source], port_index[route.source][1][route.output])

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from zencosim.compensation.implicit.coupling_laws import check_supported
 from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
-from zencosim.manager.scene.couplings import RigidJoint
+from zencosim.manager.scene.couplings import RigidJoint, SignalConnection
 from zencosim.manager.scene.settings import ManagerSettings, OutputSettings, SubsystemScene, extrapolation_order
 from zencosim.subsystems.params import Problems
 
@@ -168,6 +168,8 @@ def check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tabl
             full_key = f"couplings.{coupling.name}.{key}"
             if sub not in tables:
                 problems.add(full_key, f"unknown subsystem {sub!r}; expected one of {', '.join(tables)}")
+            elif isinstance(coupling, SignalConnection):
+                continue
             elif sub in subsystems and point not in subsystems[sub].spec.points:
                 problems.add(full_key, f"subsystem {sub!r} has no point {point!r}; expected one of "
                              f"{', '.join(subsystems[sub].spec.points)}")
@@ -175,6 +177,8 @@ def check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tabl
             continue
         if isinstance(coupling, RigidJoint):
             _check_joint_sides(coupling, subsystems, problems)
+        elif isinstance(coupling, SignalConnection):
+            _check_signal_ends(coupling, subsystems, problems)
         else:
             _check_coupled_models(coupling, subsystems, problems)
 
@@ -191,6 +195,26 @@ def _check_joint_sides(joint: RigidJoint, subsystems: dict[str, SubsystemScene],
         reason = spec.drive_problem(point, joint.side(index).drive, joint.dimension)
         if reason:
             problems.add(f"couplings.{joint.name}.decomposition", f"{sub}.{point}: {reason}")
+
+
+def _check_signal_ends(signal: SignalConnection, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """Both ends are variables of external models (FMUs, Python models) of the right causality and type, and
+    of one quantity."""
+    found = {}
+    for key, (sub, variable) in signal.sides().items():
+        spec = subsystems[sub].spec
+        if not hasattr(spec, "variable_problem"):
+            problems.add(f"couplings.{signal.name}.{key}", f"model {subsystems[sub].settings.model} of {sub} has no "
+                         "variables by name: a signal connection joins variables of FMUs and Python models")
+            continue
+        reason = spec.variable_problem(variable, key)
+        if reason:
+            problems.add(f"couplings.{signal.name}.{key}", f"{sub}: {reason}")
+        else:
+            found[key] = spec.description.variables[variable]
+    if len(found) == 2 and found["output"].exponents != found["input"].exponents:
+        ends = {key: f"{signal.sides()[key][0]}.{v.name} [{v.unit or 'no unit'}]" for key, v in found.items()}
+        problems.add(f"couplings.{signal.name}", f"{ends['output']} feeds {ends['input']}: not the same quantity")
 
 
 def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:

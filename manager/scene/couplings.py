@@ -18,7 +18,15 @@ from typing import Literal
 from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS, Decomposition
 from zencosim.subsystems.effects import PlacedEffect, read_effect
 from zencosim.subsystems.params import Problems, read_table
-from zencosim.subsystems.ports import Attachments, EffectForceOutput, ForceInput, JointSide, MotionOutput, Terminal
+from zencosim.subsystems.ports import (
+    Attachments,
+    EffectForceOutput,
+    ForceInput,
+    JointSide,
+    MotionOutput,
+    SignalPort,
+    Terminal,
+)
 
 
 @dataclass(frozen=True)
@@ -300,4 +308,69 @@ class RigidJoint:
         return ()
 
 
-COUPLINGS: dict[str, type] = {cls.kind: cls for cls in (ForceDisplacement, RigidJoint)}
+@dataclass(frozen=True)
+class SignalSettings:
+    type: Literal["signal"]
+    output: str  # "<subsystem>.<variable>": an output variable of an FMU or a Python model
+    input: str  # "<subsystem>.<variable>": the input variable that receives its value, unchanged
+
+    def problems(self) -> list[tuple[str, str]]:
+        found = []
+        for key in ("output", "input"):
+            value = getattr(self, key)
+            if value.count(".") < 1 or not all(value.split(".", 1)):
+                found.append((key, f"expected '<subsystem>.<variable>', got {value!r}"))
+        return found
+
+
+class SignalConnection:
+    """A plain signal connection: an output variable of one external model copied into an input variable of
+    another at every communication point, unchanged (FMI, SSP and OSP's connection), in no power bond.
+
+    The signal is named after the coupling; the receiving input is ``<coupling>*``. Its value travels in
+    SI (each component converts at its boundary, ``subsystems.models.external.model``), and both ends must
+    be of one quantity (or both without unit). It is exchanged, extrapolated and recorded like every other
+    signal; an output that depends on its inputs at the same instant takes part in the initialisation
+    order and its loops are found as for any feedthrough output.
+    """
+
+    kind = "signal"
+    effects = ()
+    dimension = 1
+
+    def __init__(self, name: str, settings: SignalSettings) -> None:
+        self.name = name
+        self.settings = settings
+        self.source, self.output = settings.output.split(".", 1)
+        self.target, self.input = settings.input.split(".", 1)
+
+    @classmethod
+    def read(cls, name: str, table: dict, key: str, problems: Problems) -> "SignalConnection | None":
+        settings = read_table(SignalSettings, table, key, problems)
+        return None if settings is None else cls(name, settings)
+
+    def sides(self) -> dict[str, tuple[str, str]]:
+        """``output`` and ``input``: (subsystem, variable)."""
+        return {"output": (self.source, self.output), "input": (self.target, self.input)}
+
+    def signals(self) -> tuple[str, ...]:
+        return (self.name,)
+
+    def producers(self) -> dict[str, str]:
+        return {self.name: f"the output {self.settings.output}"}
+
+    def attachments(self) -> dict[str, Attachments]:
+        source = Attachments(signal_outputs=(SignalPort(self.name, self.output),))
+        target = Attachments(signal_inputs=(SignalPort(f"{self.name}*", self.input),))
+        if self.source == self.target:
+            return {self.source: source + target}
+        return {self.source: source, self.target: target}
+
+    def routes(self) -> tuple[Route, ...]:
+        return (Route(self.source, self.name, self.target, f"{self.name}*"),)
+
+    def bonds(self) -> tuple[Bond, ...]:
+        return ()
+
+
+COUPLINGS: dict[str, type] = {cls.kind: cls for cls in (ForceDisplacement, RigidJoint, SignalConnection)}

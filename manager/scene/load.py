@@ -82,11 +82,12 @@ def bundled_scene_names() -> list[str]:
     return sorted(p.name[:-5] for p in resources.files("zencosim.scenes").iterdir() if p.name.endswith(".toml"))
 
 
-SYSTEM_DESCRIPTIONS = (".xml", ".ssp", ".ssd")  # OSP system structures and SSP systems (manager.scene.imports)
+# OSP system structures, SSP systems and one FMU run alone (manager.scene.imports)
+SYSTEM_DESCRIPTIONS = (".xml", ".ssp", ".ssd", ".fmu")
 
 
 def scene_path(name_or_path: str) -> Path:
-    """A bundled scene name, or a path to a TOML scene or a system description (OSP XML, SSP)."""
+    """A bundled scene name, or a path to a TOML scene or a system description (OSP XML, SSP, an FMU)."""
     candidate = Path(name_or_path)
     if candidate.suffix in (".toml", *SYSTEM_DESCRIPTIONS) or candidate.exists():
         return candidate
@@ -109,13 +110,34 @@ def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
     path = scene_path(name_or_path)
     if path.suffix in SYSTEM_DESCRIPTIONS:
         from zencosim.manager.scene.imports import import_system
-        document, notes = import_system(path)
-        return scene_from_document(document, str(path), overrides, tuple(notes))
+        options, applied = _import_options(overrides)
+        document, notes = import_system(path, **options)
+        if path.suffix == ".fmu":  # start.<variable> is the one subsystem's
+            (name,) = document["subsystems"]
+            applied = [f"subsystems.{name}.{o}" if o.startswith("start.") else o for o in applied]
+        return scene_from_document(document, str(path), applied, tuple(notes), given=overrides)
     try:
         text = path.read_text()
     except OSError as error:
         raise SceneError(str(path), [_problem("scene", f"cannot read: {error.strerror}")]) from None
     return scene_from_text(text, str(path), overrides)
+
+
+IMPORT_OPTIONS = {"manager.algorithm": "algorithm", "input": "input_table"}  # override key -> import_system's
+
+
+def _import_options(overrides: Sequence[str]) -> tuple[dict[str, str], list[str]]:
+    """What overrides ask of how a system description is mapped (they are taken before the others):
+    ``manager.algorithm=fixed`` (an OSP ``ecco`` system at its base step), ``input=table.csv`` (a lone FMU's
+    input values); and the other overrides."""
+    options, others = {}, []
+    for override in overrides:
+        key, _, value = override.partition("=")
+        if key.strip() in IMPORT_OPTIONS:
+            options[IMPORT_OPTIONS[key.strip()]] = value.strip().strip("'\"")
+        else:
+            others.append(override)
+    return options, others
 
 
 def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scene:
@@ -133,14 +155,16 @@ def scene_from_text(text: str, path: str, overrides: Sequence[str] = ()) -> Scen
     return scene_from_document(document, path, overrides)
 
 
-def scene_from_document(document: dict, path: str, overrides: Sequence[str] = (), notes: tuple[str, ...] = ()
-                        ) -> Scene:
-    """Override and validate a scene document; paths in it are relative to ``path``'s directory."""
+def scene_from_document(document: dict, path: str, overrides: Sequence[str] = (), notes: tuple[str, ...] = (),
+                        given: Sequence[str] | None = None) -> Scene:
+    """Override and validate a scene document; paths in it are relative to ``path``'s directory. ``given``: the
+    overrides as the user gave them, which load the scene again from ``path`` (``Scene.overrides``; default
+    ``overrides``)."""
     problems = Problems()
     _refuse_deep(document, path)
     resolved = apply_overrides(document, overrides, problems)
     _refuse_deep(resolved, path)
-    scene = _validate(resolved, path, tuple(overrides), problems)
+    scene = _validate(resolved, path, tuple(overrides if given is None else given), problems)
     if problems:
         raise SceneError(path, problems)
     return dataclasses.replace(scene, notes=notes)

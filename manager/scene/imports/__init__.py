@@ -40,18 +40,33 @@ MIXED = "mixed quantities"  # a link whose variables disagree (reported where fo
 DEFAULT_DURATION = 10.0  # [s] when neither the file nor the caller gives one
 
 
-def import_system(path: Path, duration: float | None = None) -> tuple[dict, list[str]]:
+ALGORITHMS = ("fixed",)  # what a user may ask a system's algorithm to be replaced with (``manager.algorithm``)
+
+
+def import_system(path: Path, duration: float | None = None, algorithm: str | None = None,
+                  input_table: str | None = None) -> tuple[dict, list[str]]:
     """The scene document of the system described at ``path`` and the notes on its mapping.
 
-    ``.xml``: an OSP system structure; ``.ssp`` or ``.ssd``: an SSP system. ``duration`` [s] is the
+    ``.xml``: an OSP system structure; ``.ssp`` or ``.ssd``: an SSP system; ``.fmu``: one FMU run alone
+    (``input_table``: a CSV file of its input values over time, :mod:`.fmu`). ``duration`` [s] is the
     simulated time (default: the file's end time, else 10 s; rounded up to a whole number of
-    communication periods). Raises :class:`SceneError` listing everything that cannot be mapped.
+    communication periods). ``algorithm = "fixed"`` runs an OSP system whose algorithm zencosim does not
+    have (``ecco``) at its base step with the fixed-step algorithm. Raises :class:`SceneError` listing
+    everything that cannot be mapped.
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    if algorithm is not None and algorithm not in ALGORITHMS:
+        raise refusal(path, "manager.algorithm", f"expected one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
+    if input_table is not None and suffix != ".fmu":
+        raise refusal(path, "input", "an input table belongs to a run of one FMU (zencosim run model.fmu --input "
+                                     "table.csv); a system's inputs are fed by its connections")
+    if suffix == ".fmu":
+        from zencosim.manager.scene.imports.fmu import import_fmu
+        return import_fmu(path, duration, input_table)
     if suffix == ".xml":
         from zencosim.manager.scene.imports.osp import import_osp
-        return import_osp(path, duration)
+        return import_osp(path, duration, algorithm)
     if suffix in (".ssp", ".ssd"):
         from zencosim.manager.scene.imports.ssp import import_ssp
         return import_ssp(path, duration)

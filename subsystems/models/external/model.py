@@ -3,10 +3,14 @@
 A scene names the component (``model = "fmu"`` with ``fmu = "path.fmu"``, or ``model =
 "package.module:Class"``), its start values and parameters (``start.<variable> = value``, SI), an
 optional energy output (``energy = "<variable>"``, [J]), the SI units of variables the component
-declares none for (``units.<variable> = "unit"``) and, per point, the variables that play each coupling
-role (``points.<point> = { role = "<variable>", … }``, ``subsystems.models.external.points``). The
-model's ports are then made from what the couplings attach to each point, exactly as for a built-in
-model; their names are the couplings' signals, their units the roles' SI quantities, and the
+declares none for (``units.<variable> = "unit"``), per point the variables that play each coupling
+role (``points.<point> = { role = "<variable>", … }``, ``subsystems.models.external.points``) and the
+output variables it publishes besides (``outputs = ["x", "v"]``, or ``"all"``: every output, as
+``fmpy simulate`` records them; ports named after the variables) and a table of values over time for
+inputs no coupling feeds (``input_table = "inputs.csv"``, ``subsystems.models.external.table``). The
+model's ports are then made from
+what the couplings attach to each point, exactly as for a built-in model, and from the variables signal
+connections name; their names are the couplings' signals, their units the roles' SI quantities, and the
 component's units must be of those quantities (a mismatch is a scene error naming the variable).
 
 Units with a factor and offset (an FMU's unit definition: value_SI = factor * value + offset, such as
@@ -27,6 +31,7 @@ import numpy as np
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
 from zencosim.subsystems.models.external.fmu import FmuError, describe_fmu, open_fmu
 from zencosim.subsystems.models.external.points import ROLES, PointMap
+from zencosim.subsystems.models.external.table import InputTable, read_input_table
 from zencosim.subsystems.models.external.python_model import (
     ModelClassError,
     PythonInstance,
@@ -45,6 +50,8 @@ class ExternalSettings:
     fmu: str | None = None  # FMU models: its path, relative to the scene file
     interface: Literal["co-simulation", "model-exchange"] | None = None  # FMU models (default: co-simulation)
     energy: str | None = None  # an output variable with the component's energy [J]
+    outputs: str | tuple[str, ...] = ()  # output variables published besides the couplings' ("all": every one)
+    input_table: str | None = None  # a CSV table of input values over time, relative to the scene file
 
 
 @dataclass(frozen=True)
@@ -57,6 +64,8 @@ class ExternalSpec:
     start: dict[str, float]
     energy: str | None
     point_maps: dict[str, PointMap]
+    published: tuple[str, ...] = ()  # output variables published as signals of their own name
+    input_table: InputTable | None = None  # inputs given over time
     provides_force = True  # the component computes its coupling forces
     starts_at_rest = False
     can_project = False  # no projection step (paper 003 Eq. 30): the state is the component's
@@ -101,6 +110,16 @@ class ExternalSpec:
     def linear_problem(self) -> str | None:
         return f"a {self.description.kind} is not known to be linear"
 
+    def variable_problem(self, name: str, end: Literal["output", "input"]) -> str | None:
+        """Why the variable ``name`` cannot be the ``end`` of a signal connection (None: it can)."""
+        variable = self.description.variables.get(name)
+        if variable is None:
+            return (f"the {self.description.kind} has no real variable {name!r}; zencosim exchanges real "
+                    "(Float64) variables")
+        if variable.causality != end:
+            return f"{name} is {variable.causality}; expected an {end}"
+        return None
+
 
 class ExternalModel:
     """The zencosim model interface over a component instance (see the module text)."""
@@ -120,7 +139,7 @@ class ExternalModel:
     def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> ExternalSpec | None:
         """The component, its start values, energy variable and points; every problem recorded under ``key``."""
         before = len(problems)
-        settings = read_table(ExternalSettings, table, key, problems, skip=("start", "points", "units"))
+        settings = read_table(ExternalSettings, table, key, problems, skip=("start", "points", "units", "outputs"))
         if settings is None:
             return None
         try:
@@ -130,9 +149,14 @@ class ExternalModel:
             return None
         description = apply_units(table.get("units"), description, f"{key}.units", problems)
         start = read_start(table.get("start", {}), description, f"{key}.start", problems)
+        published = read_published(table.get("outputs", ()), description, f"{key}.outputs", problems)
+        input_table = None
+        if settings.input_table is not None:
+            input_table = read_input_table(settings.input_table, description, directory, f"{key}.input_table",
+                                           problems)
         point_maps = {}
-        points = table.get("points")
-        if not isinstance(points, dict) or not points:
+        points = table.get("points", {})
+        if not isinstance(points, dict):
             problems.add(f"{key}.points", "expected points.<name> = { role = \"variable\", … } for every point a "
                          f"coupling attaches to; roles: {', '.join(ROLES)}")
             points = {}
@@ -145,7 +169,8 @@ class ExternalModel:
             _check_variable(settings.energy, "output", "energy", description, f"{key}.energy", problems)
         if len(problems) != before:
             return None
-        return ExternalSpec(cls.name, description, source, start, settings.energy, point_maps)
+        return ExternalSpec(cls.name, description, source, start, settings.energy, point_maps, published,
+                            input_table)
 
     def __init__(self, spec: ExternalSpec, attachments: Attachments = Attachments(), expose_all: bool = False) -> None:
         """``expose_all``: a port for every input and output of the component, named after it, whatever the
@@ -158,6 +183,7 @@ class ExternalModel:
         self.second_order = spec.second_order
         self._u_columns, self._u_scale = np.array(ports.u_columns, dtype=np.intp), np.array(ports.u_scale)
         self._u_factor, self._u_offset = np.array(ports.u_factor), np.array(ports.u_offset)
+        self._table = None if expose_all else spec.input_table
         self._u_convert = bool(np.any(self._u_factor != 1.0) or np.any(self._u_offset != 0.0))
         self._y = ports.assembly()
         variables = spec.description.variables
@@ -169,9 +195,12 @@ class ExternalModel:
     def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
         raise NotImplementedError
 
-    def _u(self, w: np.ndarray) -> np.ndarray:
-        """The component's inputs from zencosim's: signed, and converted into the component's units."""
+    def _u(self, t: float, w: np.ndarray) -> np.ndarray:
+        """The component's inputs at time ``t`` [s] from zencosim's (signed) and the input table's, converted
+        into the component's units."""
         u = w[self._u_columns] * self._u_scale
+        if self._table is not None:
+            u = np.concatenate((u, self._table.at(t)))
         if self._u_convert:
             u = (u - self._u_offset) / self._u_factor
         return u
@@ -180,16 +209,16 @@ class ExternalModel:
         return self.instance.initial_state()
 
     def derivative(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        return self.instance.derivative(t, z, self._u(w))
+        return self.instance.derivative(t, z, self._u(t, w))
 
     def acceleration(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        return self.instance.derivative(t, z, self._u(w))
+        return self.instance.derivative(t, z, self._u(t, w))
 
     def do_step(self, t: float, h: float, w: np.ndarray) -> None:
-        self.instance.do_step(t, h, self._u(w))
+        self.instance.do_step(t, h, self._u(t, w))
 
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
-        component = self.instance.outputs(t, z, self._u(w))
+        component = self.instance.outputs(t, z, self._u(t, w))
         a = self._y
         y = np.empty(len(self.outputs))
         if a.convert:  # to SI, then signed
@@ -252,6 +281,23 @@ def python_model(reference: str) -> type:
         _PYTHON_MODELS[reference] = type(f"PythonModel[{reference}]", (PythonModel,),
                                          {"name": reference, "model_class": user_class})
     return _PYTHON_MODELS[reference]
+
+
+def read_published(value: Any, description: ComponentDescription, key: str, problems: Problems) -> tuple[str, ...]:
+    """The ``outputs`` key: output variables by name, or "all" (every output of the component)."""
+    if value == "all":
+        return tuple(description.outputs)
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        problems.add(key, f"expected a list of output variables or \"all\", got {value!r}")
+        return ()
+    for name in value:
+        variable = description.variables.get(name)
+        if variable is None or variable.causality != "output":
+            problems.add(key, f"{name!r} is not a real output of the {description.kind}; expected one of "
+                              f"{', '.join(description.outputs) or '(none)'}")
+    return tuple(dict.fromkeys(value))
 
 
 def read_start(table: Any, description: ComponentDescription, key: str, problems: Problems) -> dict[str, float]:
@@ -380,8 +426,29 @@ class _Ports:
             self._output(force.ports, maps[force.point], "force", "force")
         for side in a.joint_sides:
             self._joint_outputs(side, maps[side.point])
+        description = self.spec.description
+        for received in a.signal_inputs:
+            if received.variable in self.component_inputs:
+                raise ValueError(f"input {received.variable} of the component is fed twice (ports {received.port} "
+                                 "and another)")
+            self.inputs.append(replace(_port_of(received.variable, description), name=received.port))
+            self._component_input(received.variable, 1.0)
+        for sent in a.signal_outputs:
+            self._variable_output(replace(_port_of(sent.variable, description), name=sent.port), sent.variable, 1.0)
         if self.spec.energy is not None:
             self._variable_output(Port("energy", "energy"), self.spec.energy, 1.0)
+        table = self.spec.input_table
+        for name in () if table is None else table.variables:  # after every coupling's: _u appends them
+            if name in self.component_inputs:
+                raise ValueError(f"input {name} of the component is fed by a coupling and by {table.path.name}")
+            self.component_inputs.append(name)
+            variable = self.spec.description.variables[name]
+            self.u_factor.append(variable.factor)
+            self.u_offset.append(variable.offset)
+        taken = {port.name for port in self.outputs}
+        for name in self.spec.published:
+            if name not in taken:
+                self._variable_output(_port_of(name, description), name, 1.0)
 
     def _every_variable(self) -> None:
         description = self.spec.description

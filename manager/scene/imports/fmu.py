@@ -1,0 +1,71 @@
+"""One FMU alone as a scene: ``zencosim run model.fmu``, as ``fmpy simulate`` or ``fmpy.simulate_fmu`` runs it.
+
+The scene has one subsystem, the FMU (named after its model identifier), with no coupling; it publishes
+every output variable (``outputs = "all"``) and runs its default experiment as fmpy reads it: the
+duration ``stopTime − startTime`` (else 1 s), the step ``stepSize`` (else the Co-Simulation
+``fixedInternalStepSize``, else fmpy's ``auto_interval`` of the duration), one ``doStep`` of that size per
+macro-step (Model Exchange: zencosim's integrator at that step). Options, as a system description's
+overrides take them (``manager.scene.load``): ``input`` a CSV table of input values over time
+(``subsystems.models.external.table``), ``start.<variable>`` start values (SI). A start time other than 0
+is refused: zencosim starts its FMUs at t = 0.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from zencosim.manager.scene.imports import Component, document_path, read_fmu, refusal, scene_name, settle_duration
+from zencosim.subsystems.params import Problems
+
+DEFAULT_STOP = 1.0  # [s] fmpy's duration when the FMU gives no stopTime
+
+
+def import_fmu(path: Path, duration: float | None = None, input_table: str | None = None) -> tuple[dict, list[str]]:
+    """The scene document of the FMU at ``path`` run alone and the notes on it; ``input_table``: the path of
+    a CSV file of input values (relative to the current directory)."""
+    fmu, why = read_fmu(path, path.name)
+    if fmu is None:
+        raise refusal(path, "fmu", why)
+    from fmpy import read_model_description
+    from fmpy.util import auto_interval
+    model = read_model_description(str(path), validate=False)
+    experiment = model.defaultExperiment
+    notes: list[str] = []
+    problems = Problems()
+    start = float(experiment.startTime) if experiment is not None and experiment.startTime is not None else 0.0
+    if start != 0.0:
+        problems.add("DefaultExperiment.startTime", f"{start!r} s: zencosim starts its FMUs at t = 0")
+    stop = float(experiment.stopTime) if experiment is not None and experiment.stopTime is not None else None
+    declared = None if stop is None else stop - start
+    fixed = model.coSimulation.fixedInternalStepSize if model.coSimulation is not None else None
+    if experiment is not None and experiment.stepSize is not None:
+        step, origin = float(experiment.stepSize), "the DefaultExperiment's stepSize"
+    elif fixed is not None:
+        step, origin = float(fixed), "the Co-Simulation fixedInternalStepSize"
+    else:
+        step = float(auto_interval(duration or declared or DEFAULT_STOP))
+        origin = "fmpy's auto_interval of the duration (the FMU gives no step)"
+    if not (math.isfinite(step) and step > 0.0):
+        problems.add("DefaultExperiment.stepSize", f"expected a positive step, got {step!r} s")
+    if problems:
+        raise _refused(path, problems)
+    notes.append(f"manager.macro_step = {step!r} s: {origin}")
+    name = scene_name(model.coSimulation.modelIdentifier if model.coSimulation is not None else fmu.model_name,
+                      set(), "the FMU's model identifier", notes)
+    component = Component(name, "fmu", fmu, document_path(path, path.parent), step)
+    run_for = settle_duration(duration, declared, "the DefaultExperiment's stopTime - startTime" if declared
+                              else f"fmpy's {DEFAULT_STOP} s", step, [component], problems, notes)
+    if problems:
+        raise _refused(path, problems)
+    table: dict = {"model": "fmu", "fmu": component.path, "micro_step": step, "outputs": "all"}
+    if input_table is not None:
+        table["input_table"] = Path(input_table).resolve().as_posix()
+    return {"name": name, "description": f"the FMU {path.name} run alone",
+            "manager": {"duration": run_for, "macro_step": step},
+            "outputs": {"reference": "none"},
+            "subsystems": {name: table}}, notes
+
+
+def _refused(path: Path, problems: Problems):
+    from zencosim.manager.scene.load import SceneError
+    return SceneError(str(path), problems)
