@@ -112,7 +112,7 @@ def _wait_while_serving(live: dict) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene(args.scene, args.overrides + ([f"input={args.input}"] if args.input else []))
     unknown = sorted(set(args.external) - set(scene.subsystems))
     if unknown:
         raise UsageError(f"--external {', '.join(unknown)}: no such subsystem in scene {scene.name}; expected one of "
@@ -180,12 +180,15 @@ def add_parsers(commands) -> None:
                    "zencosim run four_mass --set manager.macro_step=0.002 --out results.csv --summary summary.json",
                    "zencosim run two_mass_damped --bus zenoh --record run.mcap",
                    "zencosim run two_mass_damped --realtime            # paced to the wall clock",
+                   "zencosim run model.fmu --input inputs.csv --out out.csv   # one FMU alone, as fmpy simulate",
                    "zencosim run two_mass_damped --bus zenoh --listen tls/0.0.0.0:7447 --external S2 "
                    "--tls-ca ca.pem --tls-cert a.pem --tls-key a.key   # across hosts, mutual TLS"))
     add_scene_arguments(run)
     run.add_argument("--bus", choices=BUSES, default="inproc",
                      help="inproc: all subsystems in this process; zenoh: one process per subsystem over Zenoh")
     run.add_argument("--summary", metavar="FILE", help="write the run summary as JSON (keys: docs/summary.md)")
+    run.add_argument("--input", metavar="FILE", help="a lone FMU's input values over time: a CSV table, time [s] "
+                     "first, a column per input variable (SI), interpolated as fmpy simulate does")
     run.add_argument("--out", metavar="FILE", help="write every signal with its time (.csv, .npz, .parquet); a "
                                                    "multi-rate run writes one file per communication step")
     run.add_argument("--realtime", action="store_true", help="pace macro-steps to wall-clock deadlines")
