@@ -257,6 +257,13 @@ def test_osp_without_end_time_takes_the_duration_asked_for(osp_dir):
     assert any("rounded up" in n for n in notes)
 
 
+def test_osp_end_time_beyond_64_bit_nanoseconds_is_refused_in_one_line(osp_dir):
+    """EndTime 1e300 s: more nanoseconds than times travel as (an OverflowError once); a scene error naming it."""
+    problems = osp_refusal(osp_dir, osp_system(end="<EndTime>1e300</EndTime>"))
+    assert problems == {"duration": "1e+300 s from EndTime - StartTime: expected a positive number of seconds of at "
+                                    "most 9.22337e+09 s (times are 64-bit nanoseconds)"}, problems
+
+
 def test_osp_multi_rate_gives_communication_ratios(osp_dir):
     document, _ = osp_import(osp_dir, osp_system(base="0.0005", step_1="0.001"))
     assert document["manager"]["macro_step"] == 0.0005

@@ -496,6 +496,11 @@ def settle_duration(requested: float | None, declared: float | None, declared_by
         value, origin = declared, f"from {declared_by}"
     else:
         value, origin = DEFAULT_DURATION, f"assumed ({declared_by}, and no duration was asked for)"
+    longest_s = (2**63 - 1) * 1e-9  # times travel as signed 64-bit nanoseconds (manager.scene.checks)
+    if not 0 < value <= longest_s:  # NaN too
+        problems.add("duration", f"{value!r} s {origin}: expected a positive number of seconds of at most "
+                                 f"{longest_s:.6g} s (times are 64-bit nanoseconds)")
+        return None
     base_ns = _ns(base_step)
     if not base_ns or base_ns <= 0:
         return None
