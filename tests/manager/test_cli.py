@@ -140,7 +140,7 @@ def test_integers_too_large_for_a_float_are_one_line_errors(tmp_path):
                                   "integer of 400 digits"),
                             (5000, "scene: an integer of more than 4300 digits")):
         scene = tmp_path / f"big{digits}.toml"
-        scene.write_text(text.replace("mass = 1.0, x0 = 0.0, v0 = 100.0", f"mass = {'9' * digits}, x0 = 0.0, v0 = 100.0"))
+        scene.write_text(text.replace("mass = 1.0, x0 = 0.0", f"mass = {'9' * digits}, x0 = 0.0", 1))
         result = zencosim("check", str(scene))
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
         assert f"{scene}: {message}" in result.stderr, result.stderr

@@ -51,7 +51,8 @@ def _print_summary(summary: dict) -> None:
         row(f"energy initial / final [J]{of}", f"{_number(energy['initial'])} / {_number(energy['final'])}")
         if "reference_final" in energy:
             reference = energy["reference_final"]  # null: the reference's energy was not finite
-            row("energy final, reference [J]", "not available (not finite)" if reference is None else f"{reference:.6g}")
+            row("energy final, reference [J]",
+                "not available (not finite)" if reference is None else f"{reference:.6g}")
         growth = energy["growth_rate_per_s"]
         row("energy growth rate, measured [1/s]", "not finite" if growth is None else f"{growth:.3g}")
     for bond, value in summary["residual_energy"].items():
