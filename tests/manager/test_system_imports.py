@@ -297,21 +297,69 @@ def test_osp_ecco_runs_at_its_base_step_when_the_user_asks_for_the_fixed_step_al
         ("manager.algorithm", "expected one of fixed, got 'ecco'")]
 
 
-def test_osp_refuses_a_plain_connection_outside_a_bond(osp_dir):
-    plain = """
+PLAIN_VELOCITY = """
     <VariableConnection>
       <Variable simulator="S1" name="v"/>
       <Variable simulator="S2" name="v_in"/>
     </VariableConnection>"""
-    text = osp_system(POSITION + plain)
+
+
+def test_osp_a_connection_outside_a_bond_is_a_signal_coupling(osp_dir):
+    """A displacement no bond uses and a velocity without powerBond: each a signal coupling named after its
+    output, the input receiving the value unchanged; the subsystems need no points."""
+    text = osp_system(POSITION + PLAIN_VELOCITY)
+    document, notes = osp_import(osp_dir, text)
+    assert document["couplings"] == {
+        "S2_x": {"type": "signal", "output": "S2.x", "input": "S1.x_in"},
+        "S1_v": {"type": "signal", "output": "S1.v", "input": "S2.v_in"}}
+    assert document["outputs"]["signals"] == ["S2_x", "S1_v"]
+    for name in ("S1", "S2"):
+        assert "points" not in document["subsystems"][name] and "outputs" not in document["subsystems"][name]
+    velocity = f"VariableConnection (line {line(text, '<VariableConnection>', 2)})"
+    assert f"{velocity}: S1.v -> S2.v_in (velocity) has no powerBond: a signal coupling, whose power zencosim " \
+           "does not monitor (mark the force and the velocity connection of a bond with one powerBond name to make " \
+           "them a power bond)" in notes
+    assert f"couplings.S1_v: a signal coupling, S1.v -> S2.v_in ({velocity})" in notes
+    assert tomllib.loads(tomli_w.dumps(document)) == document
+
+
+def test_osp_one_output_feeding_two_inputs_gives_two_signals_named_uniquely(osp_dir):
+    """The second is numbered; an FMU may feed its own input."""
+    own = PLAIN_VELOCITY.replace('simulator="S2" name="v_in"', 'simulator="S1" name="v_in"')
+    document, _ = osp_import(osp_dir, osp_system(POSITION + PLAIN_VELOCITY + own))
+    assert document["couplings"] == {
+        "S2_x": {"type": "signal", "output": "S2.x", "input": "S1.x_in"},
+        "S1_v": {"type": "signal", "output": "S1.v", "input": "S2.v_in"},
+        "S1_v_2": {"type": "signal", "output": "S1.v", "input": "S1.v_in"}}
+
+
+def test_osp_still_refuses_an_input_connected_twice_and_functions(osp_dir):
+    twice = PLAIN_VELOCITY.replace('simulator="S1" name="v"', 'simulator="S2" name="v"')
+    text = osp_system(POSITION + PLAIN_VELOCITY + twice).replace("<Connections>", """<Functions>
+    <LinearTransformation name="negate" factor="-1" offset="0"/>
+  </Functions>
+  <Connections>""")
     problems = osp_refusal(osp_dir, text)
+    first, second = (f"VariableConnection (line {line(text, '<VariableConnection>', i)})" for i in (2, 3))
     assert problems == {
-        f"VariableConnection (line {line(text, '<VariableConnection>', 2)})":
-            "S1.v -> S2.v_in (velocity) carries velocity and is not part of a power bond: zencosim couples subsystems "
-            "through power bonds only (no plain signal coupling yet)",
-        f"VariableConnection (line {line(text, '<VariableConnection>', 1)})":
-            "S2.x -> S1.x_in (displacement) is not part of a power bond: no bond has S2 as motion side and S1 as "
-            "force side; zencosim has no plain signal coupling yet"}
+        f"LinearTransformation 'negate' (line {line(text, '<LinearTransformation')})":
+            "OSP functions (LinearTransformation, Sum, VectorSum) are not supported: zencosim has no function blocks; "
+            "connect the simulators' variables directly",
+        second: f"input S2.v_in is already connected by {first}"}
+
+
+def test_osp_refuses_a_connection_of_integer_variables(tmp_path):
+    description = model_description().replace('<Real unit="m" start="0"/></ScalarVariable>',
+                                              '<Integer start="0"/></ScalarVariable>', 1)  # x0 an Integer
+    description = description.replace('name="x0" valueReference="6" causality="parameter" variability="fixed"',
+                                      'name="x0" valueReference="6" causality="input"')
+    write_fmu(tmp_path / "oscillator.fmu", description)
+    (tmp_path / "oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)
+    text = osp_system(PORTS + POSITION + PLAIN_VELOCITY.replace('name="v_in"', 'name="x0"'))
+    problems = osp_refusal(tmp_path, text)
+    assert problems == {f"VariableConnection (line {line(text, '<VariableConnection>', 2)})":
+                        "S2.x0 is Integer: zencosim exchanges Real variables only (Integer, Boolean, Enumeration and "
+                        "String connections are not exchanged yet)"}
 
 
 def test_osp_refuses_a_missing_fmu_file(osp_dir):
@@ -344,12 +392,14 @@ def test_osp_refuses_unknown_group_types_and_bonds_without_displacement(osp_dir)
     assert len(problems) == 2
 
 
-def test_osp_refuses_a_simulator_coupled_to_nothing(osp_dir):
+def test_osp_a_simulator_coupled_to_nothing_runs_free_and_publishes_its_outputs(osp_dir):
     text = osp_system().replace("</Simulators>", '<Simulator name="S3" source="oscillator.fmu"/>\n  </Simulators>')
-    assert osp_refusal(osp_dir, text) == {
-        f"Simulator 'S3' (line {line(text, q('name=`S3`'))})":
-            "S3 is coupled to nothing: an FMU subsystem of zencosim needs a power bond to another (zencosim has no "
-            "free-running subsystem)"}
+    document, notes = osp_import(osp_dir, text)
+    assert document["subsystems"]["S3"] == {"model": "fmu", "fmu": "oscillator.fmu", "micro_step": 0.001,
+                                            "energy": "E", "outputs": "all"}
+    assert "outputs" not in document["subsystems"]["S1"]  # a coupled one publishes what its couplings send
+    assert f"subsystems.S3.outputs = 'all': Simulator 'S3' (line {line(text, q('name=`S3`'))}) is coupled to " \
+           "nothing; it runs free and publishes every output variable as a signal of its name" in notes
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="building the example FMU needs gcc")
@@ -459,13 +509,74 @@ def test_ssp_archive_reads_its_fmu_inside_and_says_where_to_unpack_it(tmp_path):
             "two_mass.ssp; unpack the archive beside the scene (unzip two_mass.ssp -d two_mass)") in notes
 
 
-def test_ssd_refuses_a_connection_outside_a_bond(ssp_dir):
+def test_ssd_a_connection_outside_a_bond_is_a_signal_coupling(ssp_dir):
+    """S1.v -> S2.v_in: a velocity with no force back (no bond S2 -> S1), a signal; the bond stays."""
     text = ssd_system(SSP_CONNECTIONS + """
       <ssd:Connection startElement="S1" startConnector="v" endElement="S2" endConnector="v_in"/>""")
     key = f"Connection S1.v -> S2.v_in (line {line(text, q('startConnector=`v` endElement=`S2`'))})"
-    assert ssd_refusal(ssp_dir, text) == {
-        key: "connections between S2 and S1 do not form a bond: 0 force [N] S2 -> S1, 1 velocity [m/s] and 0 "
-             "displacement [m] S1 -> S2; a bond has as many of each"}
+    document, notes = ssd_import(ssp_dir, text)
+    assert document["couplings"]["S1_v"] == {"type": "signal", "output": "S1.v", "input": "S2.v_in"}
+    assert document["couplings"]["c1"] == expected("")["couplings"]["c1"]
+    assert document["outputs"]["signals"] == ["c1.x", "c1.f", "S1_v"]
+    assert f"{key}: connections between S2 and S1 form no power bond (0 force [N] S2 -> S1, 1 velocity [m/s] and 0 " \
+           "displacement [m] S1 -> S2; a bond has as many of each): signal couplings, whose power zencosim does not " \
+           "monitor" in notes
+
+
+def transformed(connection: str, transformation: str) -> str:
+    """``SSP_CONNECTIONS`` with ``transformation`` inside the connection from ``connection`` (its start)."""
+    start = f'startConnector="{connection}"'
+    head, tail = SSP_CONNECTIONS.split(start)
+    end = tail.index("/>")
+    return head + start + tail[:end] + f">{transformation}</ssd:Connection>" + tail[end + 2:]
+
+
+def test_ssd_linear_transformation_of_a_bonds_force_is_its_force_factor(ssp_dir):
+    document, notes = ssd_import(ssp_dir, ssd_system(transformed("fc", '<ssc:LinearTransformation factor="-1"/>')))
+    assert document["couplings"]["c1"]["force_factor"] == -1.0
+    del document["couplings"]["c1"]["force_factor"]
+    assert document == expected("imported from the SSP SystemStructure.ssd")
+    assert any(n.startswith("couplings.c1.force_factor = -1.0: the transformation of its force connection")
+               for n in notes)
+
+
+def test_ssd_linear_transformation_of_a_signal_is_its_factor_and_offset(ssp_dir):
+    text = ssd_system(SSP_CONNECTIONS + """
+      <ssd:Connection startElement="S1" startConnector="v" endElement="S2" endConnector="v_in">
+        <ssc:LinearTransformation factor="2.5" offset="-0.5"/></ssd:Connection>""")
+    document, _ = ssd_import(ssp_dir, text)
+    assert document["couplings"]["S1_v"] == {"type": "signal", "output": "S1.v", "input": "S2.v_in", "factor": 2.5,
+                                             "offset": -0.5}
+
+
+@pytest.mark.parametrize("connection, transformation, reason", [
+    ("fc", '<ssc:LinearTransformation factor="-1" offset="2"/>',
+     "LinearTransformation offset 2 on the force of a power bond: a bond's force has no offset (a factor is its "
+     "force_factor)"),
+    ("v", '<ssc:LinearTransformation factor="-1"/>',
+     "LinearTransformation (factor -1, offset 0) on the velocity of a power bond: zencosim copies a bond's velocity "
+     "and displacement unchanged (only its force may be scaled, force_factor)"),
+    ("x", '<ssc:BooleanMappingTransformation><ssc:MapEntry source="true" target="false"/>'
+          "</ssc:BooleanMappingTransformation>",
+     "BooleanMappingTransformation: zencosim exchanges Real variables only (Boolean, Integer and Enumeration "
+     "connections are not exchanged yet)"),
+    ("x", '<ssc:IntegerMappingTransformation><ssc:MapEntry source="1" target="2"/></ssc:IntegerMappingTransformation>',
+     "IntegerMappingTransformation: zencosim exchanges Real variables only (Boolean, Integer and Enumeration "
+     "connections are not exchanged yet)"),
+])
+def test_ssd_refuses_what_a_transformation_cannot_be(ssp_dir, connection, transformation, reason):
+    text = ssd_system(transformed(connection, transformation))
+    problems = ssd_refusal(ssp_dir, text)
+    assert list(problems.values()) == [reason], problems
+    (key,) = problems
+    assert key.startswith(f"Connection S{2 if connection != 'fc' else 1}.{connection} -> ")
+
+
+def test_ssd_a_component_coupled_to_nothing_runs_free(ssp_dir):
+    text = ssd_system(connections="").replace("<ssd:Connections>\n    </ssd:Connections>", "")
+    document, _ = ssd_import(ssp_dir, text)
+    assert document["couplings"] == {} and document["outputs"]["signals"] == []
+    assert {s["outputs"] for s in document["subsystems"].values()} == {"all"}
 
 
 def test_ssd_refuses_a_connection_of_another_quantity(ssp_dir):
@@ -509,6 +620,62 @@ def test_ssd_without_a_step_size_is_refused(ssp_dir):
     problems = ssd_refusal(ssp_dir, text)
     (reason,) = problems.values()
     assert reason.startswith("no step size for S1, S2: add the OSP annotation libcosim reads")
+
+
+def millimetre_fmu(path: Path) -> Path:
+    """The oscillator FMU whose position output x is in mm (a unit definition with factor 0.001)."""
+    description = model_description().replace("<UnitDefinitions>", '<UnitDefinitions><Unit name="mm">'
+                                              '<BaseUnit m="1" factor="0.001"/></Unit>')
+    return write_fmu(path, description.replace('name="x" valueReference="8" causality="output"><Real unit="m"',
+                                               'name="x" valueReference="8" causality="output"><Real unit="mm"'))
+
+
+def test_ssd_an_fmu_unit_with_a_factor_is_converted_at_its_boundary(ssp_dir):
+    """x in mm: still the displacement of the bond (zencosim converts mm to m where the FMU outputs it)."""
+    millimetre_fmu(ssp_dir / "oscillator.fmu")
+    document, _ = ssd_import(ssp_dir, ssd_system())
+    assert document == expected("imported from the SSP SystemStructure.ssd")
+
+
+def test_ssd_refuses_a_transformation_offset_where_an_end_is_converted(ssp_dir):
+    millimetre_fmu(ssp_dir / "oscillator.fmu")
+    text = ssd_system(SSP_CONNECTIONS + """
+      <ssd:Connection startElement="S1" startConnector="x" endElement="S2" endConnector="x_in">
+        <ssc:LinearTransformation factor="1" offset="5"/></ssd:Connection>""")
+    (reason,) = ssd_refusal(ssp_dir, text).values()
+    assert reason.startswith("S1.x -> S2.x_in (displacement): a transformation (factor 1, offset 5) between variables "
+                             "whose units are not SI, one of them with an offset")
+
+
+def test_ssd_a_parameter_in_a_unit_with_a_factor_is_given_in_si(ssp_dir):
+    units = '<ssd:Units><ssc:Unit name="mm"><ssc:BaseUnit m="1" factor="0.001"/></ssc:Unit></ssd:Units>'
+    text = ssd_system().replace('<ssv:Parameter name="v0"><ssv:Real value="100.0"/>',
+                                '<ssv:Parameter name="x0"><ssv:Real value="25" unit="mm"/></ssv:Parameter>'
+                                '<ssv:Parameter name="v0"><ssv:Real value="100.0"/>')
+    text = text.replace("<ssd:DefaultExperiment", units + "\n  <ssd:DefaultExperiment")
+    document, notes = ssd_import(ssp_dir, text)
+    assert document["subsystems"]["S1"]["start"]["x0"] == 0.025
+    assert any("parameter 'x0' = 25 mm is 0.025 in SI (factor 0.001, offset 0)" in n for n in notes)
+
+
+def test_osp_refuses_a_unit_with_a_factor_the_fmu_does_not_declare(osp_dir):
+    """The OSP model description says x is in mm; the FMU says m: zencosim converts the FMU's units only."""
+    (osp_dir / "oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION.replace(
+        '<Unit name="m"><BaseUnit m="1"/></Unit>', '<Unit name="m"><BaseUnit m="1"/></Unit><Unit name="mm">'
+        '<BaseUnit m="1" factor="0.001"/></Unit>').replace('<Variable ref="x" unit="m"/>',
+                                                            '<Variable ref="x" unit="mm"/>'))
+    position = """
+    <VariableGroupConnection>
+      <VariableGroup simulator="S1" name="position input"/>
+      <VariableGroup simulator="S2" name="position"/>
+    </VariableGroupConnection>"""
+    (reason,) = osp_refusal(osp_dir, osp_system(PORTS + position)).values()
+    assert reason == ("S2.x: unit 'mm' is not SI (factor 0.001, offset 0) and the FMU does not declare it for this "
+                      "variable: zencosim converts the units an FMU defines for its own variables, at its boundary; "
+                      "declare it in the FMU or give an SI unit")
+    millimetre_fmu(osp_dir / "oscillator.fmu")  # the FMU's own unit: accepted
+    document, _ = osp_import(osp_dir, osp_system(PORTS + position))
+    assert document == expected(OSP_DESCRIPTION)
 
 
 # vectors, names ------------------------------------------------------------------------------------

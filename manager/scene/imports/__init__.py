@@ -6,9 +6,11 @@ Interface Specification's variable groups: :mod:`.osp`) or an SSP system (a ``.s
 ``manager.scene.load.scene_from_text`` reads, together with notes: every assumption the mapping made.
 Each FMU becomes a ``model = "fmu"`` subsystem; each power bond (a force one way, the velocity and the
 displacement of the point it acts on the other way) becomes a ``force_displacement`` coupling whose
-force side is the FMU that outputs the force. Whatever cannot be mapped (an algorithm other than fixed
-step, a connection outside a power bond, a variable group type zencosim does not know, a step size that
-is not a whole number of base steps, a missing FMU, a unit that is not SI) raises
+force side is the FMU that outputs the force; every other connection of real variables becomes a
+``signal`` coupling (the output's value copied into the input); an FMU coupled to nothing runs free and
+publishes its outputs. Whatever cannot be mapped (an algorithm other than fixed step, a connection of
+Integer or Boolean variables, an input connected twice, a variable group type zencosim does not know, a
+step size that is not a whole number of base steps, a missing FMU, a unit zencosim cannot read) raises
 :class:`~zencosim.manager.scene.load.SceneError` naming the file, the element and what is wrong; nothing
 is dropped silently. FMU paths in the document are relative to the imported file's directory, where the
 scene is meant to be written. The mapping, and the bond rules of each format: docs/system-imports.md.
@@ -144,20 +146,38 @@ class UnitDefinition:
     offset: float = 0.0
 
 
-def unit_exponents(unit: str, definitions: dict[str, UnitDefinition]) -> tuple[Exponents | None, str | None]:
+def unit_exponents(unit: str, definitions: dict[str, UnitDefinition],
+                   converted: bool = True) -> tuple[Exponents | None, str | None]:
     """The SI base-unit exponents of ``unit`` (its definition, else its name read as a coherent SI unit
-    such as ``N``, ``m/s`` or ``kg.m/s2``), or (None, why it is not SI)."""
+    such as ``N``, ``m/s`` or ``kg.m/s2``), or (None, why not). A definition with a factor or an offset
+    (``mm``, ``bar``, ``degC``) is accepted when ``converted``: the FMU's own unit definitions, which
+    zencosim converts at the FMU's boundary (SI = factor * value + offset); a system description's unit
+    with a factor or an offset is not (``converted = False``), unless the FMU defines the same one."""
     definition = definitions.get(unit)
     if definition is not None and definition.exponents is not None:
-        if definition.factor != 1.0 or definition.offset != 0.0:
-            return None, (f"unit {unit!r} is not SI (factor {definition.factor:g}, offset {definition.offset:g}): "
-                          "zencosim exchanges SI values and converts none")
+        if not converted and (definition.factor != 1.0 or definition.offset != 0.0):
+            return None, (f"unit {unit!r} is not SI (factor {definition.factor:g}, offset {definition.offset:g}) and "
+                          "the FMU does not declare it for this variable: zencosim converts the units an FMU "
+                          "defines for its own variables, at its boundary; declare it in the FMU or give an SI unit")
         return definition.exponents, None
     try:
         return exponents(unit), None
     except UnitError:
         return None, (f"unit {unit!r} is neither defined with base-unit exponents nor a coherent SI unit "
-                      f"(e.g. N, m, m/s, J): zencosim exchanges SI values and converts none")
+                      f"(e.g. N, m, m/s, J): zencosim cannot tell its quantity")
+
+
+def unit_definition(component: "Component", name: str) -> UnitDefinition | None:
+    """The FMU's definition of the unit of its variable ``name`` (None: no unit, or a unit name without
+    definition, which is SI)."""
+    variable = component.fmu.variables.get(name)
+    unit = variable_unit(variable) if variable is not None else None
+    return component.fmu.units.get(unit) if unit else None
+
+
+def converted(definition: UnitDefinition | None) -> bool:
+    """Whether values in this unit are converted at the FMU's boundary (a factor or an offset)."""
+    return definition is not None and (definition.factor != 1.0 or definition.offset != 0.0)
 
 
 def quantity_of(found: Exponents) -> str:
@@ -237,7 +257,8 @@ def check_variable(component: Component, name: str, key: str, problems: Problems
         problems.add(key, f"{component.name} ({component.fmu.label}) has no variable {name!r}")
         return None
     if variable.type not in REAL_TYPES:
-        problems.add(key, f"{component.name}.{name} is {variable.type}; zencosim couples real variables only")
+        problems.add(key, f"{component.name}.{name} is {variable.type}: zencosim exchanges Real variables only "
+                          "(Integer, Boolean, Enumeration and String connections are not exchanged yet)")
         return None
     return variable
 
@@ -275,6 +296,8 @@ class Link:
     inputs: tuple[str, ...]
     quantity: str | None  # force, velocity, displacement, another quantity, or None: not declared
     bond: str | None = None  # the bond it belongs to by declaration (OSP: a port connection, powerBond)
+    factor: float = 1.0  # the input receives factor * value + offset (SSP LinearTransformation)
+    offset: float = 0.0
 
     def text(self) -> str:
         return (f"{self.source.name}.{'/'.join(self.outputs)} -> {self.target.name}.{'/'.join(self.inputs)}"
@@ -337,13 +360,16 @@ def _quantity(component: Component, name: str, key: str, problems: Problems,
     variable = component.fmu.variables.get(name)
     candidates = []
     unit = (declared or {}).get((component.name, name))
+    own = variable_unit(variable) if variable is not None else None
     if unit:
-        candidates.append((unit, {**component.fmu.units, **(definitions or {}).get(component.name, {})}))
-    if variable is not None and variable_unit(variable):
-        candidates.append((variable_unit(variable), component.fmu.units))
+        units = {**component.fmu.units, **(definitions or {}).get(component.name, {})}
+        same = own is not None and units.get(unit) == component.fmu.units.get(own)  # the FMU's own conversion
+        candidates.append((unit, units, same))
+    if own:
+        candidates.append((own, component.fmu.units, True))
     found = set()
-    for unit_name, units in candidates:
-        exponents, problem = unit_exponents(unit_name, units)
+    for unit_name, units, convertible in candidates:
+        exponents, problem = unit_exponents(unit_name, units, convertible)
         if problem:
             problems.add(key, f"{component.name}.{name}: {problem}")
         else:
@@ -403,16 +429,22 @@ def check_bond(bond: Bond, problems: Problems) -> bool:
     return ok
 
 
-def check_coupled(components: list[Component], bonds: list[Bond], problems: Problems) -> None:
-    """Every component is a side of some bond (an FMU subsystem of zencosim needs a point a coupling uses);
-    checked when nothing else is wrong, as a refused bond leaves its sides uncoupled."""
-    if problems:
-        return
-    coupled = {side.name for bond in bonds for side in (bond.force_side, bond.motion_side)}
-    for component in components:
-        if component.name not in coupled:
-            problems.add(component.key, f"{component.name} is coupled to nothing: an FMU subsystem of zencosim needs "
-                                        "a power bond to another (zencosim has no free-running subsystem)")
+def check_transformation(link: Link, problems: Problems) -> bool:
+    """A transformation (``factor``, ``offset``) of a connection whose ends are converted at their FMU's
+    boundary is applied to SI values; refused where the order would matter (an offset in the
+    transformation or in an end's unit, with a scale on the other), as SSP leaves to the tool."""
+    if link.factor == 1.0 and link.offset == 0.0:
+        return True
+    ends = [unit_definition(c, n) for c, names in ((link.source, link.outputs), (link.target, link.inputs))
+            for n in names]
+    scaled = [d for d in ends if converted(d)]
+    if scaled and (link.offset != 0.0 or any(d.offset != 0.0 for d in scaled)):
+        problems.add(link.key, f"{link.text()}: a transformation (factor {link.factor:g}, offset {link.offset:g}) "
+                               "between variables whose units are not SI, one of them with an offset: zencosim "
+                               "applies transformations to SI values, which here would not give what the file means; "
+                               "give the connectors SI units, or fold the offset into the transformation")
+        return False
+    return True
 
 
 def energy_output(component: Component, notes: list[str]) -> str | None:
@@ -528,9 +560,9 @@ def _units_not_declared(link: Link, units: dict[str, dict[str, str]]) -> None:
     """The SI unit of the link's quantity for each of its variables whose FMU declares no unit (the quantity
     comes from the system description's units or from the variable's partner, which a connection copies
     unchanged), into ``units[subsystem][variable]``."""
-    if link.quantity not in QUANTITIES:
+    if link.quantity is None or link.quantity == MIXED:
         return
-    unit = QUANTITIES[link.quantity][0]
+    unit = _si_unit(link.quantity)
     for component, names in ((link.source, link.outputs), (link.target, link.inputs)):
         for name in names:
             variable = component.fmu.variables.get(name)
@@ -538,9 +570,18 @@ def _units_not_declared(link: Link, units: dict[str, dict[str, str]]) -> None:
                 units[component.name][name] = unit
 
 
+def _si_unit(quantity: str) -> str:
+    """The SI unit of a link's quantity (:func:`quantity_of`'s names)."""
+    if quantity in QUANTITIES:
+        return QUANTITIES[quantity][0]
+    return "1" if quantity == "dimensionless" else quantity  # the exponents written out, which units read
+
+
 def build_document(name: str, description: str, base_step: float, duration: float, components: list[Component],
-                   bonds: list[Bond], notes: list[str]) -> dict:
-    """The scene document of FMU subsystems and force–displacement couplings."""
+                   bonds: list[Bond], notes: list[str], signals_in: list[Link] = ()) -> dict:
+    """The scene document of FMU subsystems, force–displacement couplings (``bonds``) and signal couplings
+    (``signals_in``: one per pair of variables of each link, named ``<source>_<output>``); a component
+    coupled to nothing runs free and publishes every output (``outputs = "all"``)."""
     used_couplings: set[str] = set()
     coupling_names = {}
     for bond in bonds:  # declared names first, so that numbered ones do not take them
@@ -564,6 +605,8 @@ def build_document(name: str, description: str, base_step: float, duration: floa
                                                                     f"the port of {side.name}", notes)
     point_counter = 0
     couplings, signals = {}, []
+    signal_links = list(signals_in)
+    fed = {side.name for bond in bonds for side in (bond.force_side, bond.motion_side)}
     units: dict[str, dict[str, str]] = {c.name: {} for c in components}
     for bond in bonds:
         coupling = coupling_names[id(bond)]
@@ -595,9 +638,31 @@ def build_document(name: str, description: str, base_step: float, duration: floa
             "force": signal_names(coupling, "f", size),
             "displacement": signal_names(coupling, "x", size),
             "velocity": signal_names(coupling, "v", size)}
+        if bond.force.factor != 1.0:
+            couplings[coupling]["force_factor"] = bond.force.factor
+            notes.append(f"couplings.{coupling}.force_factor = {bond.force.factor!r}: the transformation of its force "
+                         f"connection ({bond.force.key}); the bond's force signal is {bond.force.factor!r} times "
+                         f"{bond.force_side.name}'s force output")
         for stem in ("x", "f"):
             names = signal_names(coupling, stem, size)
             signals += [names] if isinstance(names, str) else names
+    for link in signal_links:
+        _units_not_declared(link, units)
+        for output, input_ in zip(link.outputs, link.inputs):
+            coupling = scene_name(f"{link.source.name}_{output}", used_couplings, f"the signal of {link.key}", [])
+            table = {"type": "signal", "output": f"{link.source.name}.{output}",
+                     "input": f"{link.target.name}.{input_}"}
+            if link.factor != 1.0:
+                table["factor"] = link.factor
+            if link.offset != 0.0:
+                table["offset"] = link.offset
+            couplings[coupling] = table
+            signals.append(coupling)
+            transformed = "" if link.factor == 1.0 and link.offset == 0.0 else \
+                f", the input receiving {link.factor:g} * value + {link.offset:g}"
+            notes.append(f"couplings.{coupling}: a signal coupling, {link.source.name}.{output} -> "
+                         f"{link.target.name}.{input_} ({link.key}){transformed}")
+            fed.update({link.source.name, link.target.name})
     subsystems = {}
     for component in components:
         table: dict[str, Any] = {"model": "fmu", "fmu": component.path, "micro_step": component.step}
@@ -612,10 +677,15 @@ def build_document(name: str, description: str, base_step: float, duration: floa
             table["units"] = units[component.name]
             notes.append(f"subsystems.{component.name}.units = {units[component.name]!r}: the FMU declares no unit "
                          "for these variables; the system description's connections give their quantities")
-        table["points"] = points[component.name]
+        if points[component.name]:
+            table["points"] = points[component.name]
+        if component.name not in fed:
+            table["outputs"] = "all"
+            notes.append(f"subsystems.{component.name}.outputs = 'all': {component.key} is coupled to nothing; it runs "
+                         "free and publishes every output variable as a signal of its name")
         subsystems[component.name] = table
     notes.append("outputs.reference = 'none': FMU subsystems have no reference solution; outputs.signals: each "
-                 "coupling's displacement and force")
+                 "coupling's displacement and force, and each signal coupling's signal")
     return {"name": name, "description": description,
             "manager": {"duration": duration, "macro_step": base_step},
             "outputs": {"signals": signals, "reference": "none"},

@@ -16,8 +16,10 @@ A power bond is declared: a ``VariableGroupConnection`` of two ``LinearMechanica
 ``VariableConnection``/``VariableGroupConnection`` elements (force and velocity) sharing a ``powerBond``
 name (libcosim's marker). Its force side is the simulator whose force variables are outputs (FMU
 causality). Its displacement is a ``LinearDisplacement`` group connection or plain connections of
-variables in metres, from the motion side's outputs to the force side's inputs. Every other connection
-is refused: zencosim has no plain signal coupling. Namespaces are ignored (OSP has used several).
+variables in metres, from the motion side's outputs to the force side's inputs. Every other connection of
+real variables is a ``signal`` coupling: the output's value copied into the input, as libcosim copies it.
+A simulator coupled to nothing runs free and publishes its outputs. Functions (and the signal connections
+to them) are refused. Namespaces are ignored (OSP has used several).
 """
 from __future__ import annotations
 
@@ -36,7 +38,6 @@ from zencosim.manager.scene.imports import (
     add_start,
     build_document,
     check_bond,
-    check_coupled,
     children,
     document_path,
     link_quantity,
@@ -164,14 +165,14 @@ class _Import:
             self.problems.add(where(elements["Simulators"][0]), "expected at least one Simulator")
         for functions in elements.get("Functions", []):
             for function in children(functions):
-                self.problems.add(where(function), "functions are not supported: zencosim couples subsystems through "
-                                                   "power bonds only and has no signal blocks")
+                self.problems.add(where(function), "OSP functions (LinearTransformation, Sum, VectorSum) are not "
+                                                   "supported: zencosim has no function blocks; connect the "
+                                                   "simulators' variables directly")
         for connections in elements.get("Connections", []):
             for element in children(connections):
                 self._connection(element)
-        bonds = self._bonds()
+        bonds, signals = self._bonds()
         components = list(self.components.values())
-        check_coupled(components, bonds, self.problems)
         if base_step is not None:
             set_timing(base_step, "BaseStepSize", components, self.problems)
         duration = None
@@ -186,7 +187,7 @@ class _Import:
         if "Description" in elements and (elements["Description"][0].text or "").strip():
             description += f": {elements['Description'][0].text.strip()}"
         document = build_document(name or self.path.stem, description, base_step, duration, components, bonds,
-                                  self.notes)
+                                  self.notes, signals)
         return document, self.notes
 
     def _refuse(self, key: str, reason: str) -> SceneError:
@@ -337,7 +338,8 @@ class _Import:
         elif kind == "VariableGroupConnection":
             self._group_connection(element, key)
         elif kind in ("SignalConnection", "SignalGroupConnection"):
-            self.problems.add(key, "connections to functions are not supported: zencosim has no signal blocks")
+            self.problems.add(key, "connections to OSP functions are not supported: zencosim has no function "
+                                   "blocks")
         else:
             self.problems.add(key, "unknown element; expected VariableConnection or VariableGroupConnection")
 
@@ -478,10 +480,11 @@ class _Import:
 
     # bonds ----------------------------------------------------------------------------------------
 
-    def _bonds(self) -> list[Bond]:
+    def _bonds(self) -> tuple[list[Bond], list[Link]]:
         """Ports and powerBond pairs become bonds; displacement connections join the bond they serve;
-        every other connection is refused."""
+        every other connection is a signal."""
         bonds: list[Bond] = []
+        signals: list[Link] = []
         named: dict[str, list[Link]] = {}
         displacements: list[Link] = []
         inputs: dict[tuple[str, str], str] = {}
@@ -504,9 +507,11 @@ class _Import:
             elif link.quantity == "displacement":
                 displacements.append(link)
             else:
-                carried = f"carries {link.quantity}" if link.quantity else "declares no unit"
-                self.problems.add(link.key, f"{link.text()} {carried} and is not part of a power bond: zencosim "
-                                            "couples subsystems through power bonds only (no plain signal coupling yet)")
+                signals.append(link)
+                if link.quantity in ("force", "velocity"):
+                    self.notes.append(f"{link.key}: {link.text()} has no powerBond: a signal coupling, whose power "
+                                      "zencosim does not monitor (mark the force and the velocity connection of a "
+                                      "bond with one powerBond name to make them a power bond)")
         ports_by_link = {id(port[1]): port[4] for port in self.ports}
         for bond_name, links in named.items():
             by_quantity = {q: [link for link in links if link.quantity == q] for q in ("force", "velocity")}
@@ -526,16 +531,16 @@ class _Import:
             if len(serves) == 1:
                 serves[0].displacement.append(link)
             elif not serves:
-                self.problems.add(link.key, f"{link.text()} is not part of a power bond: no bond has "
-                                            f"{link.source.name} as motion side and {link.target.name} as force side; "
-                                            "zencosim has no plain signal coupling yet")
+                signals.append(link)
             else:
                 self.problems.add(link.key, f"{link.text()}: {len(serves)} bonds join {link.source.name} (motion side) "
                                             f"to {link.target.name} (force side); cannot tell which one it serves")
         for bond in bonds:
             if len(bond.displacement) > 1 and len(bond.force.outputs) > 1:
                 self.notes.append(f"{bond.key}: the displacement components are its connections in document order")
-        return [bond for bond in bonds if check_bond(bond, self.problems)]
+        order = {id(link): i for i, link in enumerate(self.links)}
+        signals.sort(key=lambda link: order[id(link)])  # document order
+        return [bond for bond in bonds if check_bond(bond, self.problems)], signals
 
 
 def import_osp(path: Path, duration: float | None = None, algorithm: str | None = None) -> tuple[dict, list[str]]:

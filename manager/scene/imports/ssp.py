@@ -12,9 +12,13 @@ SSP has no power-bond marker, so a bond is recognised by one rule, from the unit
 (modelDescription, base-unit exponents): between two components F and M, the connections of force
 outputs [N] of F to inputs of M, and of velocity [m/s] and displacement [m] outputs of M to inputs of F,
 form one bond with force side F when there are equally many of each (n >= 1; the i-th of each, in
-document order, is component i of a vector bond). Every other connection — another quantity, no unit,
-counts that differ — is refused, as are nested systems, system connectors, signal dictionaries,
-parameter mappings and transformations.
+document order, is component i of a vector bond). Every other connection of real variables — another
+quantity, no unit, counts that differ — is a ``signal`` coupling: the output's value copied into the
+input. A ``ssc:LinearTransformation`` (factor, offset) maps to the signal coupling's ``factor`` and
+``offset``, or on a bond's force connection to its ``force_factor`` (a force has no offset; a bond's
+velocity and displacement are copied unchanged). A component coupled to nothing runs free and publishes
+its outputs. Refused: nested systems, system connectors, signal dictionaries, parameter mappings,
+Boolean, Integer and Enumeration mapping transformations (zencosim exchanges Real variables only).
 
 FMUs inside a ``.ssp`` archive are read from it; the scene refers to them where the archive unpacks
 beside it (``unzip NAME.ssp -d NAME``: ``NAME/resources/model.fmu``), and a note says so.
@@ -36,7 +40,7 @@ from zencosim.manager.scene.imports import (
     add_start,
     build_document,
     check_bond,
-    check_coupled,
+    check_transformation,
     children,
     document_path,
     link_quantity,
@@ -103,9 +107,8 @@ class _Import:
         components = self._components(ssd.system, system_element, component_steps)
         self._parameters(ssd, components)
         links = self._links(ssd.system, system_element, components)
-        bonds = self._bonds(links)
+        bonds, signals = self._bonds(links)
         members = list(components.values())
-        check_coupled(members, bonds, self.problems)
         base_step = self._settle_steps(base_step, members, where(root))
         if base_step is not None:
             set_timing(base_step, "DefaultExperiment: osp:FixedStepAlgorithm baseStepSize", members, self.problems)
@@ -120,7 +123,8 @@ class _Import:
         description = f"imported from the SSP {self.path.name}"
         if ssd.system.description:
             description += f": {ssd.system.description}"
-        return build_document(name, description, base_step, duration, members, bonds, self.notes), self.notes
+        return build_document(name, description, base_step, duration, members, bonds, self.notes, signals), \
+            self.notes
 
     def _refuse(self, key: str, reason: str) -> SceneError:
         self.problems.add(key, reason)
@@ -364,12 +368,16 @@ class _Import:
                               "prescribes")
             return
         unit = units.get(parameter.unit) if parameter.unit else None
-        if unit is not None and (unit.factor != 1.0 or unit.offset != 0.0):
-            self.problems.add(key, f"parameter {name!r} in unit {parameter.unit!r} (factor {unit.factor:g}, offset "
-                                   f"{unit.offset:g}): zencosim converts no units; give it in SI")
-            return
-        add_start(component, name, parameter.type or "?", parameter.value, f"{key}: parameter {name!r}",
-                  self.problems)
+        value = parameter.value
+        if unit is not None and (unit.factor != 1.0 or unit.offset != 0.0) and parameter.type == "Real":
+            given = number(value, f"{key}: parameter {name!r}", f"the value of {name}", self.problems)
+            if given is None:
+                return
+            value = repr(unit.factor * given + unit.offset)
+            self.notes.append(f"{key}: parameter {name!r} = {parameter.value} {parameter.unit} is {value} in SI "
+                              f"(factor {unit.factor:g}, offset {unit.offset:g}): a scene's start values are SI, "
+                              "converted into the FMU's own unit when it is set")
+        add_start(component, name, parameter.type or "?", value, f"{key}: parameter {name!r}", self.problems)
 
     # connections and bonds --------------------------------------------------------------------
 
@@ -381,10 +389,8 @@ class _Import:
             ends = f"{connection.startElement}.{connection.startConnector} -> " \
                    f"{connection.endElement}.{connection.endConnector}"
             key = f"Connection {ends} (line {xml.sourceline})"
-            extra = [local(c) for c in children(xml) if local(c) not in ("ConnectionGeometry", "Annotations")]
-            if extra:
-                self.problems.add(key, f"{', '.join(extra)}: transformations are not supported (zencosim converts "
-                                       "no units and maps no values)")
+            factor, offset = self._transformation(xml, key)
+            if factor is None:
                 continue
             if connection.startElement is None or connection.endElement is None:
                 self.problems.add(key, "connections to the system's own connectors are not supported: zencosim "
@@ -415,13 +421,39 @@ class _Import:
                                            f"of causality {causality!r}")
             source, outputs, target, inputs = oriented
             quantity = link_quantity(key, source, outputs, target, inputs, self.problems)
-            links.append(Link(key, source, outputs, target, inputs, quantity))
+            link = Link(key, source, outputs, target, inputs, quantity, factor=factor, offset=offset)
+            if check_transformation(link, self.problems):
+                links.append(link)
         return links
 
-    def _bonds(self, links: list[Link]) -> list[Bond]:
+    def _transformation(self, xml, key: str) -> tuple[float | None, float]:
+        """A connection's ``ssc:LinearTransformation`` as (factor, offset) ((1, 0) without one); (None, 0)
+        with a problem for what zencosim cannot apply."""
+        factor, offset = 1.0, 0.0
+        for child in children(xml):
+            kind = local(child)
+            if kind in ("ConnectionGeometry", "Annotations"):
+                continue
+            if kind == "LinearTransformation":
+                factor = number(child.get("factor", "1"), key, "the LinearTransformation factor", self.problems)
+                offset = number(child.get("offset", "0"), key, "the LinearTransformation offset", self.problems)
+                if factor is None or offset is None:
+                    return None, 0.0
+            elif kind in ("BooleanMappingTransformation", "IntegerMappingTransformation",
+                          "EnumerationMappingTransformation"):
+                self.problems.add(key, f"{kind}: zencosim exchanges Real variables only (Boolean, Integer and "
+                                       "Enumeration connections are not exchanged yet)")
+                return None, 0.0
+            else:
+                self.problems.add(key, f"unknown element {kind} in a Connection")
+                return None, 0.0
+        return factor, offset
+
+    def _bonds(self, links: list[Link]) -> tuple[list[Bond], list[Link]]:
         """The SSP bond rule: per (force side, motion side), as many force, velocity and displacement
-        connections, the force one way and the motion the other."""
+        connections, the force one way and the motion the other; every other connection is a signal."""
         pairs: dict[tuple[str, str], dict[str, list[Link]]] = {}
+        signals: list[Link] = []
         seen_inputs: dict[tuple[str, str], str] = {}
         for link in links:
             first = seen_inputs.setdefault((link.target.name, link.inputs[0]), link.key)
@@ -435,10 +467,7 @@ class _Import:
             elif link.quantity in ("velocity", "displacement"):
                 pair = (link.target.name, link.source.name)
             else:
-                carried = f"carries {link.quantity}" if link.quantity else "declares no unit"
-                self.problems.add(link.key, f"{link.text()} {carried}: the SSP bond rule joins force [N], velocity "
-                                            "[m/s] and displacement [m] connections only (zencosim has no plain signal "
-                                            "coupling yet)")
+                signals.append(link)
                 continue
             pairs.setdefault(pair, {"force": [], "velocity": [], "displacement": []})[link.quantity].append(link)
         bonds = []
@@ -446,10 +475,14 @@ class _Import:
             counts = {quantity: len(group) for quantity, group in found.items()}
             keys = " and ".join(link.key for group in found.values() for link in group)
             if len(set(counts.values())) != 1:
-                self.problems.add(keys, f"connections between {force_side} and {motion_side} do not form a bond: "
-                                        f"{counts['force']} force [N] {force_side} -> {motion_side}, "
-                                        f"{counts['velocity']} velocity [m/s] and {counts['displacement']} "
-                                        f"displacement [m] {motion_side} -> {force_side}; a bond has as many of each")
+                self.notes.append(f"{keys}: connections between {force_side} and {motion_side} form no power bond "
+                                  f"({counts['force']} force [N] {force_side} -> {motion_side}, {counts['velocity']} "
+                                  f"velocity [m/s] and {counts['displacement']} displacement [m] {motion_side} -> "
+                                  f"{force_side}; a bond has as many of each): signal couplings, whose power zencosim "
+                                  "does not monitor")
+                signals += [link for group in found.values() for link in group]
+                continue
+            if not self._plain_bond(found):
                 continue
             if counts["force"] > 1:
                 self.notes.append(f"couplings: {counts['force']} force connections {force_side} -> {motion_side} form "
@@ -458,7 +491,34 @@ class _Import:
             bond = Bond(keys, force, velocity, list(found["displacement"]))
             if check_bond(bond, self.problems):
                 bonds.append(bond)
-        return bonds
+        order = {id(link): i for i, link in enumerate(links)}
+        signals.sort(key=lambda link: order[id(link)])  # document order
+        return bonds, signals
+
+    def _plain_bond(self, found: dict[str, list[Link]]) -> bool:
+        """A bond's connections carry its force, velocity and displacement as they are: only its force may be
+        scaled (the coupling's ``force_factor``, one for all its components), and none offset."""
+        ok = True
+        for quantity, group in found.items():
+            for link in group:
+                if quantity != "force" and (link.factor != 1.0 or link.offset != 0.0):
+                    self.problems.add(link.key, f"LinearTransformation (factor {link.factor:g}, offset "
+                                                f"{link.offset:g}) on the {quantity} of a power bond: zencosim copies "
+                                                "a bond's velocity and displacement unchanged (only its force may be "
+                                                "scaled, force_factor)")
+                    ok = False
+                elif link.offset != 0.0:
+                    self.problems.add(link.key, f"LinearTransformation offset {link.offset:g} on the force of a power "
+                                                "bond: a bond's force has no offset (a factor is its force_factor)")
+                    ok = False
+        factors = {link.factor for link in found["force"]}
+        if ok and len(factors) > 1:
+            self.problems.add(" and ".join(link.key for link in found["force"]),
+                              f"the force components of one vector bond have different LinearTransformation factors "
+                              f"({', '.join(f'{f:g}' for f in sorted(factors))}); zencosim scales a bond's force by "
+                              "one force_factor")
+            ok = False
+        return ok
 
 
 def _joined(links: list[Link]) -> Link:
@@ -466,7 +526,7 @@ def _joined(links: list[Link]) -> Link:
     first = links[0]
     return Link(" and ".join(link.key for link in links), first.source,
                 tuple(n for link in links for n in link.outputs), first.target,
-                tuple(n for link in links for n in link.inputs), first.quantity)
+                tuple(n for link in links for n in link.inputs), first.quantity, factor=first.factor)
 
 
 def import_ssp(path: Path, duration: float | None = None) -> tuple[dict, list[str]]:
