@@ -14,10 +14,33 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-Quantity = Literal["position", "velocity", "acceleration", "force", "inverse_mass", "energy", "signal"]
+Quantity = Literal["position", "velocity", "acceleration", "force", "inverse_mass", "energy", "angle",
+                   "angular_velocity", "torque", "volume", "volume_flow", "pressure", "charge", "current", "voltage",
+                   "signal"]
 
 UNITS: dict[str, str] = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2", "force": "N",
-                         "inverse_mass": "1/kg", "energy": "J"}
+                         "inverse_mass": "1/kg", "energy": "J", "angle": "rad", "angular_velocity": "rad/s",
+                         "torque": "N.m", "volume": "m3", "volume_flow": "m3/s", "pressure": "Pa", "charge": "C",
+                         "current": "A", "voltage": "V"}
+
+
+@dataclass(frozen=True)
+class Domain:
+    """A physical domain of power bonds: the power through a port is effort × flow (the sign convention
+    above, with the effort in place of the force); the displacement is the flow's integral."""
+
+    effort: Quantity
+    flow: Quantity
+    displacement: Quantity
+
+
+# a new domain is a row here: bonds, residual power and energy correction read effort and flow only
+DOMAINS: dict[str, Domain] = {
+    "translational": Domain("force", "velocity", "position"),
+    "rotational": Domain("torque", "angular_velocity", "angle"),
+    "hydraulic": Domain("pressure", "volume_flow", "volume"),
+    "electrical": Domain("voltage", "current", "charge"),
+}
 
 
 @dataclass(frozen=True)
@@ -86,6 +109,7 @@ class EffectForceOutput:
     ports: tuple[str, ...]
     point: str
     effects: tuple[str, ...]
+    factor: float = 1.0  # a model that provides the force itself: the bond's force is factor × its output
 
 
 @dataclass(frozen=True)
@@ -147,6 +171,8 @@ class SignalPort:
 
     port: str
     variable: str
+    factor: float = 1.0  # an output's linear transformation: the port carries factor × value + offset
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)

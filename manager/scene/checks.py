@@ -218,9 +218,11 @@ def _check_signal_ends(signal: SignalConnection, subsystems: dict[str, Subsystem
 
 
 def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
-    """The models on both sides can play their role with signals of this many components."""
+    """The models on both sides can play their role with signals of this many components, in the bond's
+    domain (built-in models are translational and use the displacement; FMUs and Python models say theirs)."""
     key = f"couplings.{coupling.name}"
     traits, names = {}, {}
+    settings = coupling.settings
     for side, (sub, point) in coupling.sides().items():
         role = side.removesuffix("_side")
         model = names[role] = subsystems[sub].settings.model
@@ -228,8 +230,20 @@ def _check_coupled_models(coupling, subsystems: dict[str, SubsystemScene], probl
         spec = subsystems[sub].spec
         if role not in found.coupling_roles:
             problems.add(f"{key}.{side}", f"model {model} cannot be the {role} side of a coupling")
-        elif hasattr(spec, "role_problem") and point in spec.points and spec.role_problem(point, role):
-            problems.add(f"{key}.{side}", f"{sub}: {spec.role_problem(point, role)}")
+        elif hasattr(spec, "role_problem"):
+            reason = point in spec.points and spec.role_problem(point, role, settings.domain,
+                                                               coupling.exchanges_displacement)
+            if reason:
+                problems.add(f"{key}.{side}", f"{sub}: {reason}")
+        elif settings.domain != "translational":
+            problems.add(f"{key}.domain", f"model {model} of {sub} is translational; a {settings.domain} bond joins "
+                         "FMUs or Python models")
+        elif not coupling.exchanges_displacement:
+            problems.add(f"{key}.displacement", f"model {model} of {sub} needs the displacement exchanged; expected "
+                         "a signal name")
+    if settings.force_factor != 1.0 and not hasattr(subsystems[coupling.force_sub].spec, "role_problem"):
+        problems.add(f"{key}.force_factor", f"model {names['force']} outputs the force on the motion side's point "
+                     "itself; a factor belongs to an FMU's or Python model's force output")
         if coupling.dimension != found.point_dimension:
             problems.add(f"{key}.force", f"model {model} of {sub} exchanges {found.point_dimension}-component "
                          f"signals, got {coupling.dimension} (one name, or a list of names per signal)")

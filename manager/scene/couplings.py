@@ -12,6 +12,7 @@ components of a point in the plane); every signal of one coupling has the same n
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -86,16 +87,22 @@ class ForceDisplacementSettings:
     force_side: str  # "<subsystem>.<point>": computes the force (direct feedthrough)
     motion_side: str  # "<subsystem>.<point>": applies the force, outputs displacement and velocity
     force: str | tuple[str, ...]  # force signal [N]: force of the coupling element on the motion-side point
-    displacement: str | tuple[str, ...]  # displacement signal [m] of the motion-side point
+    displacement: str | tuple[str, ...]  # displacement signal [m] of the motion-side point ([]: none exchanged)
     velocity: str | tuple[str, ...]  # velocity signal [m/s] of the motion-side point
+    domain: Literal["translational", "rotational", "hydraulic", "electrical"] = "translational"  # of the bond
+    force_factor: float = 1.0  # a force side that computes the force itself: the bond's force is this × its output
 
     def problems(self) -> list[tuple[str, str]]:
         found = side_problems(self, "force_side", "motion_side")
         signals = {key: components(getattr(self, key)) for key in ("force", "displacement", "velocity")}
         sizes = {key: len(names) for key, names in signals.items()}
+        if sizes["displacement"] == 0:
+            del sizes["displacement"]  # checked against the models: only a force side of its own needs none
         if 0 in sizes.values() or len(set(sizes.values())) != 1:
             found.append(("force", "force, displacement and velocity need the same number of components "
                                    f"(one name, or a list of names), got {sizes}"))
+        if not (math.isfinite(self.force_factor) and self.force_factor != 0.0):
+            found.append(("force_factor", f"expected a finite, nonzero number, got {self.force_factor!r}"))
         names = [n for group in signals.values() for n in group]
         if len(set(names)) != len(names):
             found.append(("force", f"signal names must differ, got {names}"))
@@ -113,7 +120,14 @@ class ForceDisplacement:
     unchanged, as FMI, SSP and OSP define it) and outputs its displacement and velocity. A coupling
     without effects has a force-side model that computes the force itself from its own state and the
     received motion (the hydraulic actuator of paper 002 Eq. 25); it outputs the force on the motion
-    side's point too.
+    side's point too (times ``force_factor``, SSP's linear transformation of the force's connection, for a
+    component written with the other sign).
+
+    A bond of another physical domain (``domain``, ``subsystems.ports.DOMAINS``) joins FMUs or Python models
+    whose points are of that domain: ``force`` is its effort (torque, pressure, voltage), ``velocity`` its
+    flow (angular velocity, volume flow, current), ``displacement`` the flow's integral (angle, volume,
+    charge; ``[]`` when the force side needs none, as OSP's ports without "Quasi" exchange none). Residual
+    power and energy correction read effort and flow alone, so they hold in every domain.
     """
 
     kind = "force_displacement"
@@ -180,6 +194,10 @@ class ForceDisplacement:
                 | {n: f"the displacement of {s.motion_side}" for n in self.displacement}
                 | {n: f"the velocity of {s.motion_side}" for n in self.velocity})
 
+    @property
+    def exchanges_displacement(self) -> bool:
+        return bool(self.displacement)
+
     def _terminal(self) -> Terminal:
         return Terminal(f"{self.name}:{self.settings.motion_side}", starred(self.displacement), starred(self.velocity),
                         self.force_point)
@@ -189,7 +207,8 @@ class ForceDisplacement:
         return {
             self.force_sub: Attachments(
                 terminals=(terminal,),
-                force_outputs=(EffectForceOutput(self.force, self.force_point, tuple(e.name for e in self.effects)),),
+                force_outputs=(EffectForceOutput(self.force, self.force_point, tuple(e.name for e in self.effects),
+                                                 self.settings.force_factor),),
                 effects=tuple((e.name, e.effect, (self.force_point, terminal.name)) for e in self.effects)),
             self.motion_sub: Attachments(
                 force_inputs=(ForceInput(starred(self.force), self.motion_point, 1.0),),
@@ -312,10 +331,13 @@ class RigidJoint:
 class SignalSettings:
     type: Literal["signal"]
     output: str  # "<subsystem>.<variable>": an output variable of an FMU or a Python model
-    input: str  # "<subsystem>.<variable>": the input variable that receives its value, unchanged
+    input: str  # "<subsystem>.<variable>": the input variable that receives its value
+    factor: float = 1.0  # SSP's linear transformation: the input receives factor × output + offset (SI)
+    offset: float = 0.0
 
     def problems(self) -> list[tuple[str, str]]:
-        found = []
+        found = [(key, f"expected a finite number, got {getattr(self, key)!r}") for key in ("factor", "offset")
+                 if not math.isfinite(getattr(self, key))]
         for key in ("output", "input"):
             value = getattr(self, key)
             if value.count(".") < 1 or not all(value.split(".", 1)):
@@ -329,7 +351,8 @@ class SignalConnection:
 
     The signal is named after the coupling; the receiving input is ``<coupling>*``. Its value travels in
     SI (each component converts at its boundary, ``subsystems.models.external.model``), and both ends must
-    be of one quantity (or both without unit). It is exchanged, extrapolated and recorded like every other
+    be of one quantity (or both without unit). A linear transformation (``factor``, ``offset``) is applied
+    where the value leaves its source, so the signal, as exchanged and recorded, is what the input receives. It is exchanged, extrapolated and recorded like every other
     signal; an output that depends on its inputs at the same instant takes part in the initialisation
     order and its loops are found as for any feedthrough output.
     """
@@ -360,7 +383,8 @@ class SignalConnection:
         return {self.name: f"the output {self.settings.output}"}
 
     def attachments(self) -> dict[str, Attachments]:
-        source = Attachments(signal_outputs=(SignalPort(self.name, self.output),))
+        s = self.settings
+        source = Attachments(signal_outputs=(SignalPort(self.name, self.output, s.factor, s.offset),))
         target = Attachments(signal_inputs=(SignalPort(f"{self.name}*", self.input),))
         if self.source == self.target:
             return {self.source: source + target}

@@ -97,11 +97,16 @@ class ExternalSpec:
     def advances_itself(self) -> bool:
         return self.description.interface == "co-simulation"
 
-    def role_problem(self, point: str, role: str) -> str | None:
-        """Why ``point`` cannot be the ``role`` ("force" or "motion") side of a force–displacement coupling."""
+    def role_problem(self, point: str, role: str, domain: str = "translational", displacement: bool = True
+                     ) -> str | None:
+        """Why ``point`` cannot be the ``role`` ("force" or "motion") side of a power bond of ``domain``
+        (``displacement``: whether the bond exchanges the displacement too)."""
+        point_map = self.point_maps[point]
+        if point_map.domain != domain:
+            return f"points.{point} is {point_map.domain} (its domain key); the coupling is {domain}"
         needed = ("force", "position_input", "velocity_input") if role == "force" else ("force_input", "position",
                                                                                           "velocity")
-        missing = [r for r in needed if getattr(self.point_maps[point], r) is None]
+        missing = [r for r in needed if getattr(point_map, r) is None and (displacement or "position" not in r)]
         return f"points.{point} needs the roles {', '.join(missing)} for the {role} side" if missing else None
 
     def drive_problem(self, point: str, drive: str, axes: int) -> str | None:
@@ -225,6 +230,8 @@ class ExternalModel:
             y[a.rows] = (component[a.indices] * a.factors + a.offsets) * a.scales
         else:
             y[a.rows] = component[a.indices] * a.scales
+        if a.shift:
+            y[a.rows] += a.shifts
         y[a.input_rows] = w[a.input_columns]
         y[a.constant_rows] = a.constants
         return y
@@ -376,7 +383,7 @@ def _check_variable(name: str, causality: str, quantity: str, description: Compo
 
 def _check_point(point_map: PointMap, description: ComponentDescription, key: str, problems: Problems) -> None:
     for role in point_map.roles():
-        causality, quantity = ROLES[role]
+        causality, quantity = ROLES[role][0], point_map.quantity(role)
         for name in point_map.variables(role):
             _check_variable(name, causality, quantity, description, f"{key}.{role}", problems)
 
@@ -409,21 +416,21 @@ class _Ports:
         if unsupported:
             raise ValueError(f"an external model cannot take {', '.join(unsupported)}")
         for terminal in a.terminals:
-            self._input(terminal.position_inputs, maps[terminal.at], "position_input", "position", 1.0)
-            self._input(terminal.velocity_inputs, maps[terminal.at], "velocity_input", "velocity", 1.0)
+            self._input(terminal.position_inputs, maps[terminal.at], "position_input", 1.0)
+            self._input(terminal.velocity_inputs, maps[terminal.at], "velocity_input", 1.0)
         for received in a.force_inputs:
-            self._input(received.ports, maps[received.point], "force_input", "force", received.sign)
+            self._input(received.ports, maps[received.point], "force_input", received.sign)
         for side in a.joint_sides:
             point_map = maps[side.point]
             if side.drive == "force":
-                self._input(side.inputs, point_map, "force_input", "force", side.sign)
+                self._input(side.inputs, point_map, "force_input", side.sign)
             else:
-                self._input(side.inputs, point_map, "acceleration_input", "acceleration", 1.0)
+                self._input(side.inputs, point_map, "acceleration_input", 1.0)
         for motion in a.motion_outputs:
-            self._output(motion.position_ports, maps[motion.point], "position", "position")
-            self._output(motion.velocity_ports, maps[motion.point], "velocity", "velocity")
+            self._output(motion.position_ports, maps[motion.point], "position")
+            self._output(motion.velocity_ports, maps[motion.point], "velocity")
         for force in a.force_outputs:
-            self._output(force.ports, maps[force.point], "force", "force")
+            self._output(force.ports, maps[force.point], "force", force.factor)
         for side in a.joint_sides:
             self._joint_outputs(side, maps[side.point])
         description = self.spec.description
@@ -434,7 +441,8 @@ class _Ports:
             self.inputs.append(replace(_port_of(received.variable, description), name=received.port))
             self._component_input(received.variable, 1.0)
         for sent in a.signal_outputs:
-            self._variable_output(replace(_port_of(sent.variable, description), name=sent.port), sent.variable, 1.0)
+            self._variable_output(replace(_port_of(sent.variable, description), name=sent.port), sent.variable,
+                                  sent.factor, sent.offset)
         if self.spec.energy is not None:
             self._variable_output(Port("energy", "energy"), self.spec.energy, 1.0)
         table = self.spec.input_table
@@ -458,11 +466,11 @@ class _Ports:
         for name in description.outputs:
             self._variable_output(_port_of(name, description), name, 1.0)
 
-    def _input(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, sign: float) -> None:
+    def _input(self, ports: tuple[str, ...], point_map: PointMap, role: str, sign: float) -> None:
         for port, variable in zip(ports, point_map.variables(role)):
             if variable in self.component_inputs:
                 raise ValueError(f"input {variable} of the component is fed twice (ports {port} and another)")
-            self.inputs.append(Port(port, quantity))
+            self.inputs.append(Port(port, point_map.quantity(role)))
             self._component_input(variable, sign)
 
     def _component_input(self, variable: str, sign: float) -> None:
@@ -480,25 +488,27 @@ class _Ports:
         return tuple(port.name for port, name in zip(self.inputs, self.component_inputs)
                      if depends is None or name in depends)
 
-    def _variable_output(self, port: Port, variable: str, scale: float) -> None:
+    def _variable_output(self, port: Port, variable: str, scale: float, shift: float = 0.0) -> None:
+        """An output port with the value of the component's ``variable``, in SI, times ``scale`` plus ``shift``
+        (a connection's linear transformation)."""
         if variable not in self.component_outputs:
             self.component_outputs.append(variable)
         direct = self._direct_inputs(variable)
         self.outputs.append(Port(port.name, port.quantity, bool(direct), port.signal_unit, direct))
         unit = self.spec.description.variables[variable]
         self.output_sources.append(("variable", self.component_outputs.index(variable), scale, unit.factor,
-                                    unit.offset))
+                                    unit.offset, shift))
 
-    def _output(self, ports: tuple[str, ...], point_map: PointMap, role: str, quantity: str, scale: float = 1.0) -> None:
+    def _output(self, ports: tuple[str, ...], point_map: PointMap, role: str, scale: float = 1.0) -> None:
         for port, variable in zip(ports, point_map.variables(role)):
-            self._variable_output(Port(port, quantity), variable, scale)
+            self._variable_output(Port(port, point_map.quantity(role)), variable, scale)
 
     def _joint_outputs(self, side, point_map: PointMap) -> None:
-        self._output(side.positions, point_map, "position", "position")
-        self._output(side.velocities, point_map, "velocity", "velocity")
-        self._output(side.accelerations, point_map, "acceleration", "acceleration")
+        self._output(side.positions, point_map, "position")
+        self._output(side.velocities, point_map, "velocity")
+        self._output(side.accelerations, point_map, "acceleration")
         if point_map.joint_force is not None:  # the joint's force on the point, in the sign of side 1
-            self._output(side.forces, point_map, "joint_force", "force", side.sign)
+            self._output(side.forces, point_map, "joint_force", side.sign)
         else:  # force drive: the applied force sign × λ*, so f = λ*, the input itself
             for port, received in zip(side.forces, side.inputs):
                 self.outputs.append(Port(port, "force", feedthrough=True, depends_on=(received,)))
@@ -508,7 +518,7 @@ class _Ports:
                 self.outputs.append(Port(port, "inverse_mass"))
                 self.output_sources.append(("constant", point_map.inverse_mass))
         else:
-            self._output(side.inverse_masses, point_map, "inverse_mass", "inverse_mass")
+            self._output(side.inverse_masses, point_map, "inverse_mass")
 
     def assembly(self) -> _Assembly:
         """Index arrays that assemble the outputs from the component's outputs and the inputs."""
@@ -518,18 +528,19 @@ class _Ports:
         rows = {kind: np.array([i for i, s in enumerate(self.output_sources) if s[0] == kind], dtype=np.intp)
                 for kind in ("variable", "input", "constant")}
         factors, offsets = np.array(select("variable", 3)), np.array(select("variable", 4))
+        shifts = np.array(select("variable", 5))
         return _Assembly(rows["variable"], np.array(select("variable", 1), dtype=np.intp),
                          np.array(select("variable", 2)), factors, offsets,
-                         bool(np.any(factors != 1.0) or np.any(offsets != 0.0)),
+                         bool(np.any(factors != 1.0) or np.any(offsets != 0.0)), shifts, bool(np.any(shifts != 0.0)),
                          rows["input"], np.array(select("input", 1), dtype=np.intp), rows["constant"],
                          np.array(select("constant", 1)))
 
 
 class _Assembly(NamedTuple):
     """How an external model's outputs are assembled, as index arrays (one numpy operation per kind):
-    ``y[rows] = (component[indices] * factors + offsets) * scales`` (to SI, then signed; without the
-    conversion where ``convert`` is false), ``y[input_rows] = w[input_columns]``, ``y[constant_rows] =
-    constants``."""
+    ``y[rows] = (component[indices] * factors + offsets) * scales + shifts`` (to SI, then a connection's
+    linear transformation; without the conversion where ``convert`` is false, without the shifts where
+    ``shift`` is), ``y[input_rows] = w[input_columns]``, ``y[constant_rows] = constants``."""
 
     rows: np.ndarray
     indices: np.ndarray
@@ -537,6 +548,8 @@ class _Assembly(NamedTuple):
     factors: np.ndarray
     offsets: np.ndarray
     convert: bool
+    shifts: np.ndarray
+    shift: bool
     input_rows: np.ndarray
     input_columns: np.ndarray
     constant_rows: np.ndarray
@@ -549,6 +562,8 @@ def _port_of(name: str, description: ComponentDescription) -> Port:
     variable = description.variables[name]
     if variable.exponents is None:
         return Port(name, "signal", signal_unit="1")
+    if variable.exponents == exponents(UNITS["energy"]):  # energy or torque: a signal in the unit it declares
+        return Port(name, "signal", signal_unit=_si_name(variable))
     for quantity, unit in UNITS.items():
         if variable.exponents == exponents(unit):
             return Port(name, quantity)

@@ -23,10 +23,19 @@ role                          meaning                                           
 
 A connection copies a value unchanged, as FMI, SSP and OSP define it: a received force is the force
 that acts on the component's point (a force-driven joint side's input is applied with the side's sign).
+
+A point of another physical domain (``domain = "rotational"``, ``"hydraulic"``, ``"electrical"``,
+``subsystems.ports.DOMAINS``) maps the same roles onto that domain's quantities: ``force`` and
+``force_input`` are the effort (torque, pressure, voltage), ``velocity`` and ``velocity_input`` the flow
+(angular velocity, volume flow, current), ``position`` and ``position_input`` the displacement (angle,
+volume, charge). Joint roles are translational only.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import Literal
+
+from zencosim.subsystems.ports import DOMAINS
 
 ROLES: dict[str, tuple[str, str]] = {  # role -> (causality, quantity)
     "force": ("output", "force"),
@@ -40,6 +49,8 @@ ROLES: dict[str, tuple[str, str]] = {  # role -> (causality, quantity)
     "joint_force": ("output", "force"),
     "inverse_mass": ("output", "inverse_mass"),
 }
+DOMAIN_PARTS = {"force": "effort", "force_input": "effort", "velocity": "flow", "velocity_input": "flow",
+                "position": "displacement", "position_input": "displacement"}  # bond roles -> Domain fields
 
 
 @dataclass(frozen=True)
@@ -56,6 +67,12 @@ class PointMap:
     acceleration: str | tuple[str, ...] | None = None
     joint_force: str | tuple[str, ...] | None = None
     inverse_mass: str | float | tuple[str, ...] | None = None  # a variable, or a constant [1/kg] on a line
+    domain: Literal["translational", "rotational", "hydraulic", "electrical"] = "translational"
+
+    def quantity(self, role: str) -> str:
+        """The quantity of ``role`` at this point: a bond role's in the point's domain, else the role's own."""
+        part = DOMAIN_PARTS.get(role)
+        return ROLES[role][1] if part is None else getattr(DOMAINS[self.domain], part)
 
     def variables(self, role: str) -> tuple[str, ...]:
         """The variable names of ``role`` (one per component; empty when the role is not mapped)."""
@@ -65,7 +82,7 @@ class PointMap:
         return (value,) if isinstance(value, str) else value
 
     def roles(self) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(self) if getattr(self, f.name) is not None)
+        return tuple(f.name for f in fields(self) if f.name != "domain" and getattr(self, f.name) is not None)
 
     @property
     def dimension(self) -> int:
@@ -89,4 +106,6 @@ class PointMap:
         needed = ["position", "velocity", "acceleration", "inverse_mass"]
         needed += ["force_input"] if drive == "force" else ["acceleration_input", "joint_force"]
         missing = [role for role in needed if getattr(self, role) is None]
+        if self.domain != "translational":
+            return f"a joint side is translational; the point is {self.domain}"
         return f"a joint side with {drive} drive needs the roles {', '.join(missing)}" if missing else None
