@@ -2,7 +2,9 @@
 return the trajectories it computed, sample for sample.
 
 ``run_osp(path, duration, [("mass2", "x2"), ...])`` loads ``path`` (an ``OspSystemStructure.xml`` with its
-FMUs) with ``CosimExecution.from_osp_config_file``, observes the requested variables with a time-series
+FMUs) with ``CosimExecution.from_osp_config_file`` (an SSP ``.ssd`` file or ``.ssp`` archive with libcosim's
+SSP loader, ``CosimExecution.from_ssp_file``, which applies a connection's ``ssc:LinearTransformation`` and
+converts no units), observes the requested variables with a time-series
 observer from the start, simulates to ``duration`` and returns a :class:`LibcosimRun`: the times [s] and
 step numbers of every sample and the values of each variable, numpy arrays of one length. libcosim's
 time-series observer takes a sample when the simulation is initialised (step 0, t = 0) and after every
@@ -128,8 +130,9 @@ def run_osp(system: str | Path, duration: float, variables: Iterable[tuple[str, 
     end_ns = round(duration * 1e9)
     execution = observer = None
     try:
+        ssp = Path(system).suffix.lower() in (".ssd", ".ssp")
         try:
-            execution = CosimExecution.from_osp_config_file(str(system))
+            execution = (CosimExecution.from_ssp_file if ssp else CosimExecution.from_osp_config_file)(str(system))
         except AssertionError as error:
             raise LibcosimError(f"libcosim cannot load {system}: {error}") from None
         observer = CosimObserver.create_time_series(buffer_size=BUFFER)

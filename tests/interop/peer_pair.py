@@ -36,7 +36,7 @@ MASS1_START = {"m": 1.0, "k": 10.0, "c": 0.1, "kc": 100.0, "cc": 0.1, "x0": 0.0,
 MASS2_START = {"m": 1.0, "k": 1000.0, "c": 0.1, "x0": 0.0, "v0": -100.0}
 
 UNITS = {"kg": {"kg": 1}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "m": {"m": 1},
-         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}}
+         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}, "mm": {"m": 1, "factor": 0.001}}
 
 
 @dataclass(frozen=True)
@@ -66,10 +66,24 @@ MODELS: dict[str, tuple[Var, ...]] = {
               Var("fc_in", "input", "N", 0.0),
               Var("x2", "output", "m", initial=("x0",)), Var("v2", "output", "m/s", initial=("v0",))),
 }
-GUID = {"mass1": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass01}", "mass2": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass02}"}
+# variants for the signal and SSP tests (tests/interop/test_signals.py), from the same C source:
+# mass1_own outputs f1, the force of the coupling element on its OWN mass (-fc; -DPEER_OWN_FORCE), so that
+# the force its partner needs is -f1 (an SSP LinearTransformation factor -1); mass2_mm outputs x2 in mm
+# (a unit definition with factor 0.001; -DPEER_X_MM), the state and x0 staying in m
+MODELS["mass1_own"] = tuple(Var("f1", "output", "N", depends=v.depends, initial=v.initial) if v.name == "fc" else v
+                            for v in MODELS["mass1"])
+MODELS["mass2_mm"] = tuple(Var("x2", "output", "mm", initial=v.initial) if v.name == "x2" else v
+                           for v in MODELS["mass2"])
+BUILD = {"mass1": ("1", ()), "mass2": ("2", ()), "mass1_own": ("1", ("-DPEER_OWN_FORCE",)),
+         "mass2_mm": ("2", ("-DPEER_X_MM",))}  # model -> (PEER_MASS, further compiler flags)
+GUID = {"mass1": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass01}", "mass2": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass02}",
+        "mass1_own": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass11}", "mass2_mm": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass22}"}
 DESCRIPTION = {"mass1": "mass 1 of paper 000's two_mass_damped with the coupling spring-damper; "
                         "fc is the force of the coupling element on mass 2",
-               "mass2": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it"}
+               "mass2": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it",
+               "mass1_own": "mass 1 of paper 000's two_mass_damped with the coupling spring-damper; "
+                            "f1 is the force of the coupling element on mass 1 (its own point)",
+               "mass2_mm": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it; x2 in mm"}
 
 
 def model_identifier(model: str) -> str:
@@ -131,7 +145,7 @@ def model_description(model: str, units: bool) -> str:
 
 
 def build_fmu(model: str, out: Path, units: bool = True) -> Path:
-    """Compile ``model`` ("mass1" or "mass2") into the FMU ``out``; RuntimeError with gcc's message."""
+    """Compile ``model`` (a key of :data:`MODELS`) into the FMU ``out``; RuntimeError with gcc's message."""
     gcc = shutil.which("gcc")
     if gcc is None:
         raise RuntimeError("building the peer FMUs needs gcc")
@@ -140,8 +154,9 @@ def build_fmu(model: str, out: Path, units: bool = True) -> Path:
         build = Path(tmp)
         (build / "peer_table.h").write_text(c_table(model))
         library = build / f"{identifier}.so"
-        command = [gcc, *CFLAGS, f"-DPEER_MASS={model[-1]}", f"-I{build}", f"-I{fmi_headers()}", "-o", str(library),
-                   str(SOURCE), "-lm"]
+        mass, flags = BUILD[model]
+        command = [gcc, *CFLAGS, f"-DPEER_MASS={mass}", *flags, f"-I{build}", f"-I{fmi_headers()}", "-o",
+                   str(library), str(SOURCE), "-lm"]
         done = subprocess.run(command, check=False, capture_output=True, text=True)
         if done.returncode != 0:
             raise RuntimeError(f"gcc could not compile {SOURCE} for {model}:\n{done.stderr.strip()}")
@@ -273,7 +288,7 @@ def write_system(directory: Path, name: str) -> Path:
     units, connections = SYSTEMS[name]
     directory.mkdir(parents=True, exist_ok=True)
     sources = {}
-    for model in MODELS:
+    for model in ("mass1", "mass2"):
         sources[model] = f"{model}.fmu"
         build_fmu(model, directory / sources[model], units)
         if connections == "groups":

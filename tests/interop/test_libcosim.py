@@ -37,7 +37,7 @@ from tests.interop.peer_pair import END_TIME, STEPS, SYSTEMS, write_system  # no
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="building the FMUs needs gcc")
 
 PEER_SIGNALS = {"x2": ("mass2", "x2"), "v2": ("mass2", "v2"), "fc": ("mass1", "fc")}
-RUN_BY_ZENCOSIM = ("plain", "groups", "groups_nounits")  # the rest zencosim refuses (see below)
+RUN_BY_ZENCOSIM = ("plain", "groups", "groups_nounits")  # unmarked: test_signals.py; plain_nounits: refused
 
 
 @pytest.fixture(scope="module")
@@ -104,10 +104,11 @@ def test_zencosim_gives_libcosims_answer_on_the_same_osp_file(libcosim_runs, zen
     assert nrms(ours["x2"], reference) == pytest.approx(LIBCOSIM_NRMS, abs=1e-6)
 
 
-@pytest.mark.parametrize("name, reason", [("plain_nounits", "no unit"), ("unmarked", "not part of a power bond")])
+@pytest.mark.parametrize("name, reason", [("plain_nounits", "no unit")])
 def test_what_libcosim_runs_and_zencosim_refuses(systems, libcosim_runs, name, reason):
-    """libcosim copies any connection; zencosim couples through power bonds only, recognised by units and
-    the powerBond marker (docs/system-imports.md): without them it refuses the file, saying why."""
+    """libcosim copies any connection; zencosim recognises a declared power bond (powerBond) by the units of
+    its force and velocity (docs/system-imports.md): without units it refuses the file, saying why. The
+    same connections without powerBond ("unmarked") are signal couplings: tests/interop/test_signals.py."""
     assert len(libcosim_runs[name].time) == STEPS + 1
     with pytest.raises(zencosim.SceneError, match=reason):
         zencosim.load_scene(systems[name])

@@ -16,6 +16,10 @@
 
        a2 = (-k*x2 - c*v2 + fc_in) / m
 
+   Variants (tests/interop/peer_pair.py BUILD): -DPEER_OWN_FORCE (mass1) outputs f1 = -fc, the force of the
+   coupling element on mass 1 itself, instead of fc; -DPEER_X_MM (mass2) outputs x2 in mm (x2 * 1000), its
+   state and x0 staying in m.
+
    Every doStep(t, h) is one symplectic Euler step over h (kick, then drift): v += h*a; x += h*v, with
    a from the state and the inputs at the start of the step. x and v start at the parameters x0 and v0
    when initialization mode is exited. fc is a direct-feedthrough output: fmi2GetReal computes it from
@@ -69,8 +73,13 @@ static double acceleration(Instance *inst) {
     x = p[VR_X];
     v = p[VR_V];
 #if PEER_MASS == 1
-    p[VR_fc] = p[VR_kc] * (x - p[VR_x2_in]) + p[VR_cc] * (v - p[VR_v2_in]);
-    return (-p[VR_k] * x - p[VR_c] * v - p[VR_fc]) / p[VR_m];
+    double fc = p[VR_kc] * (x - p[VR_x2_in]) + p[VR_cc] * (v - p[VR_v2_in]);
+#ifdef PEER_OWN_FORCE
+    p[VR_f1] = -fc;
+#else
+    p[VR_fc] = fc;
+#endif
+    return (-p[VR_k] * x - p[VR_c] * v - fc) / p[VR_m];
 #else
     return (-p[VR_k] * x - p[VR_c] * v + p[VR_fc_in]) / p[VR_m];
 #endif
@@ -158,6 +167,9 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     for (i = 0; i < nvr; i++) {
         if (vr[i] >= N_VARIABLES) return fail(c, "fmi2GetReal: unknown value reference");
         value[i] = inst->value[vr[i]];
+#ifdef PEER_X_MM
+        if (vr[i] == VR_x2) value[i] *= 1000.0;
+#endif
     }
     return fmi2OK;
 }
