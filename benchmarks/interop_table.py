@@ -6,7 +6,8 @@ the largest difference between their trajectories.
 
 Needs gcc, fmpy and libcosimpy (``pip install -e '.[test]'``). The artifacts are built in a temporary
 folder: the peer pair of tests/interop (paper 000's two_mass_damped as two FMUs written for the tests) in
-five OSP system structures, and the FMU scenes of ``zencosim examples`` written as OSP files. "largest
+five OSP system structures, its signal, transformation and unit variants (tests/interop/peer_systems.py: OSP
+and SSP files), and the FMU scenes of ``zencosim examples`` written as OSP files. "largest
 difference" is max |a - b| / max |b| over the coupling signals (x2, v2 and the force), b the run named in
 "against"; NRMS is that of x2 against the analytic solution (paper 000 Eq. 42) where the system is
 two_mass_damped. docs/interop.md shows a run of it and explains the numbers.
@@ -67,12 +68,80 @@ def difference(ours: dict, theirs: dict) -> float:
     return max(largest_difference(ours[name], theirs[name]) for name in theirs)
 
 
-def zencosim_run(path: Path, bus: str = "inproc"):
-    scene = zencosim.load_scene(path)
-    (coupling,) = scene.couplings
+SIGNALS = {"x2": "mass2_x2", "v2": "mass2_v2", "fc": "mass1_fc"}  # the peer pair's signal couplings
+
+
+def zencosim_run(path: Path, bus: str = "inproc", overrides: dict | None = None):
+    scene = zencosim.load_scene(path, overrides or {})
     result = zencosim.run(scene, bus)
+    if all(coupling.kind == "signal" for coupling in scene.couplings.values()):  # no bond: signals by name
+        names = {k: n for k, n in SIGNALS.items() if n in scene.couplings}
+        names |= {k: k for k in ("x2", "v2") if k not in names}  # published by a subsystem with outputs = "all"
+        return result, {k: result.signal(n).values for k, n in names.items()}
+    (coupling,) = scene.couplings
     return result, {"x2": result.signal(f"{coupling}.x").values, "v2": result.signal(f"{coupling}.v").values,
                     "fc": result.signal(f"{coupling}.f").values}
+
+
+def signals_and_ssp(table: Table, root: Path, reference: np.ndarray) -> None:
+    """Signal couplings and a simulator alone (OSP), a force transformation and a unit conversion (SSP)."""
+    from tests.interop.peer_systems import alone, oneway, write_ssd
+
+    for name, path, overrides in (("oneway", oneway(root / "oneway"), {"subsystems.mass2.outputs": "all"}),
+                                  ("alone", alone(root / "alone"), {})):
+        keys = dict(PEER) if name == "oneway" else {k: PEER[k] for k in ("x2", "v2")}
+        run = run_osp(path, END_TIME, keys.values())
+        theirs = {signal: run[key] for signal, key in keys.items()}
+        artifact = f"peer OSP `{name}`"
+        table.add(artifact, "libcosim", "the OSP file", None, None)
+        _, ours = zencosim_run(path, overrides=overrides)
+        table.add(artifact, "zencosim", "the OSP file, in process", None, difference(ours, theirs), "libcosim")
+    variants = {v: write_ssd(root / f"ssp_{v}", v) for v in ("plain", "own", "mm", "mm_transformed")}
+    plain_run = run_osp(variants["plain"], END_TIME, PEER.values())
+    plain = {signal: plain_run[key] for signal, key in PEER.items()}
+    table.add("peer SSP `plain`", "libcosim", "the SSP file", nrms(plain["x2"], reference), None)
+    _, ours = zencosim_run(variants["plain"])
+    table.add("peer SSP `plain`", "zencosim", "the SSP file, in process", nrms(ours["x2"], reference),
+              difference(ours, plain), "libcosim")
+    run = run_osp(variants["own"], END_TIME, [PEER["x2"], PEER["v2"]])
+    theirs = {"x2": run[PEER["x2"]], "v2": run[PEER["v2"]]}
+    table.add("peer SSP `own` (factor -1)", "libcosim", "the SSP file", nrms(theirs["x2"], reference),
+              difference(theirs, {k: plain[k] for k in theirs}), "libcosim, SSP `plain`")
+    _, own = zencosim_run(variants["own"])
+    table.add("peer SSP `own` (factor -1)", "zencosim", "the SSP file, in process", nrms(own["x2"], reference),
+              difference({k: own[k] for k in theirs}, theirs), "libcosim")
+    for variant in ("plain", "own"):
+        table.add(f"peer SSP `{variant}`", "FMPy simulate_ssp", "the SSP file as an archive", None,
+                  difference(fmpy_ssp(variants[variant]), {k: plain[k][1:] for k in ("x2",)}),
+                  "libcosim, SSP `plain`, from step 1")
+    run = run_osp(variants["mm_transformed"], END_TIME, PEER.values())
+    theirs = {signal: run[key] for signal, key in PEER.items()}
+    theirs["x2"] = theirs["x2"] * 1e-3  # mm
+    table.add("peer SSP `mm_transformed`", "libcosim", "the SSP file", nrms(theirs["x2"], reference), None)
+    _, mm = zencosim_run(variants["mm"])
+    table.add("peer SSP `mm` (x2 in mm)", "zencosim", "the SSP file, in process", nrms(mm["x2"], reference),
+              difference(mm, theirs), "libcosim, `mm_transformed`")
+
+
+def fmpy_ssp(ssd: Path) -> dict:
+    """x2 from FMPy's ``simulate_ssp`` on the folder of ``ssd`` zipped (its start values as the one parameter
+    set FMPy takes); sample k is after step k + 1."""
+    import zipfile
+
+    from fmpy.ssp.simulation import simulate_ssp
+    from fmpy.ssp.ssd import Parameter, ParameterSet, read_ssd
+
+    archive = ssd.parent.with_suffix(".ssp")
+    with zipfile.ZipFile(archive, "w") as out:
+        for file in ssd.parent.iterdir():
+            out.write(file, file.name)
+    parameters = ParameterSet(parameters=[])
+    for component in read_ssd(str(archive)).system.elements:
+        for parameter in component.parameterBindings[0].parameterValues[0].parameters:
+            parameters.parameters.append(Parameter(name=f"{component.name}.{parameter.name}", type="Real",
+                                                   value=parameter.value))
+    result = simulate_ssp(str(archive), stop_time=END_TIME, step_size=0.001, parameter_set=parameters)
+    return {"x2": np.asarray(result["mass2.x2"])[:len(result) - 1]}
 
 
 def peer_pair(table: Table, root: Path, reference: np.ndarray, zenoh: bool) -> None:
@@ -174,6 +243,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="zencosim-interop-") as tmp:
         root = Path(tmp)
         peer_pair(table, root / "peer", reference, args.zenoh)
+        signals_and_ssp(table, root / "signals", reference)
         examples(table, root / "examples", reference)
         single_fmu(table, root / "single")
     text = table.markdown()
