@@ -283,4 +283,4 @@ def _named_values(fields: dict, schema: ChannelSchema, rows: int) -> np.ndarray:
         else:
             column = _doubles(found[-1:]) if found else np.zeros(1)
         columns.append(column)
-    return np.column_stack(columns).ravel()
+    return np.column_stack(columns).ravel() if columns else np.zeros(0)  # a subsystem without inputs

@@ -3,6 +3,8 @@ communication point, with SSP's linear transformation, checked against FMPy runn
 name both ends."""
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -105,3 +107,15 @@ def test_a_builtin_model_has_no_variables_to_connect(tmp_path):
         zencosim.load_scene(str(tmp_path / "scene.toml"))
     assert ("couplings.s.output", "model masses of S1 has no variables by name: a signal connection joins variables "
             "of FMUs and Python models") in [(p.key, p.reason) for p in caught.value.problems]
+
+
+def test_a_recorded_signal_connection_verifies_and_exports_the_signal(examples):
+    # S1 has no inputs at all: its commands carry no coefficients
+    path = scene(examples)
+    recording = examples / "signal.mcap"  # beside the FMUs: the recorded scene names them relative to itself
+    result = zencosim.run(zencosim.load_scene(str(path)), record=recording)
+    run = subprocess.run([sys.executable, "-m", "zencosim", "replay", str(recording), "--verify"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and "verify passed" in run.stdout, run.stdout + run.stderr
+    loaded = zencosim.load_recording(recording)
+    np.testing.assert_array_equal(loaded.signal("u").values, result.signal("u").values)
