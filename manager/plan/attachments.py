@@ -7,6 +7,7 @@ import dataclasses
 from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.models import model_class
+from zencosim.subsystems.models.external.fmu import FmuError
 from zencosim.subsystems.params import Problem
 from zencosim.subsystems.ports import Attachments
 from zencosim.subsystems.subsystem import Subsystem
@@ -35,14 +36,16 @@ def coupling_attachments(scene: Scene) -> dict[str, Attachments]:
 
 @contextlib.contextmanager
 def _model_problems(scene: Scene, name: str):
-    """A model that cannot be built from the scene's parameters says why (ValueError, an overflow): a scene
-    error naming the subsystem."""
+    """A model that cannot be built from the scene's parameters says why (ValueError, an overflow), and so does
+    an FMU that cannot be instantiated here: a scene error naming the subsystem."""
     try:
         yield
     except SceneError:
         raise
     except (ValueError, ArithmeticError) as error:
         raise SceneError(scene.path, [Problem(f"subsystems.{name}", str(error))]) from None
+    except FmuError as error:
+        raise SceneError(scene.path, [Problem(f"subsystems.{name}.fmu", str(error))]) from None
 
 
 def _model(scene: Scene, name: str, attached: Attachments):

@@ -14,6 +14,7 @@ Measured and explained in docs/interop.md ("FMUs from other tools").
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -196,3 +197,18 @@ def test_a_crane_fmu_fails_to_instantiate_without_its_python_dependencies(tmp_pa
     assert run.returncode != 0
     assert "Failed to instantiate model" in run.stderr
     assert "ImportError('pint is not installed')" in run.stdout + run.stderr
+
+
+@pytest.mark.multiprocess
+def test_zencosim_names_an_fmu_that_cannot_be_instantiated_in_one_line(tmp_path):
+    """The same FMU without pint, run by zencosim: one line naming the subsystem, the FMU and fmpy's error, and
+    exit 2 (the FMU cannot be used here), not a traceback."""
+    fmu = crane_fmu("MobileCrane")
+    hidden = tmp_path / "hide"
+    hidden.mkdir()
+    (hidden / "pint.py").write_text("raise ImportError('pint is not installed')\n")
+    run = subprocess.run([sys.executable, "-m", "zencosim", "run", str(fmu)], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(hidden)})
+    assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+    assert "subsystems.MobileCrane.fmu: FMU MobileCrane.fmu: cannot be instantiated (Exception: Failed to " \
+           "instantiate model)" in run.stderr

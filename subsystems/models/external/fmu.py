@@ -158,7 +158,12 @@ class _FmuInstance:
         weakref.finalize(self, shutil.rmtree, self.directory, True)
         with zipfile.ZipFile(path) as archive:
             archive.extractall(self.directory)
-        self.fmu = self._instantiate(model, description, instance_name)
+        try:
+            self.fmu = self._instantiate(model, description, instance_name)
+        except Exception as error:  # noqa: BLE001 (fmpy raises a plain Exception, ctypes an OSError)
+            raise FmuError(f"FMU {path.name}: cannot be instantiated ({type(error).__name__}: {error}); a Python "
+                           "FMU (pythonfmu) needs its packages in this interpreter, fmpy's debug log says more "
+                           "(fmpy simulate --debug-logging)") from None
         self._inputs = (ctypes.c_uint * len(inputs))(*(self.references[n] for n in inputs))
         self._outputs = (ctypes.c_uint * len(outputs))(*(self.references[n] for n in outputs))
         self._u = (ctypes.c_double * len(inputs))()
