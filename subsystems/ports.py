@@ -52,6 +52,7 @@ class Port:
     feedthrough: bool = False  # an output that depends on the inputs at the same instant
     signal_unit: str | None = None  # the SI unit of a "signal": any other quantity (a component's variable)
     depends_on: tuple[str, ...] | None = None  # the inputs a feedthrough output depends on (None: all of them)
+    discrete: bool = False  # an Integer or Boolean variable's: held over a step (extrapolated with order 0)
 
     @property
     def unit(self) -> str:

@@ -212,7 +212,15 @@ def _check_signal_ends(signal: SignalConnection, subsystems: dict[str, Subsystem
             problems.add(f"couplings.{signal.name}.{key}", f"{sub}: {reason}")
         else:
             found[key] = spec.description.variables[variable]
-    if len(found) == 2 and found["output"].exponents != found["input"].exponents:
+    kinds = {v.kind for v in found.values()}
+    if len(found) == 2 and len(kinds) > 1:
+        ends = {key: f"{signal.sides()[key][0]}.{v.name} ({v.kind})" for key, v in found.items()}
+        problems.add(f"couplings.{signal.name}", f"{ends['output']} feeds {ends['input']}: expected one type")
+    elif kinds & {"Integer", "Boolean"} and (signal.settings.extrapolation or 0) > 0:
+        problems.add(f"couplings.{signal.name}.extrapolation", f"an {kinds.pop()} is held over a step; expected 0")
+    elif kinds & {"Integer", "Boolean"} and (signal.settings.factor != 1.0 or signal.settings.offset != 0.0):
+        problems.add(f"couplings.{signal.name}.factor", "a linear transformation applies to Real variables")
+    elif len(found) == 2 and found["output"].exponents != found["input"].exponents:
         ends = {key: f"{signal.sides()[key][0]}.{v.name} [{v.unit or 'no unit'}]" for key, v in found.items()}
         problems.add(f"couplings.{signal.name}", f"{ends['output']} feeds {ends['input']}: not the same quantity")
 

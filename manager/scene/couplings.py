@@ -13,12 +13,12 @@ components of a point in the plane); every signal of one coupling has the same n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS, Decomposition
 from zencosim.subsystems.effects import PlacedEffect, read_effect
-from zencosim.subsystems.params import Problems, read_table
+from zencosim.subsystems.params import Problems, quantity, read_table
 from zencosim.subsystems.ports import (
     Attachments,
     EffectForceOutput,
@@ -38,6 +38,7 @@ class Route:
     output: str
     target: str
     input: str
+    order: int | None = None  # Lagrange order of its extrapolation (None: the target subsystem's)
 
 
 @dataclass(frozen=True)
@@ -334,6 +335,8 @@ class SignalSettings:
     input: str  # "<subsystem>.<variable>": the input variable that receives its value
     factor: float = 1.0  # SSP's linear transformation: the input receives factor × output + offset (SI)
     offset: float = 0.0
+    extrapolation: int | None = field(default=None, metadata=quantity("", minimum=0, maximum=2))  # its own
+    # Lagrange order (ZOH 0, FOH 1, SOH 2; None: the receiving subsystem's); Integer and Boolean: 0
 
     def problems(self) -> list[tuple[str, str]]:
         found = [(key, f"expected a finite number, got {getattr(self, key)!r}") for key in ("factor", "offset")
@@ -391,7 +394,7 @@ class SignalConnection:
         return {self.source: source, self.target: target}
 
     def routes(self) -> tuple[Route, ...]:
-        return (Route(self.source, self.name, self.target, f"{self.name}*"),)
+        return (Route(self.source, self.name, self.target, f"{self.name}*", self.settings.extrapolation),)
 
     def bonds(self) -> tuple[Bond, ...]:
         return ()

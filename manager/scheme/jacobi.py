@@ -80,8 +80,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     residuals = [math.nan] * (2 * n_bonds)  # the status's: δP of every bond evaluated at this step's end, then δE
     releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
-    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs)) for f in s.feeds
-              if f.source in tracked] for s in subs]
+    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs),
+               s.order if f.order is None else f.order) for f in s.feeds if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] else _copied_inputs(s, readers) for s in subs]
@@ -90,11 +90,11 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
         order = s.order
         coefficients = np.zeros((order + 1, len(s.inputs)))
-        for source, ratio, outputs, inputs in feeds[s.index]:
+        for source, ratio, outputs, inputs, feed_order in feeds[s.index]:
             newest = tick // ratio
             window = windows[source]
-            rows = lagrange_coefficients(window.array, outputs, newest, order, ratio * base, (tick - newest * ratio) * base,
-                                         window.offset)
+            rows = lagrange_coefficients(window.array, outputs, newest, feed_order, ratio * base,
+                                         (tick - newest * ratio) * base, window.offset)
             coefficients[:len(rows), inputs] = rows
         return coefficients
 

@@ -131,7 +131,8 @@ def check_component(reference: str, start: dict[str, float], micro_step_ns: int 
         return [str(p).replace(".", " ", 1) for p in problems]  # --unit fc: …
     found = [f"{v.causality} {name}: {v.unit_problem}; its values are passed on as they are (declare its SI unit: "
              f"--unit {name}=UNIT here, units = {{ {name} = \"UNIT\" }} in a scene)"
-             for name, v in description.variables.items() if v.causality in ("input", "output") and v.exponents is None]
+             for name, v in description.variables.items()
+             if v.causality in ("input", "output") and v.exponents is None and not v.discrete]
     spec = ExternalSpec(model.name, description, source, values, None, {})
     integrator = INTEGRATORS[model_traits(model, spec).default_integrator]
 

@@ -90,7 +90,7 @@ def test_a_signal_connection_gives_one_digest_on_both_buses(examples):
      "S1.x [m] feeds S2.f_in [N]: not the same quantity"),
     ("S1.x_in", "S2.f_in", "couplings.u.output", "S1: x_in is input; expected an output"),
     ("S1.fc", "S2.nothing", "couplings.u.input",
-     "S2: the FMI 2.0 Co-Simulation has no real variable 'nothing'; zencosim exchanges real (Float64) variables"),
+     "S2: the FMI 2.0 Co-Simulation has no variable 'nothing' of type Real, Integer or Boolean"),
     ("S3.fc", "S2.f_in", "couplings.u.output", "unknown subsystem 'S3'; expected one of S1, S2"),
 ])
 def test_a_bad_signal_connection_names_its_ends(examples, output, input, key, reason):
@@ -119,3 +119,26 @@ def test_a_recorded_signal_connection_verifies_and_exports_the_signal(examples):
     assert run.returncode == 0 and "verify passed" in run.stdout, run.stdout + run.stderr
     loaded = zencosim.load_recording(recording)
     np.testing.assert_array_equal(loaded.signal("u").values, result.signal("u").values)
+
+
+def test_a_connection_extrapolates_with_its_own_order(examples):
+    # the subsystems hold their inputs (manager.extrapolation = 0); the connection asks for FOH, which the target
+    # (two doSteps per macro-step) sees at the start of each half step: FMPy given those values as its input
+    path = scene(examples, extra="extrapolation = 1")
+    half = STEP / 2
+    scene_ = zencosim.load_scene(str(path), {"subsystems.S2.micro_step": half})
+    result = zencosim.run(scene_)
+    assert scene_.couplings["u"].settings.extrapolation == 1
+    fmu = str(examples / "oscillator_fmi2.fmu")
+    source = fmpy.simulate_fmu(fmu, start_values=SOURCE, stop_time=DURATION, output_interval=STEP, output=["fc"])
+    u = FACTOR * source["fc"] + OFFSET
+    slope = np.concatenate(([0.0], np.diff(u))) / STEP  # FOH through the last two samples (one at the start)
+    times = np.repeat(source["time"], 2) + np.tile([0.0, half], len(u))
+    values = np.repeat(u, 2) + np.tile([0.0, half], len(u)) * np.repeat(slope, 2)
+    table = np.array(list(zip(times, values)), dtype=[("time", float), ("f_in", float)])
+    target = fmpy.simulate_fmu(fmu, start_values=TARGET, stop_time=DURATION, output_interval=half, input=table,
+                               output=["x"])
+    reference = target["x"][::2]
+    assert np.abs(result.signal("S2.x").values - reference).max() <= 1e-12 * np.abs(reference).max()
+    held = zencosim.run(zencosim.load_scene(str(scene(examples)), {"subsystems.S2.micro_step": half}))
+    assert np.abs(held.signal("S2.x").values - reference).max() > 1e-6  # the order matters here

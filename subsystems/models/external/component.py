@@ -36,6 +36,12 @@ class Variable:
     depends_on: tuple[str, ...] | None = None  # an output's direct dependence on inputs; None: on every input
     factor: float = 1.0  # the unit in SI: value_SI = factor * value + offset (FMI's BaseUnit)
     offset: float = 0.0
+    kind: Literal["Real", "Integer", "Boolean"] = "Real"  # an Integer or Boolean travels as a float64 too
+
+    @property
+    def discrete(self) -> bool:
+        """An Integer or Boolean variable: exchanged by signal connections only, held over a step."""
+        return self.kind != "Real"
 
     @property
     def converted(self) -> bool:
@@ -60,11 +66,13 @@ class ComponentDescription:
 
     @property
     def inputs(self) -> tuple[str, ...]:
-        return tuple(name for name, v in self.variables.items() if v.causality == "input")
+        """The real inputs (Integer and Boolean ones are named by the signal connections that feed them)."""
+        return tuple(name for name, v in self.variables.items() if v.causality == "input" and not v.discrete)
 
     @property
     def outputs(self) -> tuple[str, ...]:
-        return tuple(name for name, v in self.variables.items() if v.causality == "output")
+        """The real outputs."""
+        return tuple(name for name, v in self.variables.items() if v.causality == "output" and not v.discrete)
 
 
 class Instance(Protocol):

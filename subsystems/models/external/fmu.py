@@ -33,6 +33,10 @@ from zencosim.subsystems.units import BASE, UnitError, exponents
 
 INTERFACES = {"co-simulation": "coSimulation", "model-exchange": "modelExchange"}
 REAL_TYPES = ("Real", "Float64")
+# FMI type -> (kind, the fmpy setter and getter of an FMI 2.0 or 3.0 instance): Integer and Boolean variables
+# are exchanged as float64 values like every other and converted at the FMU's boundary
+DISCRETE_TYPES = {"Integer": ("Integer", "Integer"), "Int32": ("Integer", "Int32"), "Int64": ("Integer", "Int64"),
+                  "Boolean": ("Boolean", "Boolean")}
 
 
 class FmuError(RuntimeError):
@@ -68,6 +72,10 @@ def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
     dependencies = {unknown.variable.name: unknown.dependencies for unknown in model.outputs}
     variables = {}
     for v in model.modelVariables:
+        if v.type in DISCRETE_TYPES:
+            variables[v.name] = Variable(v.name, v.causality, None, None, "an Integer or Boolean has no unit",
+                                         kind=DISCRETE_TYPES[v.type][0])
+            continue
         if v.type not in REAL_TYPES:
             continue
         declared = v.declaredType
@@ -164,12 +172,19 @@ class _FmuInstance:
             raise FmuError(f"FMU {path.name}: cannot be instantiated ({type(error).__name__}: {error}); a Python "
                            "FMU (pythonfmu) needs its packages in this interpreter, fmpy's debug log says more "
                            "(fmpy simulate --debug-logging)") from None
-        self._inputs = (ctypes.c_uint * len(inputs))(*(self.references[n] for n in inputs))
-        self._outputs = (ctypes.c_uint * len(outputs))(*(self.references[n] for n in outputs))
-        self._u = (ctypes.c_double * len(inputs))()
-        self._y = (ctypes.c_double * len(outputs))()
-        self._u_view = np.ctypeslib.as_array(self._u) if inputs else np.zeros(0)
-        self._y_view = np.ctypeslib.as_array(self._y) if outputs else np.zeros(0)
+        types = {v.name: v.type for v in model.modelVariables}
+        # the real inputs and outputs through preallocated ctypes arrays; Integer and Boolean ones apart
+        self._real_u = [i for i, n in enumerate(inputs) if types[n] in REAL_TYPES]
+        self._real_y = [i for i, n in enumerate(outputs) if types[n] in REAL_TYPES]
+        self._discrete_u = self._discrete(inputs, types, "set")
+        self._discrete_y = self._discrete(outputs, types, "get")
+        self._n_outputs = len(outputs)
+        self._inputs = (ctypes.c_uint * len(self._real_u))(*(self.references[inputs[i]] for i in self._real_u))
+        self._outputs = (ctypes.c_uint * len(self._real_y))(*(self.references[outputs[i]] for i in self._real_y))
+        self._u = (ctypes.c_double * len(self._real_u))()
+        self._y = (ctypes.c_double * len(self._real_y))()
+        self._u_view = np.ctypeslib.as_array(self._u) if self._real_u else np.zeros(0)
+        self._y_view = np.ctypeslib.as_array(self._y) if self._real_y else np.zeros(0)
         self.time = 0.0
         from fmpy.fmi1 import FMICallException
         self.FailedCall = FMICallException  # fmpy raises it for a status worse than warning
@@ -183,7 +198,25 @@ class _FmuInstance:
         return FmuError(f"FMU {self.path.name}: {error.function} failed with status {error.status} "
                         f"({_STATUS.get(error.status, 'unknown')}) while {what} at t = {self.time:.9g} s")
 
+    def _discrete(self, names: tuple[str, ...], types: dict[str, str], verb: str) -> list[tuple]:
+        """(positions, value references, fmpy's setter or getter, Boolean?) of the Integer and Boolean variables
+        among ``names``, one entry per FMI type."""
+        found = []
+        for fmi_type, (kind, function) in DISCRETE_TYPES.items():
+            positions = [i for i, n in enumerate(names) if types[n] == fmi_type]
+            if positions:
+                call = getattr(self.fmu, f"{verb}{function}", None)  # setInteger (FMI 2.0), setInt32 (3.0), …
+                if call is None:
+                    raise FmuError(f"FMU {self.path.name}: its {fmi_type} variables cannot be exchanged here")
+                found.append((positions, [self.references[names[i]] for i in positions], call, kind == "Boolean"))
+        return found
+
     def set_inputs(self, u: np.ndarray) -> None:
+        if self._discrete_u:
+            for positions, references, setter, boolean in self._discrete_u:  # Integer: nearest; Boolean: not 0
+                values = u[positions]
+                setter(references, [bool(v != 0.0) for v in values] if boolean else [int(round(v)) for v in values])
+            u = u[self._real_u]
         if len(self._u_view):
             self._u_view[:] = u
             self._set(self._inputs, len(self._u_view), self._u)
@@ -191,7 +224,13 @@ class _FmuInstance:
     def get_outputs(self) -> np.ndarray:
         if len(self._y_view):
             self._get(self._outputs, len(self._y_view), self._y)
-        return self._y_view.copy()
+        if not self._discrete_y:
+            return self._y_view.copy()
+        y = np.empty(self._n_outputs)
+        y[self._real_y] = self._y_view
+        for positions, references, getter, _ in self._discrete_y:
+            y[positions] = np.array(getter(references), dtype=np.float64)
+        return y
 
     def save_state(self) -> bytes | object:
         """The FMU state: serialised bytes where the FMU can serialise it, else the FMU's own handle."""
@@ -329,6 +368,7 @@ class FmuModelExchange(_FmuInstance):
 
 
 def _set_start(setter, references: dict[str, int], start: dict[str, float]) -> None:
+    """Set the real start values (the scene's start table takes real variables: ``read_start``)."""
     if start:
         setter([references[name] for name in start], [float(value) for value in start.values()])
 

@@ -119,8 +119,7 @@ class ExternalSpec:
         """Why the variable ``name`` cannot be the ``end`` of a signal connection (None: it can)."""
         variable = self.description.variables.get(name)
         if variable is None:
-            return (f"the {self.description.kind} has no real variable {name!r}; zencosim exchanges real "
-                    "(Float64) variables")
+            return f"the {self.description.kind} has no variable {name!r} of type Real, Integer or Boolean"
         if variable.causality != end:
             return f"{name} is {variable.causality}; expected an {end}"
         return None
@@ -315,8 +314,9 @@ def read_start(table: Any, description: ComponentDescription, key: str, problems
     start = {}
     for name, value in table.items():
         variable = description.variables.get(name)
-        if variable is None:
-            problems.add(f"{key}.{name}", f"the {description.kind} has no real variable {name!r}")
+        if variable is None or variable.discrete:
+            problems.add(f"{key}.{name}", f"the {description.kind} has no real variable {name!r} (Integer and "
+                                          "Boolean start values are not set)")
         elif variable.causality == "output":
             problems.add(f"{key}.{name}", f"{name} is an output of the {description.kind}; it cannot be set")
         else:
@@ -364,8 +364,8 @@ def _check_variable(name: str, causality: str, quantity: str, description: Compo
                     problems: Problems) -> None:
     """``name`` is a variable of ``causality`` in the unit of ``quantity`` (SI)."""
     variable = description.variables.get(name)
-    if variable is None:
-        candidates = [v for v, d in description.variables.items() if d.causality == causality]
+    if variable is None or variable.discrete:
+        candidates = [v for v, d in description.variables.items() if d.causality == causality and not d.discrete]
         problems.add(key, f"the {description.kind} has no real variable {name!r}; its {causality}s: "
                      f"{', '.join(candidates) or 'none'}")
         return
@@ -561,7 +561,7 @@ def _port_of(name: str, description: ComponentDescription) -> Port:
     (a variable without a unit zencosim can read, which ``check-model`` reports, is passed on as it is: "1")."""
     variable = description.variables[name]
     if variable.exponents is None:
-        return Port(name, "signal", signal_unit="1")
+        return Port(name, "signal", signal_unit="1", discrete=variable.discrete)
     if variable.exponents == exponents(UNITS["energy"]):  # energy or torque: a signal in the unit it declares
         return Port(name, "signal", signal_unit=_si_name(variable))
     for quantity, unit in UNITS.items():
