@@ -16,10 +16,10 @@ class ChirpForce:
     (paper 000 §5.3: 1 N, 1 → 10 Hz on m2).
     """
 
-    amplitude: float = field(metadata=quantity("N"))  # A [N]
-    f_start_hz: float = field(metadata=quantity("Hz", minimum=0.0))  # f0 [Hz]
-    f_end_hz: float = field(metadata=quantity("Hz", minimum=0.0))  # f1 [Hz]
-    sweep_time: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # T [s]
+    amplitude: float = field(metadata=quantity("N", kind="force"))  # A [N]
+    f_start_hz: float = field(metadata=quantity("Hz", kind="frequency"))  # f0 [Hz]
+    f_end_hz: float = field(metadata=quantity("Hz", kind="frequency"))  # f1 [Hz]
+    sweep_time: float = field(metadata=quantity("s", kind="sweep time"))  # T [s]
 
     kind: ClassVar[str] = "external"
     endpoint_counts: ClassVar[tuple[int, ...]] = (1,)

@@ -14,7 +14,7 @@ from zencosim.subsystems.params import quantity
 class Damper:
     """``f_a = -c (v_a - v_b)`` on point a and the opposite force on point b (paper 000 Eq. 8)."""
 
-    damping: float = field(metadata=quantity("N s/m", minimum=0.0))  # c [N s/m]
+    damping: float = field(metadata=quantity("N s/m", kind="damping"))  # c [N s/m]
 
     kind: ClassVar[str] = "linear"
     endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)

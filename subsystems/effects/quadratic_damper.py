@@ -11,7 +11,7 @@ from zencosim.subsystems.params import quantity
 class QuadraticDamper:
     """``f_a = -c sgn(η̇) η̇²`` on point a, ``η̇ = v_a - v_b`` (paper 002 Eq. 23), opposite on point b."""
 
-    damping: float = field(metadata=quantity("N s^2/m^2", minimum=0.0))  # c [N s² m⁻²]
+    damping: float = field(metadata=quantity("N s^2/m^2", kind="quadratic damping"))  # c [N s² m⁻²]
 
     kind: ClassVar[str] = "nonlinear"
     endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)

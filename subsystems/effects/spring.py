@@ -26,8 +26,8 @@ class Spring:
     along the line between them (see ``subsystems.effects``); on a line ``free_length`` must be 0.
     """
 
-    stiffness: float = field(metadata=quantity("N/m", minimum=0.0))  # k [N/m]
-    free_length: float = field(default=0.0, metadata=quantity("m", minimum=0.0))  # l0 [m], planar elements only
+    stiffness: float = field(metadata=quantity("N/m", kind="stiffness"))  # k [N/m]
+    free_length: float = field(default=0.0, metadata=quantity("m", kind="free length"))  # l0 [m], planar elements only
 
     kind: ClassVar[str] = "linear"
     endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)

@@ -16,8 +16,8 @@ class SqrtSpring:
     η = 0: the force is continuous but not Lipschitz there.
     """
 
-    stiffness: float = field(metadata=quantity("N/m^0.5", minimum=0.0))  # κ [N m^-1/2]
-    free_length: float = field(default=0.0, metadata=quantity("m", minimum=0.0))  # l0 [m], planar elements only
+    stiffness: float = field(metadata=quantity("N/m^0.5", kind="root stiffness"))  # κ [N m^-1/2]
+    free_length: float = field(default=0.0, metadata=quantity("m", kind="free length"))  # l0 [m], planar elements only
 
     kind: ClassVar[str] = "nonlinear"
     endpoint_counts: ClassVar[tuple[int, ...]] = (1, 2)

@@ -35,16 +35,16 @@ from zencosim.subsystems.sketch import Sketch
 class CraneArmSpec:
     """The ``[subsystems.<name>]`` parameters of the arm (paper 002 Table 5)."""
 
-    link1_length: float = field(metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # l1 [m]
-    link2_length: float = field(metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # l2 [m]
-    link1_mass: float = field(metadata=quantity("kg", minimum=0.0))  # m1 [kg], uniform along link 1
-    mass_q: float = field(metadata=quantity("kg", minimum=0.0))  # m2 [kg] at Q, the end of link 1
-    mass_p: float = field(metadata=quantity("kg", minimum=0.0, exclusive_minimum=True))  # m3 [kg] at P, the end of link 2
-    cylinder_base: tuple[float, ...] = field(metadata=quantity("m"))  # B = (x, y) [m]; A is the origin
-    actuator_attachment: float = field(metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # |AC| [m]
-    angle1_0: float = field(metadata=quantity("rad"))  # θ1(0) [rad] from +x, counter-clockwise
-    angle2_0: float = field(metadata=quantity("rad"))  # θ2(0) [rad], absolute
-    gravity: float = field(default=9.81, metadata=quantity("m/s^2", minimum=0.0))  # g along −y [m/s²]
+    link1_length: float = field(metadata=quantity("m", kind="length"))  # l1 [m]
+    link2_length: float = field(metadata=quantity("m", kind="length"))  # l2 [m]
+    link1_mass: float = field(metadata=quantity("kg", kind="mass"))  # m1 [kg], uniform along link 1
+    mass_q: float = field(metadata=quantity("kg", kind="mass"))  # m2 [kg] at Q, the end of link 1
+    mass_p: float = field(metadata=quantity("kg", kind="mass"))  # m3 [kg] at P, the end of link 2
+    cylinder_base: tuple[float, ...] = field(metadata=quantity("m", kind="position"))  # B = (x, y) [m]; A is the origin
+    actuator_attachment: float = field(metadata=quantity("m", kind="length"))  # |AC| [m]
+    angle1_0: float = field(metadata=quantity("rad", kind="angle"))  # θ1(0) [rad] from +x, counter-clockwise
+    angle2_0: float = field(metadata=quantity("rad", kind="angle"))  # θ2(0) [rad], absolute
+    gravity: float = field(default=9.81, metadata=quantity("m/s^2", kind="gravity"))  # g along −y [m/s²]
 
     points = ("actuator",)
 

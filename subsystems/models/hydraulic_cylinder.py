@@ -45,10 +45,10 @@ class SpoolLaw:
     """Eq. 33: ``γ = γ0 (1 − A(t) sin(2π f t))``, A a trapezoid in time."""
 
     amplitude: float = field(default=0.1, metadata=quantity("", minimum=0.0, maximum=1.0))  # A during the hold
-    frequency: float = field(default=2.0, metadata=quantity("Hz", minimum=0.0))  # the ω of Eq. 33 [Hz]
-    ramp_end: float = field(default=1.0, metadata=quantity("s", minimum=0.0))  # A reaches amplitude [s]
-    hold_end: float = field(default=8.0, metadata=quantity("s", minimum=0.0))  # A starts to fall [s]
-    stop: float = field(default=9.0, metadata=quantity("s", minimum=0.0))  # A is 0 from here on [s]
+    frequency: float = field(default=2.0, metadata=quantity("Hz", kind="frequency"))  # the ω of Eq. 33 [Hz]
+    ramp_end: float = field(default=1.0, metadata=quantity("s", kind="time"))  # A reaches amplitude [s]
+    hold_end: float = field(default=8.0, metadata=quantity("s", kind="time"))  # A starts to fall [s]
+    stop: float = field(default=9.0, metadata=quantity("s", kind="time"))  # A is 0 from here on [s]
 
     def problems(self) -> list[tuple[str, str]]:
         if not self.ramp_end <= self.hold_end <= self.stop:
@@ -70,16 +70,16 @@ class SpoolLaw:
 class HydraulicCylinderSpec:
     """The ``[subsystems.<name>]`` parameters of the cylinder and valve (paper 002 Table 5, Eqs. 31–33)."""
 
-    piston_area: float = field(metadata=quantity("m^2", minimum=0.0, exclusive_minimum=True))  # a_p [m²]
-    cylinder_length: float = field(metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # l3 [m]
-    friction: float = field(metadata=quantity("N s/m", minimum=0.0))  # c [N s/m]
-    compressibility_a: float = field(metadata=quantity("1/Pa"))  # a of Eq. 28 [1/Pa]
-    compressibility_b: float = field(metadata=quantity("1/Pa^2"))  # b of Eq. 28 [1/Pa²]
-    discharge_coefficient: float = field(metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # c_d
-    density: float = field(metadata=quantity("kg/m^3", minimum=0.0, exclusive_minimum=True))  # ρ [kg/m³]
-    pump_pressure: float = field(metadata=quantity("Pa"))  # p_P [Pa]
-    tank_pressure: float = field(metadata=quantity("Pa"))  # p_T [Pa]
-    valve_area: float = field(default=5e-4, metadata=quantity("m^2", minimum=0.0, exclusive_minimum=True))  # A_v [m²]
+    piston_area: float = field(metadata=quantity("m^2", kind="area"))  # a_p [m²]
+    cylinder_length: float = field(metadata=quantity("m", kind="length"))  # l3 [m]
+    friction: float = field(metadata=quantity("N s/m", kind="damping"))  # c [N s/m]
+    compressibility_a: float = field(metadata=quantity("1/Pa", kind="compressibility"))  # a of Eq. 28 [1/Pa]
+    compressibility_b: float = field(metadata=quantity("1/Pa^2", kind="compressibility slope"))  # b of Eq. 28 [1/Pa²]
+    discharge_coefficient: float = field(metadata=quantity("", kind="discharge coefficient"))  # c_d
+    density: float = field(metadata=quantity("kg/m^3", kind="density"))  # ρ [kg/m³]
+    pump_pressure: float = field(metadata=quantity("Pa", kind="pressure"))  # p_P [Pa]
+    tank_pressure: float = field(metadata=quantity("Pa", kind="pressure"))  # p_T [Pa]
+    valve_area: float = field(default=5e-4, metadata=quantity("m^2", kind="area"))  # A_v [m²]
     spool: SpoolLaw = SpoolLaw()
 
     points = ("rod",)

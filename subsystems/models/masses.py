@@ -50,9 +50,9 @@ from zencosim.subsystems.sketch import BOX, LANE, Sketch
 class Body:
     """A point mass and its initial state."""
 
-    mass: float = field(metadata=quantity("kg", minimum=0.0, exclusive_minimum=True))  # m [kg]
-    x0: float = field(default=0.0, metadata=quantity("m"))  # initial position [m]
-    v0: float = field(default=0.0, metadata=quantity("m/s"))  # initial velocity [m/s]
+    mass: float = field(metadata=quantity("kg", kind="mass"))  # m [kg]
+    x0: float = field(default=0.0, metadata=quantity("m", kind="position"))  # initial position [m]
+    v0: float = field(default=0.0, metadata=quantity("m/s", kind="velocity"))  # initial velocity [m/s]
 
 
 @dataclass(frozen=True)

@@ -31,12 +31,12 @@ from zencosim.subsystems.sketch import Sketch
 class PendulumSpec:
     """The ``[subsystems.<name>]`` parameters of a pendulum."""
 
-    mass: float = field(metadata=quantity("kg", minimum=0.0, exclusive_minimum=True))  # m [kg]
-    length: float = field(metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # l [m]
-    pivot: tuple[float, ...] = field(metadata=quantity("m"))  # (x, y) of the pin A [m]
-    angle0: float = field(default=0.0, metadata=quantity("rad"))  # θ(0) from −y, counter-clockwise [rad]
-    angular_velocity0: float = field(default=0.0, metadata=quantity("rad/s"))  # θ̇(0) [rad/s]
-    gravity: float = field(default=9.81, metadata=quantity("m/s^2", minimum=0.0))  # g along −y [m/s²]
+    mass: float = field(metadata=quantity("kg", kind="mass"))  # m [kg]
+    length: float = field(metadata=quantity("m", kind="length"))  # l [m]
+    pivot: tuple[float, ...] = field(metadata=quantity("m", kind="position"))  # (x, y) of the pin A [m]
+    angle0: float = field(default=0.0, metadata=quantity("rad", kind="angle"))  # θ(0) from −y, counter-clockwise [rad]
+    angular_velocity0: float = field(default=0.0, metadata=quantity("rad/s", kind="angular velocity"))  # θ̇(0) [rad/s]
+    gravity: float = field(default=9.81, metadata=quantity("m/s^2", kind="gravity"))  # g along −y [m/s²]
 
     points = ("tip",)
 

@@ -36,21 +36,25 @@ POINT_OFFSETS = {"A": -0.5, "B": 0.5, "S": 0.0}  # position of each point along 
 class LinkSpec:
     """One planar link: inertia, geometry, initial state, gravity and damping (zero: not built)."""
 
-    mass: float = field(metadata=quantity("kg", minimum=0.0, exclusive_minimum=True))  # m [kg]
-    inertia: float = field(metadata=quantity("kg m^2", minimum=0.0, exclusive_minimum=True))  # J about S [kg m^2]
-    length: float = field(metadata=quantity("m", minimum=0.0, exclusive_minimum=True))  # l [m], A to B
-    angle0: float = field(metadata=quantity("rad"))  # φ at t = 0 [rad], from the x-axis
-    angular_velocity0: float = field(default=0.0, metadata=quantity("rad/s"))  # φ' at t = 0 [rad/s]
+    mass: float = field(metadata=quantity("kg", kind="mass"))  # m [kg]
+    inertia: float = field(metadata=quantity("kg m^2", kind="inertia"))  # J about S [kg m^2]
+    length: float = field(metadata=quantity("m", kind="length"))  # l [m], A to B
+    angle0: float = field(metadata=quantity("rad", kind="angle"))  # φ at t = 0 [rad], from the x-axis
+    # φ' at t = 0 [rad/s]
+    angular_velocity0: float = field(default=0.0, metadata=quantity("rad/s", kind="angular velocity"))
     pivot: Literal["none", "A"] = "none"  # "A": end A turns about the fixed point (pivot_x, pivot_y)
-    pivot_x: float = field(default=0.0, metadata=quantity("m"))
-    pivot_y: float = field(default=0.0, metadata=quantity("m"))
-    x0: float | None = field(default=None, metadata=quantity("m"))  # centre of mass at t = 0 (free link) [m]
-    y0: float | None = field(default=None, metadata=quantity("m"))
-    vx0: float | None = field(default=None, metadata=quantity("m/s"))  # its velocity at t = 0 (free link) [m/s]
-    vy0: float | None = field(default=None, metadata=quantity("m/s"))
-    gravity: float = field(default=0.0, metadata=quantity("m/s^2", minimum=0.0))  # g [m/s^2], along −y
-    datum_y: float = field(default=0.0, metadata=quantity("m"))  # height of the centre with zero potential energy [m]
-    damping: float = field(default=0.0, metadata=quantity("N s/m", minimum=0.0))  # d [N s/m] at the centre of mass
+    pivot_x: float = field(default=0.0, metadata=quantity("m", kind="position"))
+    pivot_y: float = field(default=0.0, metadata=quantity("m", kind="position"))
+    # centre of mass at t = 0 (free link) [m]
+    x0: float | None = field(default=None, metadata=quantity("m", kind="position"))
+    y0: float | None = field(default=None, metadata=quantity("m", kind="position"))
+    # its velocity at t = 0 (free link) [m/s]
+    vx0: float | None = field(default=None, metadata=quantity("m/s", kind="velocity"))
+    vy0: float | None = field(default=None, metadata=quantity("m/s", kind="velocity"))
+    gravity: float = field(default=0.0, metadata=quantity("m/s^2", kind="gravity"))  # g [m/s^2], along −y
+    # height of the centre with zero potential energy [m]
+    datum_y: float = field(default=0.0, metadata=quantity("m", kind="position"))
+    damping: float = field(default=0.0, metadata=quantity("N s/m", kind="damping"))  # d [N s/m] at the centre of mass
 
     def problems(self) -> list[tuple[str, str]]:
         centre = ("x0", "y0", "vx0", "vy0")

@@ -64,7 +64,7 @@ def test_every_problem_is_reported_at_once_with_its_key():
                                                     "couplings.c.motion_side=S3.m2", "manager.extrapolation=3"])
     assert "two_mass_damped.toml" in str(error)
     assert "unknown key" in problems["manager.macro_stp"]
-    assert "> 0.0 [kg]" in problems["subsystems.S1.bodies.m1.mass"]
+    assert "1e-9 ≤ mass ≤ 1e9 [kg]" in problems["subsystems.S1.bodies.m1.mass"]
     assert "unknown subsystem 'S3'" in problems["couplings.c.motion_side"]
     assert "<= 2" in problems["manager.extrapolation"]
 
@@ -99,4 +99,4 @@ def test_cli_exits_2_naming_file_key_and_reason():
     result = subprocess.run([sys.executable, "-m", "zencosim", "check", "two_mass_damped",
                              "--set", "subsystems.S2.bodies.m2.mass=0"], capture_output=True, text=True, cwd=REPO)
     assert result.returncode == 2
-    assert "two_mass_damped.toml: subsystems.S2.bodies.m2.mass: expected a number > 0.0 [kg], got 0" in result.stderr
+    assert "two_mass_damped.toml: subsystems.S2.bodies.m2.mass: expected 1e-9 ≤ mass ≤ 1e9 [kg], got 0" in result.stderr
