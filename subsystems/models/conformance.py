@@ -44,18 +44,27 @@ SCALES = np.array([[1.0], [10.0], [100.0]])  # of the random constant, linear an
 
 
 def _drive(subsystem: Subsystem, rng: np.random.Generator, start: int, steps: int, comm_step_ns: int,
-           rows: int) -> np.ndarray:
+           rows: int, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """The outputs under seeded random input polynomials; an input with a declared range (``bounds``: lowest and
+    highest value of each input) gets a constant inside it, as a component may refuse anything else."""
     outputs = []
+    bounded = np.zeros(0, dtype=bool) if bounds is None else np.isfinite(bounds[0]) | np.isfinite(bounds[1])
+    if bounded.any():  # a range open on one side: 1 wide
+        low, high = bounds[0][bounded], bounds[1][bounded]
+        low, high = np.where(np.isfinite(low), low, high - 1.0), np.where(np.isfinite(high), high, low + 1.0)
     for k in range(start, start + steps):
         coefficients = rng.normal(size=(rows, len(subsystem.inputs))) * SCALES[:rows]
+        if bounded.any():
+            coefficients[0, bounded] = low + rng.uniform(size=low.size) * (high - low)
+            coefficients[1:, bounded] = 0.0
         outputs.append(subsystem.advance(k * comm_step_ns, (k + 1) * comm_step_ns, InputPolynomial(coefficients)))
     return np.array(outputs).reshape(steps, len(subsystem.outputs))
 
 
 def check_subsystem(make: Callable[[], Subsystem], comm_step_ns: int, can_save_state: bool = True,
-                    seed: int = 7) -> list[str]:
+                    seed: int = 7, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> list[str]:
     """What is wrong with the subsystems ``make`` builds (empty: nothing), advanced over steps of
-    ``comm_step_ns``."""
+    ``comm_step_ns`` (``bounds``: the declared range of each input, lowest and highest values)."""
     problems = []
     first, second = make(), make()
     ports = first.inputs + first.outputs
@@ -67,8 +76,8 @@ def check_subsystem(make: Callable[[], Subsystem], comm_step_ns: int, can_save_s
     names = [p.name for p in ports]
     problems += [f"port name {n!r} is used twice" for n in sorted({n for n in names if names.count(n) > 1})]
     try:
-        a = _drive(first, np.random.default_rng(seed), 0, STEPS, comm_step_ns, 3)
-        b = _drive(second, np.random.default_rng(seed), 0, STEPS, comm_step_ns, 3)
+        a = _drive(first, np.random.default_rng(seed), 0, STEPS, comm_step_ns, 3, bounds)
+        b = _drive(second, np.random.default_rng(seed), 0, STEPS, comm_step_ns, 3, bounds)
     except Exception as error:  # the model's own failure is what the check reports
         return problems + [f"advancing it failed: {type(error).__name__}: {error}"]
     bad = np.argwhere(~np.isfinite(a))
@@ -77,26 +86,30 @@ def check_subsystem(make: Callable[[], Subsystem], comm_step_ns: int, can_save_s
         return problems + [f"output {first.outputs[output].name} is {a[step, output]} at step {step + 1}"]
     if a.tobytes() != b.tobytes():
         problems.append("two instances given the same inputs give different outputs")
-    problems += _feedthrough_problems(first, np.random.default_rng(seed + 1))
+    problems += _feedthrough_problems(first, np.random.default_rng(seed + 1), bounds)
     if can_save_state:
         saved = first.save()
-        ahead = _drive(first, np.random.default_rng(seed + 2), STEPS, 5, comm_step_ns, 1)
+        ahead = _drive(first, np.random.default_rng(seed + 2), STEPS, 5, comm_step_ns, 1, bounds)
         first.restore(saved)
         if isinstance(saved.model, (bytes, type(None))) and first.save() != saved:
             problems.append("restore() does not return the saved state")
-        again = _drive(first, np.random.default_rng(seed + 2), STEPS, 5, comm_step_ns, 1)
+        again = _drive(first, np.random.default_rng(seed + 2), STEPS, 5, comm_step_ns, 1, bounds)
         if ahead.tobytes() != again.tobytes():
             problems.append("stepping again after restore() gives different outputs: the state is not all saved")
     return problems
 
 
-def _feedthrough_problems(subsystem: Subsystem, rng: np.random.Generator) -> list[str]:
+def _feedthrough_problems(subsystem: Subsystem, rng: np.random.Generator,
+                          bounds: tuple[np.ndarray, np.ndarray] | None = None) -> list[str]:
     """Outputs that change with the inputs at one instant but do not declare direct feedthrough (the energy,
-    which no coupling routes, is exempt)."""
+    which no coupling routes, is exempt); an input with a declared range keeps a value inside it."""
     if not subsystem.inputs:
         return []
-    here = subsystem.output_values(rng.normal(size=len(subsystem.inputs)))
-    there = subsystem.output_values(rng.normal(size=len(subsystem.inputs)) * 10.0)
+    here, there = rng.normal(size=len(subsystem.inputs)), rng.normal(size=len(subsystem.inputs)) * 10.0
+    if bounds is not None:
+        low, high = bounds
+        here, there = (np.where(np.isfinite(low) | np.isfinite(high), np.clip(w, low, high), w) for w in (here, there))
+    here, there = subsystem.output_values(here), subsystem.output_values(there)
     return [f"output {port.name} changes with the inputs at the same instant but does not declare feedthrough"
             for j, port in enumerate(subsystem.outputs)
             if not port.feedthrough and port.quantity != "energy" and here[j] != there[j]]
@@ -139,7 +152,9 @@ def check_component(reference: str, start: dict[str, float], micro_step_ns: int 
     def make() -> Subsystem:
         return Subsystem(reference, model(spec, expose_all=True), integrator, micro_step_ns)
 
+    inputs = [description.variables[name] for name in description.inputs]  # in the order of the ports
+    bounds = (np.array([v.minimum for v in inputs]), np.array([v.maximum for v in inputs]))
     try:
-        return found + check_subsystem(make, micro_step_ns, description.can_save_state)
+        return found + check_subsystem(make, micro_step_ns, description.can_save_state, bounds=bounds)
     except Exception as error:  # instantiating it failed: the user's constructor, the FMU's initialisation
         return found + [f"building it failed: {type(error).__name__}: {error}"]

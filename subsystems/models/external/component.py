@@ -14,6 +14,7 @@ outputs it reads, in the order of the arrays it then exchanges.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal, Protocol
 
@@ -37,6 +38,8 @@ class Variable:
     factor: float = 1.0  # the unit in SI: value_SI = factor * value + offset (FMI's BaseUnit)
     offset: float = 0.0
     kind: Literal["Real", "Integer", "Boolean"] = "Real"  # an Integer or Boolean travels as a float64 too
+    minimum: float = -math.inf  # the range the component declares (FMI min and max), SI
+    maximum: float = math.inf
 
     @property
     def discrete(self) -> bool:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import math
 import shutil
 import tempfile
 import weakref
@@ -84,8 +85,10 @@ def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
         relative = relative or bool(declared is not None and getattr(declared, "relativeQuantity", False))
         found, factor, offset, problem = _si_exponents(unit, units, relative)
         depends = dependencies.get(v.name)
+        low, high = (_bound(v, declared, name, factor, offset) for name in ("min", "max"))
         variables[v.name] = Variable(v.name, v.causality, unit, found, problem,
-                                     None if depends is None else tuple(d.name for d in depends), factor, offset)
+                                     None if depends is None else tuple(d.name for d in depends), factor, offset,
+                                     minimum=-math.inf if low is None else low, maximum=math.inf if high is None else high)
     kind = f"FMI {model.fmiVersion} {'Co-Simulation' if chosen == 'co-simulation' else 'Model Exchange'}"
     can_save = chosen == "model-exchange" or bool(capability.canGetAndSetFMUstate)
     return ComponentDescription(kind, "ode" if chosen == "model-exchange" else "co-simulation", variables, can_save,
@@ -120,6 +123,19 @@ def _relative_quantities(path: Path) -> set[str]:
         if value is not None and value.get("relativeQuantity") in ("true", "1"):
             found.add(element.get("name"))
     return found
+
+
+def _bound(variable, declared, name: str, factor: float, offset: float) -> float | None:
+    """A variable's ``min`` or ``max`` (its own, else its type's) in SI; None when it declares none (or one that
+    is not a number)."""
+    raw = getattr(variable, name, None)
+    if raw is None and declared is not None:
+        raw = getattr(declared, name, None)
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        return None
+    return factor * value + offset if math.isfinite(value) else None
 
 
 def _binary_name(version: str, identifier: str) -> str:
