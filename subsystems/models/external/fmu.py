@@ -88,7 +88,8 @@ def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
         low, high = (_bound(v, declared, name, factor, offset) for name in ("min", "max"))
         variables[v.name] = Variable(v.name, v.causality, unit, found, problem,
                                      None if depends is None else tuple(d.name for d in depends), factor, offset,
-                                     minimum=-math.inf if low is None else low, maximum=math.inf if high is None else high)
+                                     minimum=-math.inf if low is None else low,
+                                     maximum=math.inf if high is None else high)
     kind = f"FMI {model.fmiVersion} {'Co-Simulation' if chosen == 'co-simulation' else 'Model Exchange'}"
     can_save = chosen == "model-exchange" or bool(capability.canGetAndSetFMUstate)
     return ComponentDescription(kind, "ode" if chosen == "model-exchange" else "co-simulation", variables, can_save,
