@@ -142,3 +142,55 @@ def test_a_connection_extrapolates_with_its_own_order(examples):
     assert np.abs(result.signal("S2.x").values - reference).max() <= 1e-12 * np.abs(reference).max()
     held = zencosim.run(zencosim.load_scene(str(scene(examples)), {"subsystems.S2.micro_step": half}))
     assert np.abs(held.signal("S2.x").values - reference).max() > 1e-6  # the order matters here
+
+
+class Gain:
+    """y = gain × u at the same instant (direct feedthrough); one state that does nothing."""
+
+    inputs = {"u": "N"}
+    outputs = {"y": "N"}
+    feedthrough = {"y": ("u",)}
+    parameters = {"gain": 0.5}
+
+    def __init__(self, gain: float) -> None:
+        self.gain = gain
+
+    def initial_state(self):
+        return np.zeros(1)
+
+    def derivative(self, t, z, u):
+        return np.zeros(1)
+
+    def outputs_at(self, t, z, u):
+        return np.array([self.gain * u[0]])
+
+
+def test_a_loop_of_feedthrough_outputs_through_signal_connections_is_refused_naming_it(tmp_path):
+    path = tmp_path / "loop.toml"
+    model = f"{__name__}:Gain"
+    path.write_text(f"""name = "loop"
+[manager]
+duration = 0.01
+macro_step = 0.001
+[outputs]
+reference = "none"
+[subsystems.A]
+model = "{model}"
+micro_step = 0.001
+[subsystems.B]
+model = "{model}"
+micro_step = 0.001
+[couplings.ab]
+type = "signal"
+output = "A.y"
+input = "B.u"
+[couplings.ba]
+type = "signal"
+output = "B.y"
+input = "A.u"
+""")
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.run(zencosim.load_scene(str(path)))
+    assert [(p.key, p.reason) for p in caught.value.problems] == [
+        ("couplings", "outputs with direct feedthrough form an algebraic loop: A.ab <- B.ba <- A.ab; an explicit "
+                      "scheme cannot initialise them")]
