@@ -12,7 +12,8 @@ from rich.table import Table
 from zencosim.cli.console import add_scene_arguments, examples, out, say
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
-from zencosim.manager.scene.load import bundled_scene_names, load_scene
+from zencosim.manager.scene.load import SceneError, bundled_scene_names, load_scene, scene_from_text
+from zencosim.subsystems.params import Problem
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -49,7 +50,11 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
-    """A system description (OSP XML, SSP) as a TOML scene, its FMU paths relative to the new file."""
+    """A system description (OSP XML, SSP) as a TOML scene, its FMU paths relative to the new file.
+
+    The scene is checked before it is written, as ``zencosim check`` checks it (loaded, then planned: the
+    memory of its run, the FMUs' ports): one that would not load is not written (an existing file is left as
+    it was); the problems are reported as ``check`` reports the system description's, exit status 2."""
     from zencosim.manager.scene.imports import import_system
     target = check_output_file(args.to, "scene", (".toml",))
     document, notes = import_system(Path(args.system), args.duration)
@@ -58,8 +63,16 @@ def cmd_convert(args: argparse.Namespace) -> int:
         if "fmu" in table:
             table["fmu"] = Path(os.path.relpath(source_directory / table["fmu"], target.resolve().parent)).as_posix()
     header = "".join(f"# {line}\n" for line in [f"converted from {args.system} by zencosim convert", *notes])
-    target.write_text(header + "\n" + tomli_w.dumps(document))
-    load_scene(str(target))  # what was written loads as a scene
+    text = header + "\n" + tomli_w.dumps(document)
+    try:
+        plan_scene(scene_from_text(text, str(target)))  # paths resolve from the target's directory
+    except SceneError as error:
+        hint = "; --duration SECONDS sets manager.duration" if any(
+            p.key == "manager.duration" for p in error.problems) else ""
+        raise SceneError(args.system, [*error.problems, Problem(
+            "--to", f"{args.to} not written: the scene converted from this file would not load (zencosim check "
+                    f"{args.system} shows the same){hint}")]) from None
+    target.write_text(text)
     say(f"wrote {target}")
     return 0
 
