@@ -74,7 +74,28 @@ VARIABLES = [  # name, causality, unit, start
 ]
 QUOTE = '"'
 UNITS = {"kg": {"kg": 1}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "m": {"m": 1},
-         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}, "J": {"kg": 1, "m": 2, "s": -2}}
+         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}, "J": {"kg": 1, "m": 2, "s": -2},
+         "N.m": {"kg": 1, "m": 2, "s": -2}, "rad/s": {"rad": 1, "s": -1}, "rad": {"rad": 1},
+         "Pa": {"kg": 1, "m": -1, "s": -2}, "m3/s": {"m": 3, "s": -1}, "m3": {"m": 3},
+         "V": {"kg": 1, "m": 2, "s": -3, "A": -1}, "A": {"A": 1}, "C": {"A": 1, "s": 1}}
+# the oscillator in another domain: its force, velocity and position variables in the units of an effort, a
+# flow and a displacement (its parameters keep theirs: an import reads only what it couples)
+DOMAIN_UNITS = {"translational": ("N", "m/s", "m"), "rotational": ("N.m", "rad/s", "rad"),
+                "hydraulic": ("Pa", "m3/s", "m3"), "electrical": ("V", "A", "C")}
+DOMAIN_GROUPS = {  # OSP-IS: port, effort, flow, displacement, quasi port
+    "translational": ("LinearMechanicalPort", "Force", "LinearVelocity", "LinearDisplacement",
+                      "LinearMechanicalQuasiPort"),
+    "rotational": ("AngularMechanicalPort", "Torque", "AngularVelocity", "AngularDisplacement",
+                   "AngularMechanicalQuasiPort"),
+    "hydraulic": ("HydraulicPort", "Pressure", "VolumeFlowRate", "Volume", "HydraulicQuasiPort"),
+    "electrical": ("ElectromagneticPort", "Voltage", "Current", "Charge", "ElectromagneticQuasiPort")}
+
+
+def domain_variables(domain: str) -> list:
+    effort, flow, displacement = DOMAIN_UNITS[domain]
+    units = {"fc": effort, "f_in": effort, "v": flow, "v_in": flow, "v0": flow, "x": displacement,
+             "x_in": displacement, "x0": displacement}
+    return [(name, causality, units.get(name, unit), start) for name, causality, unit, start in VARIABLES]
 
 
 def model_description(variables=VARIABLES, model_name: str = "oscillator") -> str:
@@ -123,8 +144,13 @@ OSP_MODEL_DESCRIPTION = """<?xml version="1.0" encoding="utf-8"?>
     <LinearDisplacement name="position input"><Variable ref="x_in" unit="m"/></LinearDisplacement>
     <AngularMechanicalPort name="shaft">
       <Torque name="torque"><Variable ref="fc"/></Torque>
-      <AngularVelocity name="speed"><Variable ref="v"/></AngularVelocity>
+      <AngularVelocity name="speed"><Variable ref="v_in"/></AngularVelocity>
     </AngularMechanicalPort>
+    <AngularMechanicalPort name="shaft 2">
+      <Torque name="torque 2"><Variable ref="f_in"/></Torque>
+      <AngularVelocity name="speed 2"><Variable ref="v"/></AngularVelocity>
+    </AngularMechanicalPort>
+    <LinearAcceleration name="acceleration"><Variable ref="x"/></LinearAcceleration>
     <Generic name="coefficients"><Variable ref="k"/></Generic>
   </VariableGroups>
 </OspModelDescription>
@@ -317,8 +343,8 @@ def test_osp_a_connection_outside_a_bond_is_a_signal_coupling(osp_dir):
         assert "points" not in document["subsystems"][name] and "outputs" not in document["subsystems"][name]
     velocity = f"VariableConnection (line {line(text, '<VariableConnection>', 2)})"
     assert f"{velocity}: S1.v -> S2.v_in (velocity) has no powerBond: a signal coupling, whose power zencosim " \
-           "does not monitor (mark the force and the velocity connection of a bond with one powerBond name to make " \
-           "them a power bond)" in notes
+           "does not monitor (mark the effort and the flow connection of a bond, e.g. its force and its velocity, " \
+           "with one powerBond name to make them a power bond)" in notes
     assert f"couplings.S1_v: a signal coupling, S1.v -> S2.v_in ({velocity})" in notes
     assert tomllib.loads(tomli_w.dumps(document)) == document
 
@@ -377,19 +403,181 @@ def test_osp_refuses_a_step_size_that_does_not_divide_into_the_base_step(osp_dir
             "number of base steps"}
 
 
-def test_osp_refuses_unknown_group_types_and_bonds_without_displacement(osp_dir):
-    shafts = """
+def group_connection(a: str, b: str) -> str:
+    return f"""
     <VariableGroupConnection>
-      <VariableGroup simulator="S1" name="shaft"/>
-      <VariableGroup simulator="S2" name="shaft"/>
+      <VariableGroup simulator="S1" name="{a}"/>
+      <VariableGroup simulator="S2" name="{b}"/>
     </VariableGroupConnection>"""
-    text = osp_system(PORTS + shafts)
+
+
+def test_osp_refuses_unknown_group_types_and_a_port_of_another_domains_variables(osp_dir):
+    """An AngularMechanicalPort whose Torque and AngularVelocity are the oscillator's force [N] and velocity
+    [m/s]: a port of mixed domains, refused naming both."""
+    text = osp_system(group_connection("shaft", "shaft 2") + group_connection("acceleration", "acceleration"))
+    with pytest.raises(SceneError) as caught:
+        osp_import(osp_dir, text)
+    shaft, acceleration = (f"VariableGroupConnection (line {line(text, '<VariableGroupConnection>', i)})"
+                           for i in (1, 2))
+    assert [(p.key, p.reason) for p in caught.value.problems] == [
+        (shaft, "the Torque of S1.shaft (AngularMechanicalPort, rotational) is in units of force; expected N.m "
+                "(torque)"),
+        (shaft, "the AngularVelocity of S1.shaft (AngularMechanicalPort, rotational) is in units of velocity; "
+                "expected rad/s (angular_velocity)"),
+        (acceleration, "variable group type LinearAcceleration (S1.acceleration) is not supported: zencosim couples "
+                       "the OSP-IS ports (LinearMechanicalPort, AngularMechanicalPort, HydraulicPort, "
+                       "ElectromagneticPort, their quasi ports), the groups of one quantity in them and Generic "
+                       "groups; see docs/system-imports.md")]
+
+
+def test_osp_a_port_without_displacement_is_a_bond_that_exchanges_none(osp_dir):
+    """A LinearMechanicalPort exchanges force and velocity; with no displacement connected the coupling's
+    displacement is [] (the force side receives the velocity alone; its x_in keeps its start value, as in
+    libcosim), and the velocity is recorded in its place."""
+    text = osp_system(PORTS)
+    document, notes = osp_import(osp_dir, text)
+    want = expected(OSP_DESCRIPTION)
+    del want["subsystems"]["S1"]["points"]["p1"]["position_input"], want["subsystems"]["S2"]["points"]["p2"]["position"]
+    want["couplings"]["c1"]["displacement"] = []
+    want["outputs"]["signals"] = ["c1.v", "c1.f"]
+    assert document == want
+    assert "couplings.c1.displacement = []: an OSP LinearMechanicalPort exchanges no displacement, and no " \
+           "displacement connection joins it; S1 receives the velocity alone (an input of it that no connection " \
+           "feeds keeps its start value, as in libcosim)" in notes
+    assert tomllib.loads(tomli_w.dumps(document)) == document
+
+
+def domain_osp_description(domain: str) -> str:
+    port, effort, flow, displacement, quasi = DOMAIN_GROUPS[domain]
+    return f"""<?xml version="1.0" encoding="utf-8"?>
+<OspModelDescription xmlns="https://open-simulation-platform.com/OspModelDescription/1.0.0" version="1.0">
+  <VariableGroups>
+    <{port} name="p1">
+      <{effort} name="p1 effort"><Variable ref="fc"/></{effort}>
+      <{flow} name="p1 flow"><Variable ref="v_in"/></{flow}>
+    </{port}>
+    <{port} name="p2">
+      <{effort} name="p2 effort"><Variable ref="f_in"/></{effort}>
+      <{flow} name="p2 flow"><Variable ref="v"/></{flow}>
+    </{port}>
+    <{displacement} name="position"><Variable ref="x"/></{displacement}>
+    <{displacement} name="position input"><Variable ref="x_in"/></{displacement}>
+    <{quasi} name="q1">
+      <{effort} name="q1 effort"><Variable ref="fc"/></{effort}>
+      <{displacement} name="q1 displacement"><Variable ref="x_in"/></{displacement}>
+    </{quasi}>
+    <{quasi} name="q2">
+      <{effort} name="q2 effort"><Variable ref="f_in"/></{effort}>
+      <{displacement} name="q2 displacement"><Variable ref="x"/></{displacement}>
+    </{quasi}>
+    <{flow} name="flow"><Variable ref="v"/></{flow}>
+    <{flow} name="flow input"><Variable ref="v_in"/></{flow}>
+  </VariableGroups>
+</OspModelDescription>
+"""
+
+
+@pytest.fixture(params=list(DOMAIN_UNITS))
+def domain_dir(request, tmp_path: Path) -> tuple[str, Path]:
+    directory = tmp_path / "two_mass_damped_fmu"
+    directory.mkdir()
+    write_fmu(directory / "oscillator.fmu", model_description(domain_variables(request.param)))
+    (directory / "oscillator_OspModelDescription.xml").write_text(domain_osp_description(request.param))
+    return request.param, directory
+
+
+def expected_in(domain: str, description: str, coupling: str = "c1", points: tuple[str, str] = ("p1", "p2")) -> dict:
+    """The two-mass scene with its bond in ``domain``: ``domain`` keys on the points and the coupling."""
+    want = expected(description, coupling)
+    for name, point, old in (("S1", points[0], "p1"), ("S2", points[1], "p2")):
+        table = want["subsystems"][name]["points"].pop(old)
+        want["subsystems"][name]["points"][point] = table
+        want["couplings"][coupling][f"{'force' if name == 'S1' else 'motion'}_side"] = f"{name}.{point}"
+        if domain != "translational":
+            table["domain"] = domain
+    if domain != "translational":
+        want["couplings"][coupling]["domain"] = domain
+    return want
+
+
+def test_osp_ports_of_every_domain_are_bonds_of_that_domain(domain_dir):
+    domain, directory = domain_dir
+    document, notes = osp_import(directory, osp_system(PORTS + group_connection("position input", "position")))
+    assert document == expected_in(domain, OSP_DESCRIPTION)
+    assert document["subsystems"]["S1"]["energy"] == "E"  # a torque in N.m is not an energy
+    assert tomllib.loads(tomli_w.dumps(document)) == document
+    assert domain == "translational" or any(n.startswith(f"couplings.c1.domain = {domain!r}") for n in notes)
+
+
+def test_osp_power_bond_pairs_of_every_domain_by_their_units(domain_dir):
+    """libcosim's powerBond marker on plain connections: the units say the domain (N.m and rad/s, Pa and m3/s,
+    V and A); the displacement (rad, m3, C) joins the bond of its domain."""
+    domain, directory = domain_dir
+    document, _ = osp_import(directory, osp_system(POWER_BOND + POSITION))
+    assert document == expected_in(domain, OSP_DESCRIPTION, coupling="c", points=("p1", "p2"))
+
+
+def test_osp_a_quasi_port_with_its_flow_connected_is_a_bond(domain_dir):
+    """A quasi port exchanges the effort and the displacement; the flow (a flow group, or a plain connection)
+    between the same two simulators, motion side to force side, completes the bond."""
+    domain, directory = domain_dir
+    text = osp_system(group_connection("q1", "q2") + group_connection("flow input", "flow"))
+    document, notes = osp_import(directory, text)
+    assert document == expected_in(domain, OSP_DESCRIPTION, points=("q1", "q2"))
+    plain_flow = PLAIN_VELOCITY.replace('"S1" name="v"', '"S2" name="v"')
+    plain_flow = plain_flow.replace('"S2" name="v_in"', '"S1" name="v_in"')
+    document, _ = osp_import(directory, osp_system(group_connection("q1", "q2") + plain_flow))
+    assert document == expected_in(domain, OSP_DESCRIPTION, points=("q1", "q2"))
+    _, flow, _, _, quasi = DOMAIN_GROUPS[domain]
+    assert any(n.startswith(f"VariableGroupConnection (line {line(text, '<VariableGroupConnection>')}): the {quasi} "
+                            "exchanges the") for n in notes)
+
+
+def test_osp_a_quasi_port_without_its_flow_is_refused_naming_why(domain_dir):
+    domain, directory = domain_dir
+    port, _, flow_group, _, quasi = DOMAIN_GROUPS[domain]
+    effort, flow, displacement = {"translational": ("force", "velocity", "displacement"),
+                                  "rotational": ("torque", "angular velocity", "angle"),
+                                  "hydraulic": ("pressure", "volume flow", "volume"),
+                                  "electrical": ("voltage", "current", "charge")}[domain]
+    text = osp_system(group_connection("q1", "q2"))
+    problems = osp_refusal(directory, text)
+    assert problems == {f"VariableGroupConnection (line {line(text, '<VariableGroupConnection>')})":
+                        f"{quasi} S1.q1 -> S2.q2: a quasi port exchanges the {effort} and the {displacement} but no "
+                        f"{flow}; zencosim's power bond needs the {flow} (its residual power is {effort} x {flow}): "
+                        f"connect the {flow} output of S2 to S1 too ({'an' if flow_group[0] == 'A' else 'a'} "
+                        f"{flow_group} group or a variable connection), or use "
+                        f"{'an' if port[0] in 'AE' else 'a'} {port}"}
+
+
+def test_osp_a_power_bond_of_two_domains_is_refused(osp_dir, tmp_path):
+    """A torque [N.m] marked as one bond with a velocity [m/s]: no domain has both."""
+    write_fmu(osp_dir / "oscillator.fmu", model_description([
+        (n, c, "N.m" if n in ("fc", "f_in") else u, s) for n, c, u, s in VARIABLES]))
+    text = osp_system(POWER_BOND + POSITION)
     problems = osp_refusal(osp_dir, text)
-    ports, shaft = (f"VariableGroupConnection (line {line(text, '<VariableGroupConnection>', i)})" for i in (1, 2))
-    assert problems[ports].startswith("the bond S1 -> S2 has no displacement: connect the position output [m] of S2 "
-                                      "to the position input of S1")
-    assert problems[shaft].startswith("variable group type AngularMechanicalPort (S1.shaft) is not supported")
-    assert len(problems) == 2
+    (reason,) = problems.values()
+    assert reason.startswith("powerBond 'c': expected one effort and one flow connection of one domain (force and "
+                             "velocity, torque and angular velocity, pressure and volume flow, or voltage and current, "
+                             "by the units of their variables), and its displacement connections if any, got "
+                             "S2.v -> S1.v_in (velocity), S1.fc -> S2.f_in (torque)"), reason
+
+
+def test_ssd_the_bond_rule_holds_in_every_domain_and_without_displacement(domain_dir):
+    """SSP: an effort output of S1 to S2 and a flow output of S2 to S1, of one domain by their units, are a bond
+    of that domain; the displacement is optional."""
+    domain, directory = domain_dir
+    description = "imported from the SSP SystemStructure.ssd"
+    document, _ = ssd_import(directory, ssd_system())
+    assert document == expected_in(domain, description)
+    without = "\n".join(SSP_CONNECTIONS.splitlines()[:-1])  # no displacement connection
+    document, notes = ssd_import(directory, ssd_system(without))
+    want = expected_in(domain, description)
+    del want["subsystems"]["S1"]["points"]["p1"]["position_input"], want["subsystems"]["S2"]["points"]["p2"]["position"]
+    want["couplings"]["c1"]["displacement"] = []
+    want["outputs"]["signals"] = ["c1.v", "c1.f"]
+    assert document == want
+    assert any(n.startswith("couplings.c1.displacement = []: no ") for n in notes)
 
 
 def test_osp_a_simulator_coupled_to_nothing_runs_free_and_publishes_its_outputs(osp_dir):
@@ -519,8 +707,8 @@ def test_ssd_a_connection_outside_a_bond_is_a_signal_coupling(ssp_dir):
     assert document["couplings"]["c1"] == expected("")["couplings"]["c1"]
     assert document["outputs"]["signals"] == ["c1.x", "c1.f", "S1_v"]
     assert f"{key}: connections between S2 and S1 form no power bond (0 force [N] S2 -> S1, 1 velocity [m/s] and 0 " \
-           "displacement [m] S1 -> S2; a bond has as many of each): signal couplings, whose power zencosim does not " \
-           "monitor" in notes
+           "displacement [m] S1 -> S2; a bond has as many of each, or no displacement): signal couplings, whose " \
+           "power zencosim does not monitor" in notes
 
 
 def transformed(connection: str, transformation: str) -> str:

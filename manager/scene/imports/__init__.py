@@ -34,8 +34,20 @@ from zencosim.subsystems.params import Problems
 from zencosim.subsystems.units import BASE, Exponents, UnitError, describe, exponents
 
 QUANTITIES: dict[str, tuple[str, Exponents]] = {  # quantity -> (SI unit, base-unit exponents)
-    name: (unit, exponents(unit)) for name, unit in (("force", "N"), ("velocity", "m/s"), ("displacement", "m"),
-                                                     ("energy", "J"))}
+    name: (unit, exponents(unit)) for name, unit in (
+        ("force", "N"), ("velocity", "m/s"), ("displacement", "m"), ("energy", "J"), ("torque", "N.m"),
+        ("angular_velocity", "rad/s"), ("angle", "rad"), ("pressure", "Pa"), ("volume_flow", "m3/s"),
+        ("volume", "m3"), ("voltage", "V"), ("current", "A"), ("charge", "C"))}
+# the quantities of a bond's effort, flow and displacement in each domain (zencosim.subsystems.ports.DOMAINS)
+BOND_DOMAINS: dict[str, tuple[str, str, str]] = {
+    "translational": ("force", "velocity", "displacement"),
+    "rotational": ("torque", "angular_velocity", "angle"),
+    "hydraulic": ("pressure", "volume_flow", "volume"),
+    "electrical": ("voltage", "current", "charge"),
+}
+BOND_ROLES: dict[str, tuple[str, str]] = {  # quantity -> (domain, "effort" | "flow" | "displacement")
+    quantity: (domain, role) for domain, quantities in BOND_DOMAINS.items()
+    for role, quantity in zip(("effort", "flow", "displacement"), quantities)}
 _TORQUE_NAMES = {"N.m", "N*m", "N m", "Nm", "m.N"}
 REAL_TYPES = ("Real", "Float64")
 MIXED = "mixed quantities"  # a link whose variables disagree (reported where found)
@@ -180,12 +192,31 @@ def converted(definition: UnitDefinition | None) -> bool:
     return definition is not None and (definition.factor != 1.0 or definition.offset != 0.0)
 
 
-def quantity_of(found: Exponents) -> str:
-    """``force``, ``velocity``, ``displacement``, ``energy``, or the exponents written out."""
+def quantity_of(found: Exponents, torque: bool = False) -> str:
+    """A name of :data:`QUANTITIES` (``force``, ``velocity``, ``angle``, …), or the exponents written out. A
+    torque and an energy share their exponents: ``torque`` says which (the unit's name or the variable's
+    declared quantity, :func:`is_torque`)."""
+    if torque and found == QUANTITIES["torque"][1]:
+        return "torque"
     for name, (_, dims) in QUANTITIES.items():
-        if dims == found:
+        if dims == found and name != "torque":
             return name
     return describe(found) if any(found) else "dimensionless"
+
+
+def is_torque(unit: str | None, variable: Any = None) -> bool:
+    """Whether a unit of N.m (J's exponents) is a torque: by its name (``N.m``, ``Nm``, …) or the variable's
+    declared quantity (``Torque``, ``Moment``)."""
+    named = unit is not None and unit.replace(" ", "") in {u.replace(" ", "") for u in _TORQUE_NAMES}
+    declared = (getattr(variable, "quantity", None) or "").lower()
+    return named or "torque" in declared or "moment" in declared
+
+
+def same_quantity(found: str | None, expected: str) -> bool:
+    """Whether a link's quantity from units is the ``expected`` one (a torque in J's exponents counts)."""
+    if found == expected:
+        return True
+    return found in QUANTITIES and QUANTITIES[found][1] == QUANTITIES[expected][1]
 
 
 @dataclass
@@ -348,6 +379,8 @@ def link_quantity(key: str, source: Component, outputs: tuple[str, ...], target:
             found = _quantity(component, name, key, problems, declared, definitions)
             if found is not None:
                 seen.add(found)
+    if seen == {"torque", "energy"}:  # one end names its N.m a torque
+        seen = {"torque"}
     if len(seen) > 1:
         problems.add(key, f"connects variables of different quantities: {', '.join(sorted(seen))}")
         return MIXED
@@ -373,7 +406,9 @@ def _quantity(component: Component, name: str, key: str, problems: Problems,
         if problem:
             problems.add(key, f"{component.name}.{name}: {problem}")
         else:
-            found.add(quantity_of(exponents))
+            found.add(quantity_of(exponents, is_torque(unit_name, variable)))
+    if found == {"torque", "energy"}:  # the same unit, named a torque in one of the two
+        found = {"torque"}
     if len(found) > 1:
         problems.add(key, f"{component.name}.{name}: the system description and the FMU give it different "
                           f"quantities ({', '.join(sorted(found))})")
@@ -382,14 +417,18 @@ def _quantity(component: Component, name: str, key: str, problems: Problems,
 
 @dataclass
 class Bond:
-    """A power bond across two subsystems: the force one way, the velocity and displacement back."""
+    """A power bond across two subsystems: the force (the effort of its domain: torque, pressure, voltage)
+    one way, the velocity (the flow: angular velocity, volume flow, current) and the displacement (angle,
+    volume, charge; none: ``displacement = []``) back."""
 
     key: str  # the element(s) that declare it
-    force: Link  # force side -> motion side
-    velocity: Link  # motion side -> force side
+    force: Link  # force side -> motion side: the effort
+    velocity: Link  # motion side -> force side: the flow
     displacement: list[Link] = field(default_factory=list)  # motion side -> force side, its components in order
     name: str | None = None  # as declared (OSP powerBond); None: numbered
     points: tuple[str | None, str | None] = (None, None)  # declared point names (OSP port groups): force, motion
+    domain: str = "translational"  # a key of BOND_DOMAINS
+    why_no_displacement: str | None = None  # for the note when ``displacement`` is empty
 
     @property
     def force_side(self) -> Component:
@@ -402,29 +441,26 @@ class Bond:
 
 def check_bond(bond: Bond, problems: Problems) -> bool:
     """The bond's velocity and displacement flow from its motion side to its force side, with as many
-    components as its force."""
+    components as its force (no displacement at all is a bond too: the force side receives the flow alone)."""
     force_side, motion_side = bond.force_side.name, bond.motion_side.name
     if force_side == motion_side:
         problems.add(bond.key, f"a bond of {force_side} with itself: a coupling joins two subsystems")
         return False
     ok = True
-    for role, links in (("velocity", [bond.velocity]), ("displacement", bond.displacement)):
+    effort, flow, displacement = BOND_DOMAINS[bond.domain]
+    for role, links in ((flow, [bond.velocity]), (displacement, bond.displacement)):
         for link in links:
             if (link.source.name, link.target.name) != (motion_side, force_side):
-                problems.add(link.key, f"the {role} of the bond whose force {force_side} outputs must flow from "
+                problems.add(link.key, f"the {role} of the bond whose {effort} {force_side} outputs must flow from "
                                        f"{motion_side} to {force_side}; got {link.text()}")
                 ok = False
-    size = len(bond.force.outputs)
-    sizes = {"force": size, "velocity": len(bond.velocity.outputs),
-             "displacement": sum(len(link.outputs) for link in bond.displacement)}
-    if sizes["displacement"] == 0:
-        problems.add(bond.key, f"the bond {force_side} -> {motion_side} has no displacement: connect the position "
-                               f"output [m] of {motion_side} to the position input of {force_side} (zencosim's "
-                               "force_displacement coupling sends the motion side's displacement and velocity)")
-        ok = False
-    elif len(set(sizes.values())) != 1:
-        problems.add(bond.key, f"the bond {force_side} -> {motion_side} needs as many components of force, velocity "
-                               f"and displacement, got {sizes}")
+    sizes = {effort: len(bond.force.outputs), flow: len(bond.velocity.outputs)}
+    if bond.displacement:  # none: the force side receives the flow alone (displacement = [])
+        sizes[displacement] = sum(len(link.outputs) for link in bond.displacement)
+    if len(set(sizes.values())) != 1:
+        names = " and ".join(sizes) if len(sizes) == 2 else f"{effort}, {flow} and {displacement}"
+        problems.add(bond.key, f"the bond {force_side} -> {motion_side} needs as many components of {names}, "
+                               f"got {sizes}")
         ok = False
     return ok
 
@@ -447,17 +483,16 @@ def check_transformation(link: Link, problems: Problems) -> bool:
     return True
 
 
-def energy_output(component: Component, notes: list[str]) -> str | None:
-    """The FMU's output in joules (not a torque), when it has exactly one: its energy for zencosim's balance."""
+def energy_output(component: Component, notes: list[str], coupled: frozenset[str] = frozenset()) -> str | None:
+    """The FMU's output in joules (not a torque, nor a bond's effort: ``coupled``), when it has exactly one:
+    its energy for zencosim's balance."""
     found = []
     for name, variable in component.fmu.variables.items():
         unit = variable_unit(variable)
-        if variable.causality != "output" or variable.type not in REAL_TYPES or not unit:
+        if variable.causality != "output" or variable.type not in REAL_TYPES or not unit or name in coupled:
             continue
         exponents, problem = unit_exponents(unit, component.fmu.units)
-        torque = unit.replace(" ", "") in {u.replace(" ", "") for u in _TORQUE_NAMES} or \
-            "torque" in (variable.quantity or "").lower() or "moment" in (variable.quantity or "").lower()
-        if problem is None and exponents == QUANTITIES["energy"][1] and not torque:
+        if problem is None and exponents == QUANTITIES["energy"][1] and not is_torque(unit, variable):
             found.append(name)
     if len(found) == 1:
         notes.append(f"subsystems.{component.name}.energy = {found[0]!r}: the FMU's only output in J")
@@ -608,8 +643,10 @@ def build_document(name: str, description: str, base_step: float, duration: floa
     signal_links = list(signals_in)
     fed = {side.name for bond in bonds for side in (bond.force_side, bond.motion_side)}
     units: dict[str, dict[str, str]] = {c.name: {} for c in components}
+    efforts: dict[str, set[str]] = {c.name: set() for c in components}
     for bond in bonds:
         coupling = coupling_names[id(bond)]
+        efforts[bond.force_side.name].update(bond.force.outputs)
         for link in (bond.force, bond.velocity, *bond.displacement):
             _units_not_declared(link, units)
         side_points = []
@@ -624,26 +661,39 @@ def build_document(name: str, description: str, base_step: float, duration: floa
             side_points.append(point)
         displacement = tuple(n for link in bond.displacement for n in link.outputs)
         position_input = tuple(n for link in bond.displacement for n in link.inputs)
-        points[bond.force_side.name][side_points[0]] = {
-            "force": _names_of(bond.force.outputs), "position_input": _names_of(position_input),
-            "velocity_input": _names_of(bond.velocity.inputs)}
-        points[bond.motion_side.name][side_points[1]] = {
-            "force_input": _names_of(bond.force.inputs), "position": _names_of(displacement),
-            "velocity": _names_of(bond.velocity.outputs)}
+        domain = {"domain": bond.domain} if bond.domain != "translational" else {}
+        force_point = {**domain, "force": _names_of(bond.force.outputs)}
+        motion_point = {**domain, "force_input": _names_of(bond.force.inputs)}
+        if displacement:
+            force_point["position_input"] = _names_of(position_input)
+            motion_point["position"] = _names_of(displacement)
+        force_point["velocity_input"] = _names_of(bond.velocity.inputs)
+        motion_point["velocity"] = _names_of(bond.velocity.outputs)
+        points[bond.force_side.name][side_points[0]] = force_point
+        points[bond.motion_side.name][side_points[1]] = motion_point
         size = len(bond.force.outputs)
         couplings[coupling] = {
-            "type": "force_displacement",
+            "type": "force_displacement", **domain,
             "force_side": f"{bond.force_side.name}.{side_points[0]}",
             "motion_side": f"{bond.motion_side.name}.{side_points[1]}",
             "force": signal_names(coupling, "f", size),
-            "displacement": signal_names(coupling, "x", size),
+            "displacement": signal_names(coupling, "x", size) if displacement else [],
             "velocity": signal_names(coupling, "v", size)}
+        effort, flow, displacement_quantity = BOND_DOMAINS[bond.domain]
+        if bond.domain != "translational":
+            notes.append(f"couplings.{coupling}.domain = {bond.domain!r}: a {bond.domain} bond ({bond.key}); its force "
+                         f"signal is the {effort}, its velocity the {flow}, its displacement the "
+                         f"{displacement_quantity}")
+        if not displacement:
+            notes.append(f"couplings.{coupling}.displacement = []: {bond.why_no_displacement or 'no displacement'}; "
+                         f"{bond.force_side.name} receives the {flow} alone (an input of it that no connection "
+                         "feeds keeps its start value, as in libcosim)")
         if bond.force.factor != 1.0:
             couplings[coupling]["force_factor"] = bond.force.factor
             notes.append(f"couplings.{coupling}.force_factor = {bond.force.factor!r}: the transformation of its force "
                          f"connection ({bond.force.key}); the bond's force signal is {bond.force.factor!r} times "
                          f"{bond.force_side.name}'s force output")
-        for stem in ("x", "f"):
+        for stem in ("x", "f") if displacement else ("v", "f"):  # no displacement: the flow and the effort
             names = signal_names(coupling, stem, size)
             signals += [names] if isinstance(names, str) else names
     for link in signal_links:
@@ -670,7 +720,7 @@ def build_document(name: str, description: str, base_step: float, duration: floa
             table["comm_ratio"] = component.comm_ratio
         if component.start:
             table["start"] = dict(component.start)
-        energy = energy_output(component, notes)
+        energy = energy_output(component, notes, frozenset(efforts[component.name]))
         if energy is not None:
             table["energy"] = energy
         if units[component.name]:
@@ -685,7 +735,7 @@ def build_document(name: str, description: str, base_step: float, duration: floa
                          "free and publishes every output variable as a signal of its name")
         subsystems[component.name] = table
     notes.append("outputs.reference = 'none': FMU subsystems have no reference solution; outputs.signals: each "
-                 "coupling's displacement and force, and each signal coupling's signal")
+                 "coupling's displacement (without one, its velocity) and force, and each signal coupling's signal")
     return {"name": name, "description": description,
             "manager": {"duration": duration, "macro_step": base_step},
             "outputs": {"signals": signals, "reference": "none"},

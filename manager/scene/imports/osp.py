@@ -23,12 +23,15 @@ to them) are refused. Namespaces are ignored (OSP has used several).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 from urllib.request import url2pathname
 
 from zencosim.manager.scene.imports import (
     BASE,
+    BOND_DOMAINS,
+    BOND_ROLES,
     MIXED,
     QUANTITIES,
     Bond,
@@ -46,6 +49,7 @@ from zencosim.manager.scene.imports import (
     orient,
     parse_xml,
     read_fmu,
+    same_quantity,
     scene_name,
     set_timing,
     settle_duration,
@@ -57,8 +61,37 @@ from zencosim.subsystems.params import Problems
 ROOT_ELEMENTS = ("StartTime", "EndTime", "BaseStepSize", "Algorithm", "Simulators", "Functions", "Connections",
                  "EccoConfiguration", "Description")
 LIBCOSIM_BASE_STEP = 0.1  # [s] libcosim's BaseStepSize when the file gives none
-GROUP_QUANTITIES = {"Force": "force", "LinearVelocity": "velocity", "LinearDisplacement": "displacement"}
-KNOWN_GROUPS = ("LinearMechanicalPort", "LinearDisplacement", "Force", "LinearVelocity", "Generic")
+GROUP_QUANTITIES = {  # OSP-IS groups of one quantity (effort, flow, displacement of each domain)
+    "Force": "force", "LinearVelocity": "velocity", "LinearDisplacement": "displacement",
+    "Torque": "torque", "AngularVelocity": "angular_velocity", "AngularDisplacement": "angle",
+    "Pressure": "pressure", "VolumeFlowRate": "volume_flow", "Volume": "volume",
+    "Voltage": "voltage", "Current": "current", "Charge": "charge"}
+PORTS = {  # OSP-IS port -> (domain, its effort group, its flow group)
+    "LinearMechanicalPort": ("translational", "Force", "LinearVelocity"),
+    "AngularMechanicalPort": ("rotational", "Torque", "AngularVelocity"),
+    "HydraulicPort": ("hydraulic", "Pressure", "VolumeFlowRate"),
+    "ElectromagneticPort": ("electrical", "Voltage", "Current")}
+QUASI_PORTS = {  # OSP-IS quasi port -> (domain, its effort group, its displacement group): no flow
+    "LinearMechanicalQuasiPort": ("translational", "Force", "LinearDisplacement"),
+    "AngularMechanicalQuasiPort": ("rotational", "Torque", "AngularDisplacement"),
+    "HydraulicQuasiPort": ("hydraulic", "Pressure", "Volume"),
+    "ElectromagneticQuasiPort": ("electrical", "Voltage", "Charge")}
+KNOWN_GROUPS = (*PORTS, *QUASI_PORTS, *GROUP_QUANTITIES, "Generic")
+
+
+@dataclass
+class _Port:
+    """A connection of two port groups: the effort one way, the flow (a port) or the displacement (a quasi
+    port) back."""
+
+    key: str
+    domain: str
+    effort: Link
+    flow: Link | None  # None: a quasi port (its flow comes from another connection)
+    displacement: Link | None  # a quasi port's
+    bond: str | None  # its powerBond name
+    names: tuple[str, str]  # the groups' names: force side, motion side
+    kind: str  # its group type
 
 
 class _Group:
@@ -140,7 +173,7 @@ class _Import:
         self.descriptions: dict[str, _ModelDescription | None] = {}
         self.declared_units: dict[tuple[str, str], str] = {}  # units OSP model descriptions state
         self.links: list[Link] = []
-        self.ports: list[tuple[str, Link, Link, str | None, tuple[str, str]]] = []  # key, force, velocity, bond, names
+        self.ports: list[_Port] = []
         self.parsed: dict[Path, _ModelDescription] = {}
         self.failed: set[str] = set()  # simulators that could not be read
 
@@ -376,7 +409,7 @@ class _Import:
         source, outputs, target, inputs = oriented
         found = link_quantity(key, source, outputs, target, inputs, self.problems, self.declared_units,
                               self._definitions())
-        if quantity is not None and found is not None and found != quantity:
+        if quantity is not None and found is not None and not same_quantity(found, quantity):
             self.problems.add(key, f"a {quantity} group whose variables are in units of {found}")
         link = Link(key, source, outputs, target, inputs, quantity or found, bond)
         self.links.append(link)
@@ -411,14 +444,15 @@ class _Import:
             return
         if group_a.type not in KNOWN_GROUPS:
             self.problems.add(key, f"variable group type {group_a.type} ({a.name}.{group_a.name}) is not supported: "
-                                   "zencosim couples LinearMechanicalPort groups (force and velocity) with the "
-                                   "displacement (LinearDisplacement, or variables in m); see docs/system-imports.md")
+                                   "zencosim couples the OSP-IS ports (LinearMechanicalPort, AngularMechanicalPort, "
+                                   "HydraulicPort, ElectromagneticPort, their quasi ports), the groups of one "
+                                   "quantity in them and Generic groups; see docs/system-imports.md")
             return
         for component, group in ((a, group_a), (b, group_b)):
             for ref, unit in group.variables:
                 if ref and unit:
                     self.declared_units[(component.name, ref)] = unit
-        if group_a.type == "LinearMechanicalPort":
+        if group_a.type in PORTS or group_a.type in QUASI_PORTS:
             self._port(key, a, group_a, b, group_b, bond)
             return
         if len(group_a.variables) != len(group_b.variables) or len(group_a.groups) != len(group_b.groups):
@@ -444,18 +478,23 @@ class _Import:
             self._pair_groups(key, a, sub_a, b, sub_b, bond)
 
     def _port(self, key: str, a: Component, group_a: _Group, b: Component, group_b: _Group, bond: str | None) -> None:
-        """A LinearMechanicalPort connection: a Force and a LinearVelocity, one each way."""
+        """A port connection (both groups of one port type): its effort one way, its flow (or, a quasi port,
+        its displacement) the other, each of the quantity of the port's domain."""
+        kind = group_a.type
+        quasi = kind in QUASI_PORTS
+        domain, effort_type, other_type = (QUASI_PORTS if quasi else PORTS)[kind]
         parts = []
         for component, group in ((a, group_a), (b, group_b)):
             types = [g.type for g in group.groups]
-            if sorted(types) != ["Force", "LinearVelocity"] or group.variables:
-                self.problems.add(key, f"{component.name}.{group.name}: a LinearMechanicalPort holds one Force and "
-                                       f"one LinearVelocity group, got {types + ['Variable'] * len(group.variables)}")
+            if sorted(types) != sorted([effort_type, other_type]) or group.variables:
+                self.problems.add(key, f"{component.name}.{group.name}: a {kind} ({domain}) holds one {effort_type} "
+                                       f"and one {other_type} group, got "
+                                       f"{types + ['Variable'] * len(group.variables)}")
                 return
             parts.append({g.type: g for g in group.groups})
         links = {}
-        for kind in ("Force", "LinearVelocity"):
-            refs = [[r for r, _ in part[kind].variables] for part in parts]
+        for part_type in (effort_type, other_type):
+            refs = [[r for r, _ in part[part_type].variables] for part in parts]
             if not all(all(refs_) for refs_ in refs):
                 self.problems.add(key, "a Variable of a group needs a ref")
                 return
@@ -465,82 +504,138 @@ class _Import:
             source, outputs, target, inputs = oriented
             found = link_quantity(key, source, outputs, target, inputs, self.problems, self.declared_units,
                                   self._definitions())
-            quantity = GROUP_QUANTITIES[kind]
-            if found is not None and found != quantity:
-                self.problems.add(key, f"the {kind} of {a.name}.{group_a.name} is in units of {found}; expected "
-                                       f"{QUANTITIES[quantity][0]}")
-            links[kind] = Link(key, source, outputs, target, inputs, quantity, bond)
-        force, velocity = links["Force"], links["LinearVelocity"]
-        if force.source is velocity.source:
-            self.problems.add(key, f"{force.source.name}.{group_a.name if force.source is a else group_b.name} "
-                                   "outputs both force and velocity; a port outputs one and receives the other")
+            quantity = GROUP_QUANTITIES[part_type]
+            if found is not None and found != MIXED and not same_quantity(found, quantity):
+                self.problems.add(key, f"the {part_type} of {a.name}.{group_a.name} ({kind}, {domain}) is in units of "
+                                       f"{found}; expected {QUANTITIES[quantity][0]} ({quantity})")
+            links[part_type] = Link(key, source, outputs, target, inputs, quantity, bond)
+        effort, other = links[effort_type], links[other_type]
+        if effort.source is other.source:
+            self.problems.add(key, f"{effort.source.name}.{group_a.name if effort.source is a else group_b.name} "
+                                   f"outputs both {effort_type} and {other_type}; a port outputs one and receives "
+                                   "the other")
             return
-        port_names = (group_a.name, group_b.name) if force.source is a else (group_b.name, group_a.name)
-        self.ports.append((key, force, velocity, bond, port_names))
+        port_names = (group_a.name, group_b.name) if effort.source is a else (group_b.name, group_a.name)
+        self.ports.append(_Port(key, domain, effort, None if quasi else other, other if quasi else None, bond,
+                                port_names, kind))
 
     # bonds ----------------------------------------------------------------------------------------
 
     def _bonds(self) -> tuple[list[Bond], list[Link]]:
-        """Ports and powerBond pairs become bonds; displacement connections join the bond they serve;
-        every other connection is a signal."""
+        """Ports and powerBond groups become bonds of their domain; a quasi port takes its flow from a
+        connection; displacement connections join the bond they serve; every other connection is a signal."""
         bonds: list[Bond] = []
-        signals: list[Link] = []
         named: dict[str, list[Link]] = {}
-        displacements: list[Link] = []
+        named_ports: dict[str, list[_Port]] = {}
         inputs: dict[tuple[str, str], str] = {}
-        all_links = self.links + [link for port in self.ports for link in port[1:3]]
-        for link in all_links:
+        port_links = [link for port in self.ports for link in (port.effort, port.flow, port.displacement) if link]
+        for link in self.links + port_links:
             for name in link.inputs:
                 first = inputs.setdefault((link.target.name, name), link.key)
                 if first != link.key:
                     self.problems.add(link.key, f"input {link.target.name}.{name} is already connected by {first}")
-        for key, force, velocity, bond_name, port_names in self.ports:
-            if bond_name is not None:
-                named.setdefault(bond_name, []).extend([force, velocity])
-                continue
-            bonds.append(Bond(key, force, velocity, points=port_names))
+        free = [link for link in self.links if link.quantity != MIXED and link.bond is None]
         for link in self.links:
-            if link.quantity == MIXED:
-                continue
-            if link.bond is not None:
+            if link.quantity != MIXED and link.bond is not None:
                 named.setdefault(link.bond, []).append(link)
-            elif link.quantity == "displacement":
-                displacements.append(link)
+        for port in self.ports:
+            _, flow, displacement = BOND_DOMAINS[port.domain]
+            if port.bond is not None:
+                named.setdefault(port.bond, []).extend(link for link in (port.effort, port.flow, port.displacement)
+                                                       if link is not None)
+                named_ports.setdefault(port.bond, []).append(port)
+            elif port.flow is not None:
+                bonds.append(Bond(port.key, port.effort, port.flow, points=port.names, domain=port.domain,
+                                  why_no_displacement=f"an OSP {port.kind} exchanges no {displacement}, and no "
+                                                      f"{displacement} connection joins it"))
             else:
-                signals.append(link)
-                if link.quantity in ("force", "velocity"):
-                    self.notes.append(f"{link.key}: {link.text()} has no powerBond: a signal coupling, whose power "
-                                      "zencosim does not monitor (mark the force and the velocity connection of a "
-                                      "bond with one powerBond name to make them a power bond)")
-        ports_by_link = {id(port[1]): port[4] for port in self.ports}
+                flow_link = self._quasi_flow(port, free)
+                if flow_link is not None:
+                    free.remove(flow_link)
+                    bonds.append(Bond(f"{port.key} and {flow_link.key}", port.effort, flow_link,
+                                      [port.displacement], points=port.names, domain=port.domain))
         for bond_name, links in named.items():
-            by_quantity = {q: [link for link in links if link.quantity == q] for q in ("force", "velocity")}
-            others = [link for link in links if link.quantity not in ("force", "velocity")]
-            keys = " and ".join(dict.fromkeys(link.key for link in links))
-            if others or len(by_quantity["force"]) != 1 or len(by_quantity["velocity"]) != 1:
-                found = ", ".join(link.text() for link in links)
-                self.problems.add(keys, f"powerBond {bond_name!r}: expected one force connection and one velocity "
-                                        f"connection (by the units of their variables), got {found}")
-                continue
-            force = by_quantity["force"][0]
-            bonds.append(Bond(keys, force, by_quantity["velocity"][0], name=bond_name,
-                              points=ports_by_link.get(id(force), (None, None))))
-        for link in displacements:
-            serves = [bond for bond in bonds
-                      if (bond.motion_side.name, bond.force_side.name) == (link.source.name, link.target.name)]
-            if len(serves) == 1:
+            bond = self._named_bond(bond_name, links, named_ports.get(bond_name, []))
+            if bond is not None:
+                bonds.append(bond)
+        signals: list[Link] = []
+        for link in free:
+            domain, role = BOND_ROLES.get(link.quantity, (None, None))
+            serves = [bond for bond in bonds if bond.domain == domain
+                      and (bond.motion_side.name, bond.force_side.name) == (link.source.name, link.target.name)]
+            if role == "displacement" and len(serves) == 1:
                 serves[0].displacement.append(link)
-            elif not serves:
-                signals.append(link)
-            else:
+            elif role == "displacement" and serves:
                 self.problems.add(link.key, f"{link.text()}: {len(serves)} bonds join {link.source.name} (motion side) "
                                             f"to {link.target.name} (force side); cannot tell which one it serves")
+            else:
+                signals.append(link)
+                if role in ("effort", "flow"):
+                    self.notes.append(f"{link.key}: {link.text()} has no powerBond: a signal coupling, whose power "
+                                      "zencosim does not monitor (mark the effort and the flow connection of a "
+                                      "bond, e.g. its force and its velocity, with one powerBond name to make them a "
+                                      "power bond)")
         for bond in bonds:
             if len(bond.displacement) > 1 and len(bond.force.outputs) > 1:
                 self.notes.append(f"{bond.key}: the displacement components are its connections in document order")
         order = {id(link): i for i, link in enumerate(self.links)}
         signals.sort(key=lambda link: order[id(link)])  # document order
         return [bond for bond in bonds if check_bond(bond, self.problems)], signals
+
+    def _quasi_flow(self, port: _Port, free: list[Link]) -> Link | None:
+        """The flow of a quasi port's bond: the one connection of its domain's flow from the motion side to the
+        force side that no powerBond claims; None with a problem when there is none, or several."""
+        effort, flow, displacement = BOND_DOMAINS[port.domain]
+        force_side, motion_side = port.effort.source.name, port.effort.target.name
+        found = [link for link in free if link.quantity == flow
+                 and (link.source.name, link.target.name) == (motion_side, force_side)]
+        if len(found) == 1:
+            self.notes.append(f"{port.key}: the {port.kind} exchanges the {effort} and the {displacement}; its bond's "
+                              f"{flow} is {found[0].text()} ({found[0].key})")
+            return found[0]
+        port_kind = next(kind for kind, (domain, _, _) in PORTS.items() if domain == port.domain)
+        flow_group = PORTS[port_kind][2]
+        effort, flow, displacement = (q.replace("_", " ") for q in (effort, flow, displacement))
+        if found:
+            self.problems.add(port.key, f"{port.kind} {force_side}.{port.names[0]} -> {motion_side}.{port.names[1]}: "
+                                        f"{len(found)} {flow} connections {motion_side} -> {force_side} "
+                                        f"({', '.join(link.key for link in found)}); cannot tell which one is its "
+                                        "bond's flow: mark it and the port with one powerBond name")
+            return None
+        self.problems.add(port.key, f"{port.kind} {force_side}.{port.names[0]} -> {motion_side}.{port.names[1]}: a "
+                                    f"quasi port exchanges the {effort} and the {displacement} but no {flow}; "
+                                    f"zencosim's power bond needs the {flow} (its residual power is {effort} x "
+                                    f"{flow}): connect the {flow} output of {motion_side} to {force_side} too "
+                                    f"({_a(flow_group)} group or a variable connection), or use {_a(port_kind)}")
+        return None
+
+    def _named_bond(self, bond_name: str, links: list[Link], ports: list[_Port]) -> Bond | None:
+        """The bond of the connections sharing a powerBond name: one effort and one flow connection of one
+        domain (by their units, or their port groups), and its displacement connections if any."""
+        roles: dict[str, list[Link]] = {"effort": [], "flow": [], "displacement": []}
+        domains = set()
+        for link in links:
+            domain, role = BOND_ROLES.get(link.quantity, (None, "other"))
+            domains.add(domain)
+            roles.setdefault(role, []).append(link)
+        keys = " and ".join(dict.fromkeys(link.key for link in links))
+        if len(domains) != 1 or None in domains or len(roles["effort"]) != 1 or len(roles["flow"]) != 1:
+            found = ", ".join(link.text() for link in links)
+            self.problems.add(keys, f"powerBond {bond_name!r}: expected one effort and one flow connection of one "
+                                    "domain (force and velocity, torque and angular velocity, pressure and volume "
+                                    "flow, or voltage and current, by the units of their variables), and its "
+                                    f"displacement connections if any, got {found}")
+            return None
+        domain = domains.pop()
+        effort = roles["effort"][0]
+        names = next((port.names for port in ports if port.effort is effort), (None, None))
+        displacement = BOND_DOMAINS[domain][2]
+        return Bond(keys, effort, roles["flow"][0], list(roles["displacement"]), name=bond_name, points=names,
+                    domain=domain, why_no_displacement=f"no {displacement} connection joins powerBond {bond_name!r}")
+
+
+def _a(noun: str) -> str:
+    return f"{'an' if noun[0].lower() in 'aeiou' else 'a'} {noun}"
 
 
 def import_osp(path: Path, duration: float | None = None, algorithm: str | None = None) -> tuple[dict, list[str]]:

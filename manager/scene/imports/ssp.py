@@ -33,7 +33,10 @@ from urllib.parse import unquote, urlparse
 from urllib.request import url2pathname
 
 from zencosim.manager.scene.imports import (
+    BOND_DOMAINS,
+    BOND_ROLES,
     MIXED,
+    QUANTITIES,
     Bond,
     Component,
     Link,
@@ -450,9 +453,10 @@ class _Import:
         return factor, offset
 
     def _bonds(self, links: list[Link]) -> tuple[list[Bond], list[Link]]:
-        """The SSP bond rule: per (force side, motion side), as many force, velocity and displacement
-        connections, the force one way and the motion the other; every other connection is a signal."""
-        pairs: dict[tuple[str, str], dict[str, list[Link]]] = {}
+        """The SSP bond rule: per (force side, motion side, domain), as many effort connections one way as flow
+        connections the other, and as many displacement connections as those or none; every other connection
+        is a signal."""
+        pairs: dict[tuple[str, str, str], dict[str, list[Link]]] = {}
         signals: list[Link] = []
         seen_inputs: dict[tuple[str, str], str] = {}
         for link in links:
@@ -462,33 +466,37 @@ class _Import:
                                             f"{first}")
             if link.quantity == MIXED:
                 continue
-            if link.quantity == "force":
-                pair = (link.source.name, link.target.name)
-            elif link.quantity in ("velocity", "displacement"):
-                pair = (link.target.name, link.source.name)
-            else:
+            if link.quantity not in BOND_ROLES:
                 signals.append(link)
                 continue
-            pairs.setdefault(pair, {"force": [], "velocity": [], "displacement": []})[link.quantity].append(link)
+            domain, role = BOND_ROLES[link.quantity]
+            sides = (link.source.name, link.target.name) if role == "effort" else (link.target.name, link.source.name)
+            group = pairs.setdefault((*sides, domain), {"effort": [], "flow": [], "displacement": []})
+            group[role].append(link)
         bonds = []
-        for (force_side, motion_side), found in pairs.items():
-            counts = {quantity: len(group) for quantity, group in found.items()}
+        for (force_side, motion_side, domain), found in pairs.items():
+            counts = {role: len(group) for role, group in found.items()}
             keys = " and ".join(link.key for group in found.values() for link in group)
-            if len(set(counts.values())) != 1:
+            effort, flow, displacement = BOND_DOMAINS[domain]
+            if counts["effort"] != counts["flow"] or counts["displacement"] not in (0, counts["effort"]) \
+                    or not counts["effort"]:
+                units = {q: QUANTITIES[q][0] for q in (effort, flow, displacement)}
                 self.notes.append(f"{keys}: connections between {force_side} and {motion_side} form no power bond "
-                                  f"({counts['force']} force [N] {force_side} -> {motion_side}, {counts['velocity']} "
-                                  f"velocity [m/s] and {counts['displacement']} displacement [m] {motion_side} -> "
-                                  f"{force_side}; a bond has as many of each): signal couplings, whose power zencosim "
+                                  f"({counts['effort']} {effort} [{units[effort]}] {force_side} -> {motion_side}, "
+                                  f"{counts['flow']} {flow} [{units[flow]}] and {counts['displacement']} "
+                                  f"{displacement} [{units[displacement]}] {motion_side} -> {force_side}; a bond has "
+                                  f"as many of each, or no {displacement}): signal couplings, whose power zencosim "
                                   "does not monitor")
                 signals += [link for group in found.values() for link in group]
                 continue
             if not self._plain_bond(found):
                 continue
-            if counts["force"] > 1:
-                self.notes.append(f"couplings: {counts['force']} force connections {force_side} -> {motion_side} form "
-                                  "one vector bond; components in document order")
-            force, velocity = (_joined(found[q]) for q in ("force", "velocity"))
-            bond = Bond(keys, force, velocity, list(found["displacement"]))
+            if counts["effort"] > 1:
+                self.notes.append(f"couplings: {counts['effort']} {effort} connections {force_side} -> {motion_side} "
+                                  "form one vector bond; components in document order")
+            bond = Bond(keys, _joined(found["effort"]), _joined(found["flow"]), list(found["displacement"]),
+                        domain=domain, why_no_displacement=f"no {displacement} connection {motion_side} -> "
+                                                           f"{force_side}")
             if check_bond(bond, self.problems):
                 bonds.append(bond)
         order = {id(link): i for i, link in enumerate(links)}
@@ -499,21 +507,22 @@ class _Import:
         """A bond's connections carry its force, velocity and displacement as they are: only its force may be
         scaled (the coupling's ``force_factor``, one for all its components), and none offset."""
         ok = True
-        for quantity, group in found.items():
+        for role, group in found.items():
             for link in group:
-                if quantity != "force" and (link.factor != 1.0 or link.offset != 0.0):
+                if role != "effort" and (link.factor != 1.0 or link.offset != 0.0):
                     self.problems.add(link.key, f"LinearTransformation (factor {link.factor:g}, offset "
-                                                f"{link.offset:g}) on the {quantity} of a power bond: zencosim copies "
-                                                "a bond's velocity and displacement unchanged (only its force may be "
-                                                "scaled, force_factor)")
+                                                f"{link.offset:g}) on the {link.quantity} of a power bond: zencosim "
+                                                "copies a bond's velocity and displacement unchanged (only its force "
+                                                "may be scaled, force_factor)")
                     ok = False
                 elif link.offset != 0.0:
-                    self.problems.add(link.key, f"LinearTransformation offset {link.offset:g} on the force of a power "
-                                                "bond: a bond's force has no offset (a factor is its force_factor)")
+                    self.problems.add(link.key, f"LinearTransformation offset {link.offset:g} on the {link.quantity} "
+                                                "of a power bond: a bond's force has no offset (a factor is its "
+                                                "force_factor)")
                     ok = False
-        factors = {link.factor for link in found["force"]}
+        factors = {link.factor for link in found["effort"]}
         if ok and len(factors) > 1:
-            self.problems.add(" and ".join(link.key for link in found["force"]),
+            self.problems.add(" and ".join(link.key for link in found["effort"]),
                               f"the force components of one vector bond have different LinearTransformation factors "
                               f"({', '.join(f'{f:g}' for f in sorted(factors))}); zencosim scales a bond's force by "
                               "one force_factor")
