@@ -36,7 +36,16 @@ MASS1_START = {"m": 1.0, "k": 10.0, "c": 0.1, "kc": 100.0, "cc": 0.1, "x0": 0.0,
 MASS2_START = {"m": 1.0, "k": 1000.0, "c": 0.1, "x0": 0.0, "v0": -100.0}
 
 UNITS = {"kg": {"kg": 1}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "m": {"m": 1},
-         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}, "mm": {"m": 1, "factor": 0.001}}
+         "m/s": {"m": 1, "s": -1}, "N": {"kg": 1, "m": 1, "s": -2}, "mm": {"m": 1, "factor": 0.001},
+         # the other domains' variants (DOMAIN_UNITS below)
+         "kg.m2": {"kg": 1, "m": 2}, "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1},
+         "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "N.m": {"kg": 1, "m": 2, "s": -2},
+         "rad/s": {"rad": 1, "s": -1}, "rad": {"rad": 1},
+         "kg/m4": {"kg": 1, "m": -4}, "Pa/m3": {"kg": 1, "m": -4, "s": -2}, "Pa.s/m3": {"kg": 1, "m": -4, "s": -1},
+         "Pa": {"kg": 1, "m": -1, "s": -2}, "m3/s": {"m": 3, "s": -1}, "m3": {"m": 3},
+         "H": {"kg": 1, "m": 2, "s": -2, "A": -2}, "V/C": {"kg": 1, "m": 2, "s": -4, "A": -2},
+         "Ohm": {"kg": 1, "m": 2, "s": -3, "A": -2}, "V": {"kg": 1, "m": 2, "s": -3, "A": -1}, "A": {"A": 1},
+         "C": {"A": 1, "s": 1}}
 
 
 @dataclass(frozen=True)
@@ -84,6 +93,27 @@ DESCRIPTION = {"mass1": "mass 1 of paper 000's two_mass_damped with the coupling
                "mass1_own": "mass 1 of paper 000's two_mass_damped with the coupling spring-damper; "
                             "f1 is the force of the coupling element on mass 1 (its own point)",
                "mass2_mm": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it; x2 in mm"}
+
+# the same equations in the other domains of power bonds (tests/interop/test_domains_osp.py): the C source is
+# the same (units are the modelDescription's only), the units those of an inertia, a stiffness, a damping, an
+# effort, a flow and a displacement: rotational (kg.m2, N.m/rad, N.m.s/rad; N.m, rad/s, rad), hydraulic
+# (inertance kg/m4, Pa/m3, Pa.s/m3; Pa, m3/s, m3), electrical (inductance H, elastance V/C, resistance Ohm;
+# V, A, C). mass1_<domain> and mass2_<domain>.
+DOMAIN_UNITS = {  # domain -> units of (m, k and kc, c and cc, effort, flow, displacement)
+    "rotational": ("kg.m2", "N.m/rad", "N.m.s/rad", "N.m", "rad/s", "rad"),
+    "hydraulic": ("kg/m4", "Pa/m3", "Pa.s/m3", "Pa", "m3/s", "m3"),
+    "electrical": ("H", "V/C", "Ohm", "V", "A", "C"),
+}
+_ROLE_OF = {"m": 0, "k": 1, "kc": 1, "c": 2, "cc": 2, "fc": 3, "fc_in": 3, "v0": 4, "v2_in": 4, "v1": 4, "v2": 4,
+            "x0": 5, "x2_in": 5, "x1": 5, "x2": 5}
+for _number, (_domain, _units) in enumerate(DOMAIN_UNITS.items(), start=1):
+    for _mass in ("1", "2"):
+        _model = f"mass{_mass}_{_domain}"
+        MODELS[_model] = tuple(Var(v.name, v.causality, _units[_ROLE_OF[v.name]], v.start, v.depends, v.initial)
+                               for v in MODELS[f"mass{_mass}"])
+        BUILD[_model] = (_mass, ())
+        GUID[_model] = f"{{a3c5e0f2-5d0b-4c52-9a1e-peer0{_number}mass0{_mass}}}"
+        DESCRIPTION[_model] = f"{DESCRIPTION[f'mass{_mass}']}; in {_domain} units ({', '.join(_units[3:])})"
 
 
 def model_identifier(model: str) -> str:

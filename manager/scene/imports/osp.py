@@ -409,7 +409,7 @@ class _Import:
         source, outputs, target, inputs = oriented
         found = link_quantity(key, source, outputs, target, inputs, self.problems, self.declared_units,
                               self._definitions())
-        if quantity is not None and found is not None and not same_quantity(found, quantity):
+        if quantity is not None and found not in (None, MIXED) and not same_quantity(found, quantity):
             self.problems.add(key, f"a {quantity} group whose variables are in units of {found}")
         link = Link(key, source, outputs, target, inputs, quantity or found, bond)
         self.links.append(link)
