@@ -210,6 +210,13 @@ def _ms(value: float | None) -> str:
     return "–" if value is None else f"{value * 1e3:.3g}"
 
 
+def _cost_cell(inproc: dict) -> str:
+    """The median cost and, when the repeats differ, their spread (fastest–slowest) [ms/s]."""
+    low, high = inproc.get("loop_cpu_min_per_s"), inproc.get("loop_cpu_max_per_s")
+    spread = f" ({_ms(low)}–{_ms(high)})" if low is not None and high is not None and low != high else ""
+    return _ms(inproc.get("loop_cpu_per_s")) + spread
+
+
 def _number(value: float | None, digits: int = 3) -> str:
     return "–" if value is None else f"{value:.{digits}g}"
 
@@ -233,7 +240,7 @@ def methods_table(study: dict) -> list[str]:
 def points_table(study: dict) -> list[str]:
     """Every point of a study as Markdown table lines."""
     head = ["method", "step [ms]", f"NRMS {study['signal']}", "energy error", "stable (analysis / run)",
-            "CPU [ms/s]", "wall [ms/s]", "Zenoh wall [ms/s]", "exchanges", "Pareto"]
+            "CPU [ms/s] (fastest–slowest)", "wall [ms/s]", "Zenoh wall [ms/s]", "exchanges", "Pareto"]
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     verdict = {True: "yes", False: "no", None: "–"}
     for r in sorted(study["points"], key=lambda r: (r["method"], r["macro_step"])):
@@ -241,7 +248,7 @@ def points_table(study: dict) -> list[str]:
         nrms = r["nrms"].get(study["signal"])
         cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms), _number(r["energy_error"]),
                  f"{verdict[r['stable_predicted']]} / {verdict[r['stable_run']]}" + (" (failed)" if r["failed"] else ""),
-                 _ms(inproc.get("loop_cpu_per_s")), _ms(inproc.get("loop_wall_per_s")), _ms(zenoh.get("loop_wall_per_s")),
+                 _cost_cell(inproc), _ms(inproc.get("loop_wall_per_s")), _ms(zenoh.get("loop_wall_per_s")),
                  str(zenoh.get("exchanges", "–")), "yes" if r["pareto"] else ""]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
@@ -259,7 +266,8 @@ def markdown(study: dict, images: str = "") -> str:
              + f" ({run['points']} points, {len(study['grid']['skipped'])} combinations that do not run skipped). "
              f"In process: {run['repeats']} runs per point (medians), {machine['workers']} workers on "
              f"{machine['cpus']} cores; over Zenoh: {run['zenoh_points']} points, {run['zenoh_repeats']} run(s) each. "
-             f"Load average at the end: {load}. Cost: CPU time of the stepping loop per simulated second.", "",
+             f"Load average at the end: {load}. Cost: CPU time of the stepping loop per simulated second; "
+             f"{study['answer']['tie_rule']}.", "",
              f"![error against cost]({images}error_cost.png)", "",
              f"![error against macro-step]({images}error_step.png)", "",
              f"![largest stable macro-step]({images}stability.png)", "",

@@ -18,7 +18,7 @@ from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.study import tradeoffs
 from zencosim.manager.study.cache import StudyCache
 from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
-from zencosim.manager.study.measure import measure_zenoh, predicted_stability
+from zencosim.manager.study.measure import count_exchanges, measure_zenoh, predicted_stability
 from zencosim.manager.study.workers import measure_tasks
 
 ZENOH_CHOICES = ("pareto", "answers", "all", "none")  # answers: the cheapest point meeting each of TARGETS
@@ -53,7 +53,8 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
 
     rows = [_row(p, entries[p.key], signal_name) for p in points]
     _mark_pareto(rows)
-    answers = {_cheapest(rows, target) for target in TARGETS} if options.zenoh == "answers" else set()
+    exchanges = _exchange_counter(scene, entries, cache)
+    answers = {_cheapest(rows, target, exchanges)[0] for target in TARGETS} if options.zenoh == "answers" else set()
     chosen = [r for r in rows if r["failed"] is None
               and (options.zenoh == "all" or (options.zenoh == "pareto" and r["pareto"]) or r["key"] in answers)]
     if progress is not None and chosen:
@@ -83,7 +84,7 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
                     "zencosim": version("zencosim")},
         "points": rows,
         "methods": methods,
-        "answer": _answer(rows, signal_name, options.target),
+        "answer": _answer(rows, signal_name, options.target, exchanges),
         "run": {"points": len(points), "ran": len(todo), "cached": len(points) - len(todo),
                 "zenoh_points": len(chosen), "repeats": options.repeats, "zenoh_repeats": options.zenoh_repeats,
                 "wall_s": time.perf_counter() - started},
@@ -104,10 +105,14 @@ def _measure_in_process(todo: list[dict], workers: int, cache: StudyCache, entri
 
 def _row(point: Point, entry: dict, signal_name: str) -> dict:
     measured = entry["inproc_point"]
+    inproc = measured["inproc"]
+    if inproc is not None and "loop_cpu_min_per_s" not in inproc:  # cached before the spread was kept: none known
+        inproc = {**inproc, "loop_cpu_min_per_s": inproc["loop_cpu_per_s"],
+                  "loop_cpu_max_per_s": inproc["loop_cpu_per_s"]}
     return {"key": point.key, "method": point.method, "macro_step": point.macro_step, "values": point.values,
-            "overrides": list(point.overrides), "derived": list(point.derived), **measured,
+            "overrides": list(point.overrides), "derived": list(point.derived), **measured, "inproc": inproc,
             "error": measured["nrms"].get(signal_name) if measured["stable"] else None,
-            "zenoh": None, "pareto": False}
+            "exchanges_per_s": entry.get("exchanges_per_s"), "zenoh": None, "pareto": False}
 
 
 def _cost(row: dict) -> float | None:
@@ -173,29 +178,68 @@ def _stability_limit(scene: Scene, members: list[dict], steps: list[float], stab
     return high
 
 
-def _cheapest(rows: list[dict], target: float) -> str | None:
-    """The key of the cheapest stable point with an error at most ``target`` (None: no point meets it)."""
+def _exchange_counter(scene: Scene, entries: dict, cache: StudyCache) -> Callable[[dict], float]:
+    """Commands sent per simulated second at a point (a row), counted in an in-process run when first asked (only
+    points tied on cost are) and kept in its cache entry and its row."""
+    def exchanges_per_s(row: dict) -> float:
+        entry = entries[row["key"]]
+        if entry.get("exchanges_per_s") is None:
+            point_scene = load_scene(scene.path, list(row["overrides"]))
+            entry["exchanges_per_s"] = count_exchanges(point_scene) / point_scene.manager.duration
+            cache.write(row["key"], entry)
+        row["exchanges_per_s"] = entry["exchanges_per_s"]
+        return row["exchanges_per_s"]
+    return exchanges_per_s
+
+
+def _cost_range(row: dict) -> tuple[float, float]:
+    """The fastest and the slowest of the repeats' costs [s/s]: the spread of the measured cost."""
+    return row["inproc"]["loop_cpu_min_per_s"], row["inproc"]["loop_cpu_max_per_s"]
+
+
+def _cheapest(rows: list[dict], target: float, exchanges: Callable[[dict], float]) -> tuple[str | None, list[str]]:
+    """The key of the stable point with an error at most ``target`` to recommend, and the keys of the points tied
+    with the cheapest on cost (``tradeoffs.answer``; None and [] when no point meets it)."""
     candidates = [r for r in rows if _cost(r) is not None]
-    best = tradeoffs.cheapest([_cost(r) for r in candidates], [r["error"] for r in candidates],
-                              [r["stable"] for r in candidates], target)
-    return None if best is None else candidates[best]["key"]
+    best, tied = tradeoffs.answer([_cost(r) for r in candidates], [_cost_range(r) for r in candidates],
+                                  [r["error"] for r in candidates], [r["stable"] for r in candidates], target,
+                                  lambda i: exchanges(candidates[i]))
+    return None if best is None else candidates[best]["key"], [candidates[i]["key"] for i in tied]
 
 
-def _answer(rows: list[dict], signal_name: str, target: float) -> dict:
-    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers."""
-    best = _cheapest(rows, target)
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3g} ms"
+
+
+def _answer(rows: list[dict], signal_name: str, target: float, exchanges: Callable[[dict], float]) -> dict:
+    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers; a tie on cost
+    within the measured spread is said and broken by ``tradeoffs.TIE_RULE``."""
+    best, tied = _cheapest(rows, target, exchanges)
     if best is None:
         return {**dict.fromkeys(("point", "method", "macro_step", "error", "inproc_loop_cpu_per_s",
-                                 "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s")),
+                                 "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s")), "tied": [],
+                "tie_rule": tradeoffs.TIE_RULE,
                 "text": f"no point of the grid reaches {signal_name} NRMS ≤ {target * 100:g} % with a stable run"}
     row = next(r for r in rows if r["key"] == best)
     zenoh = row["zenoh"]
     over_zenoh = ("not measured over Zenoh" if zenoh is None
                   else f"{zenoh['loop_wall_per_s'] * 1e3:.3g} ms of wall time over Zenoh")
-    text = (f"for {signal_name} NRMS ≤ {target * 100:g} % the cheapest setting is {method_label(row['values'])} "
-            f"(NRMS {row['error']:.3g}), costing {_cost(row) * 1e3:.3g} ms of CPU time "
-            f"({row['inproc']['loop_wall_per_s'] * 1e3:.3g} ms of wall time) per simulated second in process "
-            f"and {over_zenoh}")
+    costing = (f"costing {_cost(row) * 1e3:.3g} ms of CPU time ({row['inproc']['loop_wall_per_s'] * 1e3:.3g} ms of "
+               f"wall time) per simulated second in process and {over_zenoh}")
+    if len(tied) == 1:
+        text = (f"for {signal_name} NRMS ≤ {target * 100:g} % the cheapest setting is {method_label(row['values'])} "
+                f"(NRMS {row['error']:.3g}), {costing}")
+    else:
+        by_key = {r["key"]: r for r in rows}
+        costs = "; ".join(
+            f"{method_label(by_key[k]['values'])}: {_ms(_cost(by_key[k]))} ({_ms(_cost_range(by_key[k])[0])} to "
+            f"{_ms(_cost_range(by_key[k])[1])}), {exchanges(by_key[k]):.6g} exchanges/s, NRMS "
+            f"{by_key[k]['error']:.3g}" for k in tied)
+        text = (f"for {signal_name} NRMS ≤ {target * 100:g} % {len(tied)} settings cost the same within the measured "
+                f"spread of CPU time per simulated second in process (median, fastest to slowest of the repeats: "
+                f"{costs}); the tie is broken by fewer exchanges, then lower NRMS: {method_label(row['values'])} "
+                f"(NRMS {row['error']:.3g}), {costing}")
     return {"point": row["key"], "method": row["method"], "macro_step": row["macro_step"], "error": row["error"],
             "inproc_loop_cpu_per_s": _cost(row), "inproc_loop_wall_per_s": row["inproc"]["loop_wall_per_s"],
-            "zenoh_loop_wall_per_s": None if zenoh is None else zenoh["loop_wall_per_s"], "text": text}
+            "zenoh_loop_wall_per_s": None if zenoh is None else zenoh["loop_wall_per_s"], "tied": tied,
+            "tie_rule": tradeoffs.TIE_RULE, "text": text}

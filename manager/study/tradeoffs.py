@@ -6,7 +6,7 @@ table they are).
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -57,3 +57,37 @@ def cheapest(costs: Sequence[float], errors: Sequence[float], stable: Sequence[b
     """Index of the cheapest stable point with ``error <= target`` (the lower error among equal costs)."""
     meeting = [i for i, (e, ok) in enumerate(zip(errors, stable)) if ok and e is not None and e <= target]
     return min(meeting, key=lambda i: (costs[i], errors[i])) if meeting else None
+
+
+TIE_RULE = ("costs whose measured ranges (fastest to slowest of the repeats) overlap that of the cheapest are tied; "
+            "among tied settings the one with fewer exchanges per simulated second is chosen, then the one with "
+            "the lower error, then the lower median cost")
+
+
+def tied_with(ranges: Sequence[tuple[float, float]], candidates: Sequence[int], first: int) -> list[int]:
+    """The candidates whose measured cost range ``(fastest, slowest)`` overlaps that of ``first`` (itself
+    included): their costs differ by less than the spread of the measurements, so they are not told apart."""
+    low, high = ranges[first]
+    return [i for i in candidates if ranges[i][0] <= high and ranges[i][1] >= low]
+
+
+def answer(costs: Sequence[float], ranges: Sequence[tuple[float, float]], errors: Sequence[float],
+           stable: Sequence[bool], target: float, exchanges: Callable[[int], float]) -> tuple[int | None, list[int]]:
+    """The setting to recommend for ``error <= target``, and every point tied with the cheapest (``TIE_RULE``).
+
+    The cheapest stable point meeting the target (by median cost, ``cheapest``) is the answer unless another
+    such point's cost range overlaps its range: then the costs are equal within the measured spread, and the
+    tie is broken by fewer ``exchanges(i)`` (per simulated second: asked only of tied points), then the lower
+    error, then the lower median cost. Returns ``(None, [])`` when no point meets the target; ``tied`` holds the
+    answer alone when nothing ties with it.
+    """
+    first = cheapest(costs, errors, stable, target)
+    if first is None:
+        return None, []
+    meeting = [i for i, (e, ok) in enumerate(zip(errors, stable)) if ok and e is not None and e <= target]
+    tied = tied_with(ranges, meeting, first)
+    if len(tied) == 1:
+        return first, tied
+    counted = {i: exchanges(i) for i in tied}
+    tied.sort(key=lambda i: (counted[i], errors[i], costs[i], i))
+    return tied[0], tied
