@@ -7,7 +7,8 @@ the largest difference between their trajectories.
 Needs gcc, fmpy and libcosimpy (``pip install -e '.[test]'``). The artifacts are built in a temporary
 folder: the peer pair of tests/interop (paper 000's two_mass_damped as two FMUs written for the tests) in
 five OSP system structures, its signal, transformation and unit variants (tests/interop/peer_systems.py: OSP
-and SSP files), and the FMU scenes of ``zencosim examples`` written as OSP files. "largest
+and SSP files), its rotational, electrical and hydraulic builds (tests/interop/test_domains_osp.py), and the FMU
+scenes of ``zencosim examples`` written as OSP files. "largest
 difference" is max |a - b| / max |b| over the coupling signals (x2, v2 and the force), b the run named in
 "against"; NRMS is that of x2 against the analytic solution (paper 000 Eq. 42) where the system is
 two_mass_damped. docs/interop.md shows a run of it and explains the numbers.
@@ -121,6 +122,42 @@ def signals_and_ssp(table: Table, root: Path, reference: np.ndarray) -> None:
     _, mm = zencosim_run(variants["mm"])
     table.add("peer SSP `mm` (x2 in mm)", "zencosim", "the SSP file, in process", nrms(mm["x2"], reference),
               difference(mm, theirs), "libcosim, `mm_transformed`")
+
+
+def domains(table: Table, root: Path, reference: np.ndarray) -> None:
+    """The peer pair in rotational, electrical and hydraulic units (tests/interop/test_domains_osp.py): an
+    AngularMechanicalPort bond with its angle, an ElectromagneticPort bond without charge (displacement = []),
+    a hydraulic powerBond pair by units with its volume; a port of mixed domains, refused by zencosim."""
+    from tests.interop.test_domains_osp import write_domain_system
+
+    what = {"rotational": "AngularMechanicalPort + AngularDisplacement", "electrical": "ElectromagneticPort alone",
+            "hydraulic": "powerBond Pa, m3/s + m3"}
+    for domain, ran in what.items():
+        path = write_domain_system(root / domain, domain)
+        run = run_osp(path, END_TIME, PEER.values())
+        keys = PEER if domain != "electrical" else {k: PEER[k] for k in ("v2", "fc")}  # no charge exchanged
+        theirs = {signal: run[key] for signal, key in keys.items()}
+        error = nrms(run[PEER["x2"]], reference) if domain != "electrical" else None
+        artifact = f"peer {domain} ({ran})"
+        table.add(artifact, "libcosim", "the OSP file", error, None)
+        scene = zencosim.load_scene(path)
+        result = zencosim.run(scene)
+        (coupling,) = scene.couplings
+        ours = {"v2": result.signal(f"{coupling}.v").values, "fc": result.signal(f"{coupling}.f").values}
+        if "x2" in theirs:
+            ours["x2"] = result.signal(f"{coupling}.x").values
+        table.add(artifact, "zencosim", f"the OSP file, in process ({domain} bond)",
+                  None if error is None else nrms(ours["x2"], reference), difference(ours, theirs), "libcosim")
+    path = write_domain_system(root / "mixed", "rotational", models=("mass1", "mass2_rotational"))
+    run_osp(path, END_TIME, PEER.values())
+    table.add("peer mixed (N connected as a Torque)", "libcosim", "the OSP file", None, None)
+    try:
+        zencosim.load_scene(path)
+        outcome = "ran (expected a refusal)"
+    except zencosim.SceneError as error:
+        outcome = f"refused: SceneError, {len(error.problems)} problems"
+        print(error, file=sys.stderr)
+    table.add("peer mixed (N connected as a Torque)", "zencosim", outcome, None, None)
 
 
 def fmpy_ssp(ssd: Path) -> dict:
@@ -244,6 +281,7 @@ def main() -> int:
         root = Path(tmp)
         peer_pair(table, root / "peer", reference, args.zenoh)
         signals_and_ssp(table, root / "signals", reference)
+        domains(table, root / "domains", reference)
         examples(table, root / "examples", reference)
         single_fmu(table, root / "single")
     text = table.markdown()

@@ -5,12 +5,13 @@ Interface Specification's variable groups: :mod:`.osp`) or an SSP system (a ``.s
 ``.ssd`` file: :mod:`.ssp`) and returns a scene document, a dict that ``tomli_w`` writes and
 ``manager.scene.load.scene_from_text`` reads, together with notes: every assumption the mapping made.
 Each FMU becomes a ``model = "fmu"`` subsystem; each power bond (a force one way, the velocity and the
-displacement of the point it acts on the other way) becomes a ``force_displacement`` coupling whose
-force side is the FMU that outputs the force; every other connection of real variables becomes a
-``signal`` coupling (the output's value copied into the input); an FMU coupled to nothing runs free and
-publishes its outputs. Whatever cannot be mapped (an algorithm other than fixed step, a connection of
-Integer or Boolean variables, an input connected twice, a variable group type zencosim does not know, a
-step size that is not a whole number of base steps, a missing FMU, a unit zencosim cannot read) raises
+displacement of the point it acts on the other way; in another domain its effort, flow and displacement:
+torque, angular velocity, angle; pressure, volume flow, volume; voltage, current, charge) becomes a
+``force_displacement`` coupling of its ``domain`` whose force side is the FMU that outputs the effort;
+every other connection of real variables becomes a ``signal`` coupling (the output's value copied into the
+input); an FMU coupled to nothing runs free and publishes its outputs. Whatever cannot be mapped (an
+algorithm other than fixed step, a connection of Integer or Boolean variables, an input connected twice, a
+variable group type zencosim does not know, a quasi port without its flow, a step size that is not a whole number of base steps, a missing FMU, a unit zencosim cannot read) raises
 :class:`~zencosim.manager.scene.load.SceneError` naming the file, the element and what is wrong; nothing
 is dropped silently. FMU paths in the document are relative to the imported file's directory, where the
 scene is meant to be written. The mapping, and the bond rules of each format: docs/system-imports.md.

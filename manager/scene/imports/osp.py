@@ -9,15 +9,21 @@ connections), ``VariableGroupConnection`` (two ``VariableGroup`` elements naming
 ``SignalConnection`` and ``SignalGroupConnection`` (to functions). Variable groups are declared, per the
 OSP Interface Specification, in ``<modelName>_OspModelDescription.xml`` beside the FMU, else beside the
 system structure (libcosim's lookup): ``VariableGroups`` holding typed groups (``LinearMechanicalPort``
-of a ``Force`` and a ``LinearVelocity``, ``LinearDisplacement``, ``Generic``, …) of ``Variable ref=…``
-elements, with optional ``UnitDefinitions``.
+of a ``Force`` and a ``LinearVelocity``, ``AngularMechanicalPort`` of a ``Torque`` and an
+``AngularVelocity``, ``HydraulicPort`` of a ``Pressure`` and a ``VolumeFlowRate``, ``ElectromagneticPort``
+of a ``Voltage`` and a ``Current``, the quasi ports of an effort and a displacement, the displacement
+groups ``LinearDisplacement``, ``AngularDisplacement``, ``Volume``, ``Charge``, ``Generic``, …) of
+``Variable ref=…`` elements, with optional ``UnitDefinitions``.
 
-A power bond is declared: a ``VariableGroupConnection`` of two ``LinearMechanicalPort`` groups, or two
-``VariableConnection``/``VariableGroupConnection`` elements (force and velocity) sharing a ``powerBond``
-name (libcosim's marker). Its force side is the simulator whose force variables are outputs (FMU
-causality). Its displacement is a ``LinearDisplacement`` group connection or plain connections of
-variables in metres, from the motion side's outputs to the force side's inputs. Every other connection of
-real variables is a ``signal`` coupling: the output's value copied into the input, as libcosim copies it.
+A power bond, of the domain its port type or its units say (translational, rotational, hydraulic,
+electrical), is declared: a ``VariableGroupConnection`` of two port groups, or connections (an effort and
+a flow, and displacements if any) sharing a ``powerBond`` name (libcosim's marker), or a quasi port
+connection together with the one flow connection from its motion side to its force side (a quasi port has
+no flow, which zencosim's bond needs: without it the file is refused). Its force side is the simulator
+whose effort variables are outputs (FMU causality). Its displacement is a displacement group connection or
+plain connections of variables in the domain's displacement unit, from the motion side's outputs to the
+force side's inputs; without one the coupling's displacement is ``[]``. Every other connection of real
+variables is a ``signal`` coupling: the output's value copied into the input, as libcosim copies it.
 A simulator coupled to nothing runs free and publishes its outputs. Functions (and the signal connections
 to them) are refused. Namespaces are ignored (OSP has used several).
 """

@@ -9,10 +9,12 @@ baseStepSize`` in the ``DefaultExperiment``, ``osp:StepSizeHint value`` in a com
 own ``DefaultExperiment stepSize`` — a component's ``implementation`` and a connection's transformation.
 
 SSP has no power-bond marker, so a bond is recognised by one rule, from the units the FMUs declare
-(modelDescription, base-unit exponents): between two components F and M, the connections of force
-outputs [N] of F to inputs of M, and of velocity [m/s] and displacement [m] outputs of M to inputs of F,
-form one bond with force side F when there are equally many of each (n >= 1; the i-th of each, in
-document order, is component i of a vector bond). Every other connection of real variables — another
+(modelDescription, base-unit exponents): between two components F and M, the connections of effort
+outputs of F to inputs of M (force [N], torque [N.m], pressure [Pa], voltage [V]) and of flow outputs of M
+to inputs of F (velocity [m/s], angular velocity [rad/s], volume flow [m3/s], current [A]) of one domain
+form one bond of that domain with force side F when there are equally many (n >= 1), with as many
+displacement outputs of M to F (m, rad, m3, C) or none (``displacement = []``); the i-th of each, in
+document order, is component i of a vector bond. Every other connection of real variables — another
 quantity, no unit, counts that differ — is a ``signal`` coupling: the output's value copied into the
 input. A ``ssc:LinearTransformation`` (factor, offset) maps to the signal coupling's ``factor`` and
 ``offset``, or on a bond's force connection to its ``force_factor`` (a force has no offset; a bond's
