@@ -11,9 +11,10 @@ torque, angular velocity, angle; pressure, volume flow, volume; voltage, current
 every other connection of real variables becomes a ``signal`` coupling (the output's value copied into the
 input); an FMU coupled to nothing runs free and publishes its outputs. Whatever cannot be mapped (an
 algorithm other than fixed step, a connection of Integer or Boolean variables, an input connected twice, a
-variable group type zencosim does not know, a quasi port without its flow, a step size that is not a whole number of base steps, a missing FMU, a unit zencosim cannot read) raises
-:class:`~zencosim.manager.scene.load.SceneError` naming the file, the element and what is wrong; nothing
-is dropped silently. FMU paths in the document are relative to the imported file's directory, where the
+variable group type zencosim does not know, a quasi port without its flow, a step size that is not a whole
+number of base steps, a missing FMU, a unit zencosim cannot read) raises
+:class:`~zencosim.manager.scene.load.SceneError` naming the file, the element and what is wrong; nothing is
+dropped silently. FMU paths in the document are relative to the imported file's directory, where the
 scene is meant to be written. The mapping, and the bond rules of each format: docs/system-imports.md.
 
 What both formats share is here: the FMUs and the quantities of their variables (from the units of their
