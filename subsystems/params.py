@@ -13,7 +13,6 @@ dotted key it concerns, so that a scene loader can report all of them at once.
 from __future__ import annotations
 
 import dataclasses
-import re
 import types
 import typing
 from dataclasses import dataclass, field
