@@ -82,10 +82,14 @@ def design(scene: Scene, model: LinearModel, poles: np.ndarray | None = None,
     (default ``runtime_architecture``); ``SceneError`` when it cannot be designed."""
     architecture = runtime_architecture(model) if architecture is None else architecture
     try:
-        result = design_compensator(model, interface_of(scene), architecture, PADE_ORDER, seed=DESIGN_SEED,
-                                    poles=poles)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow there ends in the LinAlgError below
+            result = design_compensator(model, interface_of(scene), architecture, PADE_ORDER, seed=DESIGN_SEED,
+                                        poles=poles)
     except NotAssignableError as error:
         raise _refuse(scene, str(error)) from None
+    except np.linalg.LinAlgError as error:  # a scene whose k/m spans too many orders for the design's algebra
+        raise _refuse(scene, f"the compensator cannot be designed for this scene: its linear algebra failed "
+                             f"({error}); the stiffness-to-mass ratios span too many orders of magnitude") from None
     if not result.margin_met:
         raise _refuse(scene, f"the compensated latent roots reach Re s = {result.latent_abscissa:.4g} 1/s; "
                       f"expected <= {-result.margin:.4g} 1/s")

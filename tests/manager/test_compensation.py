@@ -172,3 +172,13 @@ def test_marginal_tolerance_is_round_off_of_a_symplectic_spectrum():
     # spectral radius of the compensated undamped runtime is within 1e-12 of it (measured 2e-13)
     result = scene_compensator(load_scene("two_mass_undamped", COMPENSATED))
     assert abs(result.scheme.spectral_radius - 1.0) < 1e-3 * MARGINAL
+
+
+def test_a_compensator_whose_design_algebra_fails_is_refused_in_one_line():
+    # a microgram mass on a 1e12 N/m coupling: inside the plausibility bounds, but k/m spans 22 orders of magnitude
+    # and the design's SVD does not converge; a scene error naming manager.compensation, not a LinAlgError
+    with pytest.raises(SceneError) as caught:
+        scene_compensator(load_scene("four_mass", ["subsystems.S1.bodies.m1.mass=1e-9",
+                                                   "manager.compensation=eigenstructure"]))
+    ((key, reason),) = [(p.key, p.reason) for p in caught.value.problems]
+    assert key == "manager.compensation" and "linear algebra failed" in reason
