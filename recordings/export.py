@@ -31,6 +31,10 @@ def recorded_signals(recording: Recording) -> dict[str, Signal]:
     last_step = recording.last_step()
     trajectories = []
     for sub in plan.subsystems:
+        names = recording.channels[f"{sub.name}/y"].spec.names
+        if list(names) != [port.name for port in sub.outputs]:  # another subsystem's replies, or another model's
+            raise RecordingError(f"{recording.path}: channel {sub.name}/y holds {', '.join(names)}; its scene's "
+                                 f"{sub.name} has {', '.join(p.name for p in sub.outputs)}{recording.damage_note()}")
         outputs = np.full((plan.n_ticks // sub.ratio + 1, len(sub.outputs)), np.nan)
         for message in recording.channels[f"{sub.name}/y"].messages:
             if message.kind == Kind.OUTPUT and message.step <= last_step:
