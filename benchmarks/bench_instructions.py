@@ -1,6 +1,6 @@
 """Instructions per in-process macro-step of two_mass_damped and of its plain-Python floor, counted by valgrind.
 
-    python benchmarks/bench_instructions.py [--tree DIR] [--recording]
+    python benchmarks/bench_instructions.py [--tree DIR] [--recording] [--fmu]
 
 Wall time on a shared machine swings with what else runs; the number of instructions a step executes
 does not. Each figure is the difference of two runs under ``valgrind --tool=cachegrind`` (``STEPS``
@@ -11,7 +11,10 @@ call, and their instructions made two counts of the same run differ by a third. 
 were 80 instructions apart, with the seed fixed 1). ``--tree DIR``
 (repeatable) counts the in-process step of another source tree too (see bench_runtime.py).
 ``--recording`` counts what recording adds to the stepping loop: the loop alone, with the manager's
-status, and with the status and the recorder's tap (its frames dropped: no recorder process). Needs valgrind.
+status, and with the status and the recorder's tap (its frames dropped: no recorder process). ``--fmu`` counts
+the same system with both subsystems as the example C FMUs (``zencosim examples``: two_mass_damped_fmu.toml) and,
+where libcosimpy is installed, libcosim stepping the same two FMUs from an OSP file of that scene (issue 26's
+reference: 9,382 instructions per step). Needs valgrind.
 """
 from __future__ import annotations
 
@@ -35,7 +38,14 @@ else:
     from zencosim.manager.run import execute
     from zencosim.manager.scene.load import load_scene
 scene = load_scene("two_mass_damped", [f"manager.duration={{int(sys.argv[2]) / 1000}}"])
-if sys.argv[1] == "floor":
+if sys.argv[1] == "fmu":  # the example FMUs' scene, in the directory argv[4]
+    execute(load_scene(sys.argv[4] + "/two_mass_damped_fmu.toml", [f"manager.duration={{int(sys.argv[2]) / 1000}}"]),
+            "inproc")
+elif sys.argv[1] == "libcosim":  # the same FMUs stepped by libcosim from the OSP file in argv[4]
+    from libcosimpy.CosimExecution import CosimExecution
+    execution = CosimExecution.from_osp_config_file(sys.argv[4])
+    execution.simulate_until(int(sys.argv[2]) * 1_000_000)
+elif sys.argv[1] == "floor":
     floor_x2(parameters(scene), int(sys.argv[2]))
 elif sys.argv[1] == "run":
     execute(scene, "inproc")
@@ -46,10 +56,10 @@ else:  # the stepping loop: "plain", with the "status", with the status and the 
 """
 
 
-def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
+def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str = "") -> int:
     program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-                             sys.executable, "-c", program, what, str(steps), layout],
+                             sys.executable, "-c", program, what, str(steps), layout, where],
                             env={**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1",
                                  "OMP_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}, capture_output=True, text=True)
     if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
@@ -58,9 +68,30 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str) -> int:
     return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
 
 
-def per_step(what: str, pythonpath: str = "", layout: str = "package") -> float:
-    low, high = (instructions(what, n, pythonpath, layout) for n in STEPS)
+def per_step(what: str, pythonpath: str = "", layout: str = "package", where: str = "") -> float:
+    low, high = (instructions(what, n, pythonpath, layout, where) for n in STEPS)
     return (high - low) / (STEPS[1] - STEPS[0])
+
+
+def fmu_pair(show) -> None:
+    """The in-process step with both subsystems as the example C FMUs, and libcosim's step of the same FMUs."""
+    import tempfile
+
+    from zencosim.examples.write import write_examples
+    with tempfile.TemporaryDirectory() as directory:
+        write_examples(Path(directory))
+        zencosim_count = per_step("fmu", where=directory)
+        show("in-process step, two C FMUs", zencosim_count)
+        try:
+            import libcosimpy  # noqa: F401
+            sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+            from tests.interop.scene_osp import write_osp
+        except ImportError as error:
+            print(f"libcosim not counted: {error}", flush=True)
+            return
+        osp = write_osp(Path(directory) / "two_mass_damped_fmu.toml", Path(directory) / "OspSystemStructure.xml")
+        libcosim_count = per_step("libcosim", where=str(osp))
+        show(f"libcosim's step, the same FMUs (zencosim: {zencosim_count / libcosim_count:.1f}x)", libcosim_count)
 
 
 def main() -> int:
@@ -68,6 +99,7 @@ def main() -> int:
     parser.add_argument("--tree", type=Path, action="append", default=[],
                         help="also count the step of this source tree (before/after; repeatable)")
     parser.add_argument("--recording", action="store_true", help="also count the step with the status and the tap")
+    parser.add_argument("--fmu", action="store_true", help="also count the step with two C FMUs, and libcosim's")
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
@@ -86,6 +118,8 @@ def main() -> int:
         for what, label in (("status", "stepping loop with the status"), ("tap", "stepping loop with status and tap")):
             count = per_step(what)
             show(f"{label} (+{100 * (count / plain - 1):.1f} %)", count)
+    if args.fmu:
+        fmu_pair(show)
     for tree in args.tree:
         from bench_runtime import package_farm
         farm = package_farm(tree)

@@ -34,6 +34,7 @@ from zencosim.subsystems.units import BASE, UnitError, exponents
 
 INTERFACES = {"co-simulation": "coSimulation", "model-exchange": "modelExchange"}
 REAL_TYPES = ("Real", "Float64")
+_WARNING = 1  # fmi2Warning and fmi3Warning: a status above it (discard, error, fatal) fails the call
 # FMI type -> (kind, the fmpy setter and getter of an FMI 2.0 or 3.0 instance): Integer and Boolean variables
 # are exchanged as float64 values like every other and converted at the FMU's boundary
 DISCRETE_TYPES = {"Integer": ("Integer", "Integer"), "Int32": ("Integer", "Int32"), "Int64": ("Integer", "Int64"),
@@ -215,6 +216,16 @@ class _FmuInstance:
         return FmuError(f"FMU {self.path.name}: {error.function} failed with status {error.status} "
                         f"({_STATUS.get(error.status, 'unknown')}) while {what} at t = {self.time:.9g} s")
 
+    def _real_calls(self, set_name: str, get_name: str) -> None:
+        """The FMU's own set and get of its real variables, called on the preallocated arrays: fmpy's ctypes
+        functions with the argument types fmpy gave them (``getattr`` on its library keeps them), without its
+        Python wrapper, which logs and checks every call (``set_inputs`` and ``get_outputs`` check the status)."""
+        fmu, n_u, n_y = self.fmu, len(self._u_view), len(self._y_view)
+        self._set, self._get = getattr(fmu.dll, set_name), getattr(fmu.dll, get_name)
+        extra = self.version == "3"  # FMI 3.0 takes the number of values too
+        self._set_arguments = (fmu.component, self._inputs, n_u, self._u) + ((n_u,) if extra else ())
+        self._get_arguments = (fmu.component, self._outputs, n_y, self._y) + ((n_y,) if extra else ())
+
     def _discrete(self, names: tuple[str, ...], types: dict[str, str], verb: str) -> list[tuple]:
         """(positions, value references, fmpy's setter or getter, Boolean?) of the Integer and Boolean variables
         among ``names``, one entry per FMI type."""
@@ -236,11 +247,15 @@ class _FmuInstance:
             u = u[self._real_u]
         if len(self._u_view):
             self._u_view[:] = u
-            self._set(self._inputs, len(self._u_view), self._u)
+            status = self._set(*self._set_arguments)
+            if status > _WARNING:
+                raise self.FailedCall(function=self._set.__name__, status=status)
 
     def get_outputs(self) -> np.ndarray:
         if len(self._y_view):
-            self._get(self._outputs, len(self._y_view), self._y)
+            status = self._get(*self._get_arguments)
+            if status > _WARNING:
+                raise self.FailedCall(function=self._get.__name__, status=status)
         if not self._discrete_y:
             return self._y_view.copy()
         y = np.empty(self._n_outputs)
@@ -290,20 +305,18 @@ class FmuCoSimulation(_FmuInstance):
 
     def _initialise(self, start: dict[str, float]) -> None:
         fmu = self.fmu
+        self._real_calls("fmi2SetReal", "fmi2GetReal") if self.version == "2" else \
+            self._real_calls("fmi3SetFloat64", "fmi3GetFloat64")
         if self.version == "2":
-            self._set, self._get = (lambda vr, n, v: fmu.fmi2SetReal(fmu.component, vr, n, v),
-                                    lambda vr, n, v: fmu.fmi2GetReal(fmu.component, vr, n, v))
             self._serialize, self._deserialize = fmu.serializeFMUstate, fmu.deSerializeFMUstate
             fmu.setupExperiment(startTime=0.0)
             _set_start(fmu.setReal, self.references, start)
         else:
-            self._set, self._get = (lambda vr, n, v: fmu.fmi3SetFloat64(fmu.component, vr, n, v, n),
-                                    lambda vr, n, v: fmu.fmi3GetFloat64(fmu.component, vr, n, v, n))
             self._serialize, self._deserialize = fmu.serializeFMUState, fmu.deserializeFMUState
             _set_start(fmu.setFloat64, self.references, start)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
-        self._step = fmu.doStep
+        self._step = getattr(fmu.dll, "fmi2DoStep") if self.version == "2" else fmu.doStep
 
     def initial_state(self) -> np.ndarray:
         return np.zeros(0)
@@ -312,10 +325,15 @@ class FmuCoSimulation(_FmuInstance):
         self.time = t
         try:
             self.set_inputs(u)
-            result = self._step(t, h, False)  # False: zencosim may set an earlier state (rollback)
+            if self.version == "2":  # 0: no fmi2SetFMUstate to an earlier time promised (zencosim may roll back)
+                status = self._step(self.fmu.component, t, h, 0)
+                if status > _WARNING:
+                    raise self.FailedCall(function="fmi2DoStep", status=status)
+                return
+            result = self._step(t, h, False)
         except self.FailedCall as error:
             raise self.failure(error, "doStep") from None
-        if self.version == "3" and result[1]:  # terminateSimulation
+        if result[1]:  # terminateSimulation
             raise FmuError(f"FMU {self.path.name}: asked to terminate the simulation at t = {t:.9g} s")
 
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -342,8 +360,7 @@ class FmuModelExchange(_FmuInstance):
 
     def _initialise(self, start: dict[str, float]) -> None:
         fmu = self.fmu
-        self._set = lambda vr, n, v: fmu.fmi2SetReal(fmu.component, vr, n, v)
-        self._get = lambda vr, n, v: fmu.fmi2GetReal(fmu.component, vr, n, v)
+        self._real_calls("fmi2SetReal", "fmi2GetReal")
         fmu.setupExperiment(startTime=0.0)
         _set_start(fmu.setReal, self.references, start)
         fmu.enterInitializationMode()

@@ -189,6 +189,9 @@ class ExternalModel:
         self._u_factor, self._u_offset = np.array(ports.u_factor), np.array(ports.u_offset)
         self._table = None if expose_all else spec.input_table
         self._u_convert = bool(np.any(self._u_factor != 1.0) or np.any(self._u_offset != 0.0))
+        self._u_plain = (self._table is None and not self._u_convert and len(ports.u_columns) == len(self.inputs)
+                         and np.array_equal(self._u_columns, np.arange(len(self.inputs)))
+                         and bool(np.all(self._u_scale == 1.0)))
         self._y = ports.assembly()
         variables = spec.description.variables
         self.component_start = {name: variables[name].to_component(value) for name, value in spec.start.items()}
@@ -202,6 +205,8 @@ class ExternalModel:
     def _u(self, t: float, w: np.ndarray) -> np.ndarray:
         """The component's inputs at time ``t`` [s] from zencosim's (signed) and the input table's, converted
         into the component's units."""
+        if self._u_plain:  # zencosim's inputs are the component's, in order, unscaled and in SI
+            return w
         u = w[self._u_columns] * self._u_scale
         if self._table is not None:
             u = np.concatenate((u, self._table.at(t)))
@@ -224,6 +229,8 @@ class ExternalModel:
     def outputs_at(self, t: float, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         component = self.instance.outputs(t, z, self._u(t, w))
         a = self._y
+        if a.identity:  # the component's outputs, in order, in SI, untransformed (a fresh array)
+            return component
         y = np.empty(len(self.outputs))
         if a.convert:  # to SI, then signed
             y[a.rows] = (component[a.indices] * a.factors + a.offsets) * a.scales
@@ -528,12 +535,16 @@ class _Ports:
         rows = {kind: np.array([i for i, s in enumerate(self.output_sources) if s[0] == kind], dtype=np.intp)
                 for kind in ("variable", "input", "constant")}
         factors, offsets = np.array(select("variable", 3)), np.array(select("variable", 4))
-        shifts = np.array(select("variable", 5))
-        return _Assembly(rows["variable"], np.array(select("variable", 1), dtype=np.intp),
-                         np.array(select("variable", 2)), factors, offsets,
-                         bool(np.any(factors != 1.0) or np.any(offsets != 0.0)), shifts, bool(np.any(shifts != 0.0)),
+        shifts, scales = np.array(select("variable", 5)), np.array(select("variable", 2))
+        indices = np.array(select("variable", 1), dtype=np.intp)
+        convert, shift = bool(np.any(factors != 1.0) or np.any(offsets != 0.0)), bool(np.any(shifts != 0.0))
+        every = np.arange(len(self.output_sources))
+        identity = (not convert and not shift and bool(np.all(scales == 1.0))
+                    and np.array_equal(rows["variable"], every) and np.array_equal(indices, every)
+                    and len(self.component_outputs) == len(every))
+        return _Assembly(rows["variable"], indices, scales, factors, offsets, convert, shifts, shift,
                          rows["input"], np.array(select("input", 1), dtype=np.intp), rows["constant"],
-                         np.array(select("constant", 1)))
+                         np.array(select("constant", 1)), identity)
 
 
 class _Assembly(NamedTuple):
@@ -554,6 +565,7 @@ class _Assembly(NamedTuple):
     input_columns: np.ndarray
     constant_rows: np.ndarray
     constants: np.ndarray
+    identity: bool  # every output is a component output, in order, as it is: y is the component's array
 
 
 def _port_of(name: str, description: ComponentDescription) -> Port:
