@@ -3,6 +3,7 @@ communication point, with SSP's linear transformation, checked against FMPy runn
 name both ends."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -194,3 +195,10 @@ input = "A.u"
     assert [(p.key, p.reason) for p in caught.value.problems] == [
         ("couplings", "outputs with direct feedthrough form an algebraic loop: A.ab <- B.ba <- A.ab; an explicit "
                       "scheme cannot initialise them")]
+
+
+def test_check_lists_the_signal_connections(examples):
+    run = subprocess.run([sys.executable, "-m", "zencosim", "check", str(scene(examples, extra="extrapolation = 1"))],
+                         capture_output=True, text=True, timeout=120, env={**os.environ, "COLUMNS": "200"})
+    assert run.returncode == 0, run.stderr
+    assert f"signal connections: u (S1.fc -> S2.f_in, × {FACTOR:g} + {OFFSET:g}, order 1)" in run.stdout

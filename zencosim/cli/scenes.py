@@ -32,8 +32,18 @@ def cmd_check(args: argparse.Namespace) -> int:
     out.print(f"[bold]scene {escape(scene.name)}[/]: valid — {escape(scene.description)}")
     for note in scene.notes:
         out.print(escape(f"  mapped: {note}"), highlight=False)
+    bonds = [f"{c.name}" + (f" ({c.settings.domain})" if c.settings.domain != "translational" else "")
+             for c in scene.couplings.values() if c.kind == "force_displacement"]
     out.print(f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s, scheme {scene.manager.scheme}, "
-              f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(b.name for b in plan.bonds) or 'none'}")
+              f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(bonds) or 'none'}")
+    signals = [c for c in scene.couplings.values() if c.kind == "signal"]
+    if signals:
+        out.print(escape("signal connections: " + ", ".join(
+            f"{c.name} ({c.settings.output} -> {c.settings.input}"
+            + (f", × {c.settings.factor:g} + {c.settings.offset:g}" if (c.settings.factor, c.settings.offset) != (1, 0)
+               else "")
+            + (f", order {c.settings.extrapolation}" if c.settings.extrapolation is not None else "") + ")"
+            for c in signals)))
     if scene.manager.implicit is not None:
         joints = ", ".join(f"{c.name} ({c.settings.decomposition})" for c in scene.couplings.values())
         out.print(escape(f"implicit coupling: {scene.manager.implicit.coupling_method()}, k = {scene.manager.extrapolation}, "
