@@ -9,14 +9,19 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import signal
 import socket
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 import zenoh
 
+import zencosim.examples
 from tests.conftest import alive, children_of, cmdline, read_until, summary_of, wait_for
 from zencosim.manager.bus.zenoh_session import free_tcp_port, key, session_config, wait_for_listener
 from zencosim.manager.wire.protocol import Kind, encode, encode_error
@@ -186,3 +191,52 @@ def test_a_frozen_recorder_holds_the_run_back_and_is_named_not_a_subsystem(proce
     assert "did not answer" not in stderr and "takes messages again after" in stderr
     recording = read_recording(mcap)
     assert recording.truncated is None and recording.end["outcome"] == "completed" and recording.end["lost"] == 0
+
+
+# The example model with a fault, chosen by the environment variable FAULT, once its time reaches 10 ms
+FAULTY_MODEL = """
+import os, sys, time
+from zencosim.examples.oscillator import Oscillator
+
+
+class Faulty(Oscillator):
+    def __init__(self, **parameters):
+        if os.environ["FAULT"] == "init":
+            raise RuntimeError("cannot open its lookup table")
+        super().__init__(**parameters)
+
+    def acceleration(self, t, z, u):
+        fault = os.environ["FAULT"]
+        if t >= 0.01:
+            if fault == "exit":
+                sys.exit(0)
+            if fault == "interrupt":
+                raise KeyboardInterrupt
+            if fault == "hang":
+                time.sleep(600)
+        return super().acceleration(t, z, u)
+"""
+
+
+def _faulty_run(processes, tmp_path, fault: str, bus: str, *options: str):
+    """The example two_mass_damped_python scene with S2's model failing by ``fault``: the finished manager's exit status
+    and standard error."""
+    (tmp_path / "faulty_model.py").write_text(FAULTY_MODEL)
+    scene = (Path(zencosim.examples.__file__).parent / "scenes" / "two_mass_damped_python.toml").read_text()
+    head, _, tail = scene.partition("[subsystems.S2]")
+    scene_file = tmp_path / "faulty.toml"
+    scene_file.write_text(head + "[subsystems.S2]" + tail.replace("zencosim.examples.oscillator:Oscillator",
+                                                                  "faulty_model:Faulty", 1))
+    path = os.pathsep.join(filter(None, [str(tmp_path), os.environ.get("PYTHONPATH")]))
+    manager = processes("run", str(scene_file), "--bus", bus, "--quiet", "--set", "manager.duration=0.5", *options,
+                        env={**os.environ, "PYTHONPATH": path, "FAULT": fault})
+    _, stderr = manager.communicate(timeout=120)
+    return manager.returncode, stderr
+
+
+@pytest.mark.timeout(120)
+def test_a_model_that_raises_in_its_constructor_is_named_with_the_exception(processes, tmp_path):
+    status, stderr = _faulty_run(processes, tmp_path, "init", "inproc")
+    assert status == 2 and "Traceback" not in stderr, stderr
+    assert ("subsystems.S2: model faulty_model:Faulty: its constructor raised RuntimeError: cannot open its lookup "
+            "table") in stderr

@@ -124,7 +124,11 @@ class PythonInstance:
     def __init__(self, cls: type, description: ComponentDescription, start: dict[str, float],
                  inputs: tuple[str, ...], outputs: tuple[str, ...]) -> None:
         parameters = {**getattr(cls, "parameters", {}), **start}
-        self.model = cls(**parameters)
+        try:
+            self.model = cls(**parameters)
+        except (Exception, SystemExit) as error:  # the user's constructor: named, never a traceback
+            raise ModelClassError(f"model {cls.__module__}:{cls.__qualname__}: its constructor raised "
+                                  f"{type(error).__name__}: {error}") from None
         declared_inputs = tuple(cls.inputs)
         self._u = np.zeros(len(declared_inputs))
         self._input_at = np.array([declared_inputs.index(name) for name in inputs], dtype=np.intp)
