@@ -5,6 +5,7 @@ Commands and replies still pass through the wire protocol's ``encode``/``decode`
 """
 from __future__ import annotations
 
+from zencosim.manager.bus.signals import InterruptWatch
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.scheme.replica import Replica, Tap
@@ -20,5 +21,7 @@ def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> d
 def run_in_process(scheme, plan: Plan, subsystems: dict, tap: Tap | None = None
                    ) -> RunRecord:
     """Run ``scheme`` to its end with every subsystem of ``plan`` in this process; ``tap`` sees every
-    message (``manager.scheme.replica``)."""
-    return Replica(scheme, [s.name for s in plan.subsystems], endpoints(plan, subsystems), tap=tap).run()
+    message (``manager.scheme.replica``). A model that raises KeyboardInterrupt itself, with no SIGINT or SIGTERM
+    received, has failed (``subsystems.process.endpoint``): the watch tells the two apart."""
+    with InterruptWatch():
+        return Replica(scheme, [s.name for s in plan.subsystems], endpoints(plan, subsystems), tap=tap).run()

@@ -89,3 +89,53 @@ class DeferredSignals:
         """Put back the handlers that were there before."""
         for signum, handler in self.previous.items():
             signal.signal(signum, handler)
+
+
+class InterruptWatch:
+    """A context manager, entered in the main thread for the length of an in-process run: SIGINT and SIGTERM that
+    arrive are noted, then act as the handlers that were there would (``DeferredSignals``), so that a
+    KeyboardInterrupt can be told from one that the running code (a model) raised itself: see
+    :func:`raised_by_code`."""
+
+    active: "InterruptWatch | None" = None  # the one entered, if any
+
+    def __init__(self) -> None:
+        self.received = False
+        self.previous: dict[int, object] = {}
+        self.outer: InterruptWatch | None = None
+
+    def __enter__(self) -> "InterruptWatch":
+        if threading.current_thread() is threading.main_thread():
+            for signum in DeferredSignals.SIGNUMS:
+                handler = signal.getsignal(signum)
+                if handler is not None:  # one installed from outside Python is left alone (as DeferredSignals does)
+                    self.previous[signum] = handler
+                    signal.signal(signum, self._note)
+            self.outer, InterruptWatch.active = InterruptWatch.active, self
+        return self
+
+    def _note(self, signum: int, frame) -> None:
+        self.received = True
+        handler = self.previous[signum]
+        if callable(handler):
+            handler(signum, frame)
+        elif handler == signal.SIG_DFL:
+            signal.signal(signum, signal.SIG_DFL)
+            signal.raise_signal(signum)
+
+    def __exit__(self, *_exc) -> None:
+        if InterruptWatch.active is self:
+            InterruptWatch.active = self.outer
+        for signum, handler in self.previous.items():
+            signal.signal(signum, handler)
+        self.previous.clear()
+
+
+def raised_by_code() -> bool:
+    """Whether the KeyboardInterrupt being handled was raised by the running code itself (a model), not by the user:
+    outside the main thread always (Python runs signal handlers in the main thread only); in it, when an
+    :class:`InterruptWatch` is active and noted no SIGINT or SIGTERM (without one it cannot be told: the user's)."""
+    if threading.current_thread() is not threading.main_thread():
+        return True
+    watch = InterruptWatch.active
+    return watch is not None and not watch.received

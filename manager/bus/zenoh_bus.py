@@ -282,6 +282,8 @@ class ZenohBus:
         self._replica = Replica(scheme, self.names, tap=tap, on_drop=self._drop_reply)
         self._done = threading.Event()
         self._batches = Backlog()  # (subsystem, batch of replies); None ends
+        self._untaken = 0  # batches arrived that the follower has not finished with (under _untaken_lock)
+        self._untaken_lock = threading.Lock()
         self._error: BaseException | None = None
         self._driving = True
         self._progress = (0, time.monotonic())
@@ -341,6 +343,8 @@ class ZenohBus:
         source = publisher(sample)
         if source is not None:
             self._sources[name] = source
+        with self._untaken_lock:
+            self._untaken += 1
         self._batches.put((name, sample.payload.to_bytes()))
 
     def _follow(self) -> None:
@@ -368,6 +372,8 @@ class ZenohBus:
                 if self._driving and not self._done.is_set():
                     self._guarded(self._deliver_batch, name, batch)
             self._following = False
+            with self._untaken_lock:
+                self._untaken -= 1
 
     def _deliver_batch(self, name: str, batch: bytes) -> None:
         try:
@@ -438,7 +444,8 @@ class ZenohBus:
         deadline = time.monotonic() + SETTLE_S
         child = self.children.get(failure.subsystem)
         while time.monotonic() < deadline and not self._done.is_set():
-            quiet = self._batches.empty() and time.monotonic() - self._heard > SETTLE_QUIET_S
+            # every batch taken to the end (one the follower holds may carry the reason: a model's error)
+            quiet = self._untaken == 0 and time.monotonic() - self._heard > SETTLE_QUIET_S
             if quiet and (child is None or child.poll() is not None):
                 break
             time.sleep(0.01)

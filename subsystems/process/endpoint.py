@@ -5,6 +5,7 @@ its Zenoh subscriber), so both buses run identical arithmetic on identical bytes
 """
 from __future__ import annotations
 
+from zencosim.manager.bus.signals import raised_by_code
 from zencosim.manager.wire.protocol import Kind, ProtocolError, command_ref, decode, encode, encode_error
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.subsystem import SavedState, Subsystem
@@ -22,7 +23,8 @@ class SubsystemEndpoint:
 
     def handle(self, data: bytes) -> bytes:
         """One command in, one reply out (carrying the command's reference); a failing command is
-        answered with an ERROR message."""
+        answered with an ERROR message — also one whose model called ``sys.exit()`` or raised KeyboardInterrupt
+        itself (``manager.bus.signals.raised_by_code``); a KeyboardInterrupt of the user's goes on."""
         step, time_ns, ref = -1, -1, command_ref(data)
         try:
             message = decode(data, "manager")
@@ -30,6 +32,13 @@ class SubsystemEndpoint:
             return self._dispatch(message, ref)
         except Exception as error:  # the manager names the subsystem and stops the run
             return encode_error(step, time_ns, f"{type(error).__name__}: {error}", ref)
+        except SystemExit as error:  # the model called sys.exit(): its failure, not the end of the run
+            return encode_error(step, time_ns, f"the model exited (SystemExit {error.code})", ref)
+        except KeyboardInterrupt:
+            if not raised_by_code():
+                raise  # the user's Ctrl-C (or SIGTERM): the run is interrupted
+            return encode_error(step, time_ns, "the model raised KeyboardInterrupt (no SIGINT or SIGTERM was received)",
+                                ref)
 
     def _inputs(self, message) -> InputPolynomial:
         rows = message.rows

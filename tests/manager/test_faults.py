@@ -240,3 +240,16 @@ def test_a_model_that_raises_in_its_constructor_is_named_with_the_exception(proc
     assert status == 2 and "Traceback" not in stderr, stderr
     assert ("subsystems.S2: model faulty_model:Faulty: its constructor raised RuntimeError: cannot open its lookup "
             "table") in stderr
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("bus", ["inproc", "zenoh"])
+@pytest.mark.parametrize("fault, said", [("exit", "the model exited (SystemExit 0)"),
+                                         ("interrupt", "the model raised KeyboardInterrupt (no SIGINT or SIGTERM was "
+                                                       "received)")])
+def test_a_model_that_exits_or_raises_keyboard_interrupt_fails_the_run_named(processes, tmp_path, bus, fault, said):
+    """sys.exit() in a model's step is its failure, not a run that ended well; a KeyboardInterrupt it raises itself
+    (no Ctrl-C) is its failure, not the user's interrupt (130)."""
+    status, stderr = _faulty_run(processes, tmp_path, fault, bus)
+    assert status == 1, stderr
+    assert re.fullmatch(rf"run failed: subsystem S2: failed at step \d+: {re.escape(said)}", stderr.strip()), stderr
