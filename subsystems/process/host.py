@@ -6,7 +6,8 @@ run's scheme (``manager.scheme.replica``): it executes its own commands, publish
 other subsystems' replies from the network, in the Zenoh subscriber callback, so no thread hand-off
 sits on the critical path. Every reply goes at once to the other subsystems (``<sub>/y``); the
 manager, which only follows the run, gets them in batches (``<sub>/log``: at most ``LOG_REPLIES``
-replies or ``LOG_INTERVAL_S`` old, at once after an error and at the end), because on a machine with
+replies or ``LOG_INTERVAL_S`` old, at once after an error and at the end, and within ``SIGNAL_LOOK_S`` when the
+replica waits), because on a machine with
 fewer cores than processes every message a process handles costs CPU that the critical path needs.
 When its replica has finished, the process reports the timing of the steps as it released them
 (``<sub>/timing``). It ends on STOP, on SIGINT/SIGTERM, or when the manager disappears.
@@ -145,6 +146,18 @@ class _Host:
         if (len(self.unsent) >= LOG_REPLIES or reply[1] == Kind.ERROR
                 or time.monotonic() - self.last_sent >= LOG_INTERVAL_S):
             self.send_log()
+
+    def send_idle_log(self) -> None:
+        """Send the replies the manager has not had when none has been published for ``LOG_INTERVAL_S`` (from the
+        main thread, between its looks for a signal; skipped while a callback holds the lock). A replica that waits
+        for a peer's reply publishes nothing new: without this, its last replies waited with it, and the manager,
+        which takes every reply in order, named it as the subsystem that did not answer instead of the peer."""
+        if self.unsent and time.monotonic() - self.last_sent >= LOG_INTERVAL_S and self.lock.acquire(blocking=False):
+            try:
+                if self.unsent and not self.finished.is_set():
+                    self.send_log()
+            finally:
+                self.lock.release()
 
     def send_log(self) -> None:
         if self.unsent:
@@ -296,6 +309,7 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         entities.append(session.liveliness().declare_token(key(run_id, name, "ready")))
         while not host.ended(signals):
             host.finished.wait(SIGNAL_LOOK_S)
+            host.send_idle_log()
         # leaving must not hang on a peer or a manager that is gone: past this limit the process exits as it is
         deadline_timer = threading.Timer(EXIT_LIMIT_S, _exit_now, (name, host.reasons[0]))
         deadline_timer.daemon = True

@@ -253,3 +253,13 @@ def test_a_model_that_exits_or_raises_keyboard_interrupt_fails_the_run_named(pro
     status, stderr = _faulty_run(processes, tmp_path, fault, bus)
     assert status == 1, stderr
     assert re.fullmatch(rf"run failed: subsystem S2: failed at step \d+: {re.escape(said)}", stderr.strip()), stderr
+
+
+@pytest.mark.timeout(120)
+def test_a_subsystem_that_hangs_in_its_step_is_the_one_named(processes, tmp_path):
+    """S2 sleeps in its step; S1, healthy, waits for its reply: S2 is named, never S1 (whose last replies, before
+    the wait, reach the manager although S1 publishes nothing new)."""
+    status, stderr = _faulty_run(processes, tmp_path, "hang", "zenoh", "--set", "manager.timeout=2")
+    assert status == 1 and "Traceback" not in stderr, stderr
+    assert stderr.startswith("run failed: subsystem S2: did not answer within the timeout of 2 s (manager.timeout)"), \
+        stderr
