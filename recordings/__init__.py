@@ -7,3 +7,8 @@ class RecordingError(RuntimeError):
 
 class RecorderLost(RuntimeError):
     """The recorder process of a run is gone (killed, crashed) while the run went on (``--record-lost stop``)."""
+
+
+class RecorderFailed(RecorderLost):
+    """The recorder process of a run could not start, or could not write the file (a full disk), or stopped
+    making progress; the message names it and says why (exit status 1, as a run that failed)."""

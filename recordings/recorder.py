@@ -1,14 +1,17 @@
 """The manager's handle on a recorder process (recordings.recorder_process) and a live view
 (recordings.rerun_live): the observers of a run.
 
-``start`` spawns each process (it dies with the manager, and runs at idle priority: it takes the CPU
-time the run leaves), sends it the run's description and waits until it is ready; ``exchange``, the tap
+``start`` spawns each process (it dies with the manager), sends it the run's description and waits until it is
+ready — for as long as it makes progress, so that a busy machine slows its start but never fails it — and
+then lowers it to idle priority (it takes the CPU time the run leaves); ``exchange``, the tap
 of the manager's replica (in process, or following a Zenoh run), hands it every message through a pipe —
 the tap only appends the messages and their channels to two lists, and every ``BATCH_MESSAGES``
 messages (every ``HANDOVER_S`` of a real-time run) they go down the pipe as one frame, to every observer, so
 validation, encoding and compression (and the live view) run in the other processes, on the other core.
 A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
 handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
+A recorder that cannot write (a full disk) says why on its standard output before it exits, and the line
+that names it gone says so.
 """
 from __future__ import annotations
 
@@ -32,19 +35,19 @@ from typing import Callable
 import numpy as np
 import tomli_w
 
-from zencosim.manager.bus.children import exit_reason, process_state, start_child
+from zencosim.manager.bus.children import cpu_time_s, exit_reason, process_state, start_child, working
 from zencosim.manager.bus.signals import DeferredSignals
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings import RecorderLost, RecordingError
+from zencosim.recordings import RecorderFailed, RecorderLost, RecordingError
 from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
 from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
 
-READY_TIMEOUT_S = 30.0  # the recorder process must be ready within this time
-FINISH_TIMEOUT_S = 120.0  # and have written the file within this time after END
+STALL_S = 10.0  # an observer that makes no progress for this long fails (the scene's manager.timeout, once known)
+PROGRESS_LOOK_S = 0.5  # while it is waited for, its CPU time and state are looked at this often [s]
 PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
 BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
 HANDOVER_S = 0.01  # and a real-time run's at least every this much run time [s] (a live view's 100 frames/s)
@@ -59,7 +62,10 @@ OBSERVER_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1"}
 def _lowest_priority(pid: int) -> None:
     """Process ``pid`` takes the CPU time the run leaves: SCHED_IDLE (Linux: any other task that wakes up
     preempts it, and it still gets a small share of a busy CPU, so it cannot starve), else nice 19; where
-    neither is allowed it competes with the run as an equal. Backpressure, not priority, keeps every message."""
+    neither is allowed it competes with the run as an equal. Backpressure, not priority, keeps every message.
+
+    Only once it is ready: started at idle priority on a machine whose cores other work keeps busy, its
+    start-up (Python, numpy: about half a second of CPU) got a small share of a CPU and took minutes."""
     try:
         os.sched_setscheduler(pid, os.SCHED_IDLE, os.sched_param(0))
     except (OSError, AttributeError):
@@ -86,7 +92,6 @@ class _Observer:
         self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
                                    env={**os.environ, **OBSERVER_ENVIRONMENT})
         self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
-        _lowest_priority(self.process.pid)
         fd = self.process.stdin.fileno()
         try:
             fcntl.fcntl(fd, F_SETPIPE_SZ, PIPE_BYTES)
@@ -135,22 +140,49 @@ class _Observer:
         return self.capacity is None or unread[0] == 0 or self.capacity - unread[0] >= size
 
     def ended(self) -> str:
-        """How the process ended (``"killed by SIGKILL"``), waiting for it a moment."""
+        """How the process ended (``"killed by SIGKILL"``, ``"exited with code 1: writing the file failed: No
+        space left on device"`` with the reason it said), waiting for it a moment."""
         try:
             self.process.wait(STOP_WAIT_S)
         except subprocess.TimeoutExpired:
             return "its input is closed, although it runs"
-        return exit_reason(self.process.returncode)
+        said = self._said()
+        return exit_reason(self.process.returncode) + (f": {said}" if said else "")
 
-    def event(self, timeout_s: float, doing: str) -> dict:
-        """The process's next JSON line on standard output."""
-        stdout = self.process.stdout
-        if not select.select([stdout], [], [], timeout_s)[0]:
-            raise RecordingError(f"{self.what} did not {doing} within {timeout_s:g} s{self.log_tail()}")
+    def _said(self) -> str | None:
+        """The reason the exited process gave for failing (an ``error`` or ``failed`` event left on its output)."""
+        stdout, said = self.process.stdout, None
+        while select.select([stdout], [], [], 0)[0]:
+            line = stdout.readline()
+            if not line:
+                break
+            try:
+                event = json.loads(line)
+            except ValueError:
+                continue
+            if isinstance(event, dict) and event.get("event") in ("error", "failed"):
+                said = str(event.get("reason"))
+        return said
+
+    def event(self, stall_s: float, doing: str) -> dict:
+        """The process's next JSON line on standard output, waited for as long as the process makes progress
+        (uses CPU, or waits only for a CPU or its disk: a busy machine slows it, never fails it); :class:`RecorderFailed`
+        when it exits first, or makes none for ``stall_s`` (frozen, or waiting for what does not come)."""
+        stdout, pid = self.process.stdout, self.process.pid
+        still_from, cpu = time.monotonic(), cpu_time_s(pid)
+        while not select.select([stdout], [], [], PROGRESS_LOOK_S)[0]:
+            now, used = time.monotonic(), cpu_time_s(pid)
+            if used > cpu or working(pid):
+                still_from, cpu = now, used
+            elif now - still_from >= stall_s:
+                state = process_state(pid) or "uses no CPU and waits"
+                raise RecorderFailed(f"the {self.what} did not {doing}: its process {state}, with no progress for "
+                                     f"{stall_s:g} s (manager.timeout){self.log_tail()}")
         line = stdout.readline()
         if not line:
             self.process.wait()
-            raise RecordingError(f"{self.what} exited with code {self.process.returncode}{self.log_tail()}")
+            raise RecorderFailed(f"the {self.what} did not {doing}: it {exit_reason(self.process.returncode)}"
+                                 f"{self.log_tail()}")
         return json.loads(line)
 
     def close(self) -> None:
@@ -205,7 +237,7 @@ class Recorder:
         self.on_lost = on_lost
         self.announce = announce or (lambda text: None)
         self.lost: str | None = None  # why the recorder process is gone, when it is
-        self._stall_s = READY_TIMEOUT_S  # an observer that takes nothing for this long is said (manager.timeout)
+        self._stall_s = STALL_S  # an observer that takes nothing for this long is said (manager.timeout)
         self._step = 0  # the last step whose status went down the pipe
         self._lost_at: tuple[int, dict[str, int]] = (0, {})  # the step and what was handed over when the recorder was lost
         self.result: dict | None = None
@@ -241,7 +273,10 @@ class Recorder:
                                                  "channels": channels}, lossy=True)
 
     def _start(self, module: str, what: str, start: dict, lossy: bool = False) -> tuple[_Observer, dict]:
-        """An observer process given its START frame, once it is ready; and what it said then."""
+        """An observer process given its START frame, once it is ready (waited for as long as it makes progress,
+        at normal priority; then lowered to idle priority); and what it said then. One that refuses its START
+        (a path it cannot open, a viewer it cannot reach) is bad input (:class:`RecordingError`); one that exits,
+        stops making progress or cannot write has failed (:class:`RecorderFailed`)."""
         observer = _Observer(module, what, lossy)
         self._observers.append(observer)
         payload = json.dumps(start).encode()
@@ -249,9 +284,12 @@ class Recorder:
             observer.write((FRAME.pack(CONTROL, len(payload), time_ns()), payload), self._stall_s, self._stalled)
         except BrokenPipeError:
             pass  # it exited at once: event() says why
-        ready = observer.event(READY_TIMEOUT_S, "start")
+        ready = observer.event(self._stall_s, "start")
+        if ready["event"] == "failed":
+            raise RecorderFailed(f"the {what} could not start: {ready.get('reason')}")
         if ready["event"] != "ready":
             raise RecordingError(ready.get("reason", f"{what} failed to start"))
+        _lowest_priority(observer.process.pid)
         return observer, ready
 
     def _hold_signals(self) -> None:
@@ -390,12 +428,16 @@ class Recorder:
                     pass
         for observer in self._observers:
             try:  # one that is gone may have finished before it went (SIGTERM): its end is on its output
-                end = observer.event(FINISH_TIMEOUT_S if observer.gone is None else STOP_WAIT_S, "finish")
-            except RecordingError:
+                end = observer.event(self._stall_s if observer.gone is None else STOP_WAIT_S, "finish")
+            except RecorderFailed:
                 if observer.process.poll() is None and observer.gone is None:
-                    raise  # it did not finish in time
+                    raise  # it stopped making progress before it finished
                 if observer.gone is None:
                     self._lose(observer, stop=False)  # it died after the last frame
+                continue
+            if end.get("event") == "failed":  # it could not write the end of the file (a full disk)
+                if observer.gone is None:
+                    self._lose(observer, stop=False, said=end.get("reason"))
                 continue
             if observer is self._recorder:
                 observer.process.wait()
@@ -433,10 +475,12 @@ class Recorder:
                 except BrokenPipeError:
                     self._lose(observer)
 
-    def _lose(self, observer: _Observer, stop: bool = True) -> None:
-        """``observer``'s process is gone: say so; for the recorder under ``on_lost == "stop"`` (and ``stop``),
-        raise :class:`RecorderLost`."""
+    def _lose(self, observer: _Observer, stop: bool = True, said: str | None = None) -> None:
+        """``observer``'s process is gone (``said``: the reason it gave, already read from its output): say so; for
+        the recorder under ``on_lost == "stop"`` (and ``stop``), raise :class:`RecorderLost`."""
         observer.gone = observer.ended()
+        if said and said not in observer.gone:
+            observer.gone += f": {said}"
         if observer is not self._recorder:
             self.announce(f"the {observer.what} is gone ({observer.gone}); the run goes on without it")
             return

@@ -17,7 +17,8 @@ the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
 (also sent by the kernel when the manager dies) and an end of input without END finish the file with
-what has arrived. Standard output gets one JSON line when ready and one when finished.
+what has arrived. Standard output gets one JSON line when ready and one when finished; a write that fails
+(a full disk) ends it with status 1 after a line that says why (``failed``).
 """
 from __future__ import annotations
 
@@ -151,6 +152,13 @@ def observe() -> tuple[FrameReader, dict | None]:
     return frames, json.loads(first[1])
 
 
+def failed(error: OSError) -> int:
+    """A write to the file failed (a full disk, an I/O error): the reason goes on standard output, where the
+    manager reads why the recorder is gone (``recordings.recorder``), and the process exits with status 1."""
+    announce({"event": "failed", "reason": f"writing the file failed: {error.strerror or error}"})
+    return 1
+
+
 def main() -> int:
     frames, start = observe()
     if start is None:
@@ -158,13 +166,19 @@ def main() -> int:
     try:
         writer = RecordingWriter(start["path"], start["metadata"], start["scene_toml"],
                                  [ChannelSpec.from_metadata(c["topic"], c["metadata"]) for c in start["channels"]])
-    except RecordingError as error:
+    except RecordingError as error:  # a path it cannot open
         announce({"event": "error", "reason": str(error)})
         return 2
+    except OSError as error:  # the first records did not fit
+        return failed(error)
     frames.idle = writer.flush_if_due
     announce({"event": "ready"})
-    outcome, published = record_pipe(frames, writer)
-    announce({"event": "finished", **writer.finish(outcome, published)})
+    try:
+        outcome, published = record_pipe(frames, writer)
+        end = writer.finish(outcome, published)
+    except OSError as error:
+        return failed(error)
+    announce({"event": "finished", **end})
     return 0
 
 

@@ -65,6 +65,13 @@ def process_state(pid: int) -> str | None:
     return _STATES.get(fields[0]) if fields else None
 
 
+def working(pid: int) -> bool:
+    """Linux: whether process ``pid`` is running, waiting only for a CPU (state R) or for its disk (state D): slowed
+    by a busy machine, not waiting for something that may never come."""
+    fields = _stat_fields(pid)
+    return bool(fields) and fields[0] in ("R", "D")
+
+
 def cpu_time_s(pid: int) -> float:
     """The CPU time [s] process ``pid`` has used so far (user and system, ``/proc/PID/stat``; 0 where it cannot
     be read)."""

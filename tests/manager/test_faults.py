@@ -263,3 +263,79 @@ def test_a_subsystem_that_hangs_in_its_step_is_the_one_named(processes, tmp_path
     assert status == 1 and "Traceback" not in stderr, stderr
     assert stderr.startswith("run failed: subsystem S2: did not answer within the timeout of 2 s (manager.timeout)"), \
         stderr
+
+
+# Starts CPU-bound processes, writes their ids to a file, then becomes the command after it: in the run's session,
+# so that Linux's autogroups (one per session) do not shelter the run from them
+BUSY_PREFIX = ("import os, subprocess, sys\n"
+               "loop = [sys.executable, '-c', 'while True: pass']\n"
+               "busy = [subprocess.Popen(loop) for _ in range(int(sys.argv[1]))]\n"
+               "open(sys.argv[2], 'w').write(' '.join(str(process.pid) for process in busy))\n"
+               "os.execv(sys.argv[3], sys.argv[3:])\n")
+
+
+@pytest.mark.timeout(300)
+def test_a_recorded_run_starts_on_a_machine_kept_busy(processes, tmp_path):
+    """Every core busy with two CPU-bound processes: the recorder starts at normal priority (at idle priority it got
+    almost no CPU and did not start within a fixed 30 s) and its start is waited for as long as it makes progress;
+    the run completes. The busy processes end once the recording is open: the rest is the recorder's usual work."""
+    mcap, pids = tmp_path / "busy.mcap", tmp_path / "busy.pids"
+    cores = len(os.sched_getaffinity(0))
+    manager = processes("run", "two_mass_damped", "--record", str(mcap), "--quiet", "--set", "manager.duration=0.1",
+                        prefix=(sys.executable, "-c", BUSY_PREFIX, str(2 * cores), str(pids)))
+    try:
+        wait_for(lambda: mcap.exists() or manager.poll() is not None, 280, "the recorder to open the recording")
+    finally:
+        busy = wait_for(lambda: pids.exists() and pids.read_text(), 60, "the busy processes' ids")
+        for pid in map(int, busy.split()):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+    _, stderr = manager.communicate(timeout=120)
+    assert manager.returncode == 0, stderr
+    recording = read_recording(mcap)
+    assert recording.truncated is None and recording.end["outcome"] == "completed" and recording.end["lost"] == 0
+
+
+@pytest.mark.timeout(120)
+def test_a_recording_that_cannot_be_written_at_start_says_why(processes, tmp_path):
+    """/dev/full takes no byte (ENOSPC): the recorder says so, and the run fails (1), not bad input (2)."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system")
+    mcap = tmp_path / "full.mcap"
+    mcap.symlink_to("/dev/full")
+    manager = processes("run", "two_mass_damped", "--record", str(mcap), "--quiet")
+    _, stderr = manager.communicate(timeout=120)
+    assert manager.returncode == 1 and "Traceback" not in stderr, stderr
+    assert stderr.strip() == (f"run failed: the recorder of {mcap} could not start: writing the file failed: No space "
+                              "left on device"), stderr
+
+
+@pytest.fixture
+def tiny_disk(tmp_path):
+    """A 64 KiB tmpfs (root, and a system that lets it mount one), unmounted at the end."""
+    where = tmp_path / "tiny"
+    where.mkdir()
+    try:
+        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(where)],
+                                 capture_output=True, text=True)
+    except OSError as error:
+        pytest.skip(f"cannot mount a tmpfs: {error}")
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs: {mounted.stderr.strip()}")
+    try:
+        yield where
+    finally:
+        subprocess.run(["umount", "-l", str(where)], check=False)
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("bus", ["inproc", "zenoh"])
+def test_a_full_disk_while_recording_is_named_with_its_cause(processes, tiny_disk, bus):
+    mcap = tiny_disk / "run.mcap"
+    manager = processes("run", "two_mass_damped", "--bus", bus, "--record", str(mcap), "--quiet")
+    _, stderr = manager.communicate(timeout=120)
+    assert manager.returncode == 1 and "Traceback" not in stderr, stderr
+    assert stderr.startswith(f"run failed: the recorder of {mcap} is gone (exited with code 1: writing the file "
+                             "failed: No space left on device) at step "), stderr
