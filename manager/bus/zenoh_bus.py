@@ -61,6 +61,17 @@ START_DELAY_NS = 50_000_000  # the first step is released this long after the st
 PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
 SETTLE_S = 2.0  # a failure is reported after the follower has taken what was sent before it, waiting at most this
 SETTLE_QUIET_S = 0.2  # and until no batch has arrived for this long
+STALLED_S = 2.0  # the manager's watch loop (every 0.05 s) not running for this long: the manager itself stalled
+
+
+class ManagerStalled(SubsystemFailure):
+    """A run that failed after the manager's own process did not run for a while (stopped with SIGSTOP, starved
+    of CPU): the subsystems lost its Zenoh session, so the failure they report is the manager's, and says so."""
+
+    def __init__(self, stalled_s: float, failure: SubsystemFailure) -> None:
+        self.subsystem, self.stalled_s = failure.subsystem, stalled_s
+        RuntimeError.__init__(self, f"the manager did not run for {stalled_s:.1f} s (its process was stopped or "
+                                    f"starved of CPU), so its Zenoh session lapsed; then {failure}")
 
 
 class ZenohBus:
@@ -298,8 +309,11 @@ class ZenohBus:
         with self._lock:
             self._go.put(json.dumps({"start_unix_ns": start_unix_ns, "realtime": realtime}).encode())
             self._guarded(self._replica.start)
+        stalled_s, tick = 0.0, time.monotonic()  # the longest the watch loop did not run, and its last run
         try:
             while not self._done.wait(0.05):
+                now = time.monotonic()
+                stalled_s, tick = max(stalled_s, now - tick), now
                 failure = self._watchdog()
                 if failure is not None:
                     with self._lock:
@@ -310,6 +324,8 @@ class ZenohBus:
             follower.join()
         wall_s = time.perf_counter() - started - (START_DELAY_NS * 1e-9 if realtime else 0.0)
         self._driving = False
+        if isinstance(self._error, SubsystemFailure) and stalled_s >= STALLED_S:  # the follower's failures too
+            raise ManagerStalled(stalled_s, self._error)
         if self._error is not None:
             raise self._error
         record = self._replica.result

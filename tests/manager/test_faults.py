@@ -339,3 +339,24 @@ def test_a_full_disk_while_recording_is_named_with_its_cause(processes, tiny_dis
     assert manager.returncode == 1 and "Traceback" not in stderr, stderr
     assert stderr.startswith(f"run failed: the recorder of {mcap} is gone (exited with code 1: writing the file "
                              "failed: No space left on device) at step "), stderr
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+def test_a_manager_stopped_longer_than_its_session_lives_names_itself_not_a_subsystem(processes):
+    """SIGSTOP on the manager for longer than Zenoh keeps a silent session (10 s): its subsystems lose it and
+    stop; the run fails naming the manager's stall first, not a subsystem's session or process as the cause."""
+    manager = processes("run", "two_mass_damped", "--bus", "zenoh", "--realtime", "--set", "manager.duration=60")
+    lines = read_until(manager.stderr, "subsystem processes connected, starting", 120)
+    time.sleep(1.0)
+    os.kill(manager.pid, signal.SIGSTOP)
+    try:
+        time.sleep(20.0)  # twice the session's lease: a frozen process sends nothing, however loaded the host is
+    finally:
+        os.kill(manager.pid, signal.SIGCONT)
+    _, rest = manager.communicate(timeout=120)
+    stderr = "".join(lines) + rest
+    assert manager.returncode == 1, stderr
+    assert re.search(r"run failed: the manager did not run for (\d+\.\d) s \(its process was stopped or starved of "
+                     r"CPU\), so its Zenoh session lapsed; then subsystem S\d", stderr), stderr
+    assert float(re.search(r"did not run for (\d+\.\d) s", stderr).group(1)) >= 20.0
