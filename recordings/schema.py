@@ -197,14 +197,20 @@ class StoredMessage:
 
 
 def _read_varint(data: bytes, at: int) -> tuple[int, int]:
+    """A protobuf varint at ``at`` and the position after it; ValueError for one that no 64-bit field holds
+    (damaged bytes: a longer one would reach numpy's int64 arrays as an OverflowError)."""
     value = shift = 0
     while True:
         byte = data[at]
         at += 1
         value |= (byte & 0x7F) << shift
         if byte < 0x80:
+            if value >> 64:
+                raise ValueError("a varint beyond 64 bits")
             return value, at
         shift += 7
+        if shift >= 70:
+            raise ValueError("a varint of more than 10 bytes")
 
 
 def _fields(data: bytes) -> dict[int, list[int | bytes]]:

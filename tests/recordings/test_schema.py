@@ -111,3 +111,12 @@ def test_a_truncated_message_is_rejected():
     for cut in (5, len(data) - 4):  # inside the step field, inside the values
         with pytest.raises(ValueError, match="truncated"):
             decode(data[:cut], ChannelSchema(OUTPUTS))
+
+
+@pytest.mark.parametrize("varint, reason", [(bytes([0xFF] * 9 + [0x7F]), "a varint beyond 64 bits"),
+                                            (bytes([0xFF] * 12 + [0x01]), "a varint of more than 10 bytes")])
+def test_a_varint_no_64_bit_field_holds_is_a_damaged_message(varint, reason):
+    # damaged bytes can make the step's varint as long as they like: it must not reach numpy's int64 arrays
+    # (an OverflowError there ended zencosim inspect in a traceback)
+    with pytest.raises(ValueError, match=reason):
+        decode(bytes([0x08]) + varint)
