@@ -92,6 +92,7 @@ class _Observer:
         self.process = start_child(module, [], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
                                    env={**os.environ, **OBSERVER_ENVIRONMENT})
         self.gone: str | None = None  # why it is gone ("killed by SIGKILL"), once a write found it so
+        self.unread: list[str] = []  # lines of its output read while looking for why it failed, not yet taken
         fd = self.process.stdin.fileno()
         try:
             fcntl.fcntl(fd, F_SETPIPE_SZ, PIPE_BYTES)
@@ -156,7 +157,8 @@ class _Observer:
             line = stdout.readline()
             if not line:
                 break
-            try:
+            self.unread.append(line)  # a line that is not a failure (its end record, sent before a SIGTERM
+            try:                      # killed it) is still the next event
                 event = json.loads(line)
             except ValueError:
                 continue
@@ -168,6 +170,8 @@ class _Observer:
         """The process's next JSON line on standard output, waited for as long as the process makes progress
         (uses CPU, or waits only for a CPU or its disk: a busy machine slows it, never fails it); :class:`RecorderFailed`
         when it exits first, or makes none for ``stall_s`` (frozen, or waiting for what does not come)."""
+        if self.unread:
+            return json.loads(self.unread.pop(0))
         stdout, pid = self.process.stdout, self.process.pid
         still_from, cpu = time.monotonic(), cpu_time_s(pid)
         while not select.select([stdout], [], [], PROGRESS_LOOK_S)[0]:
