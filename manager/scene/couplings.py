@@ -355,9 +355,10 @@ class SignalConnection:
     The signal is named after the coupling; the receiving input is ``<coupling>*``. Its value travels in
     SI (each component converts at its boundary, ``subsystems.models.external.model``), and both ends must
     be of one quantity (or both without unit). A linear transformation (``factor``, ``offset``) is applied
-    where the value leaves its source, so the signal, as exchanged and recorded, is what the input receives. It is exchanged, extrapolated and recorded like every other
-    signal; an output that depends on its inputs at the same instant takes part in the initialisation
-    order and its loops are found as for any feedthrough output.
+    where the value leaves its source, so the signal, as exchanged and recorded, is what the input receives.
+    It is exchanged, extrapolated (with the connection's own ``extrapolation`` order, if it has one) and
+    recorded like every other signal; an output that depends on its inputs at the same instant takes part
+    in the initialisation order and its loops are found as for any feedthrough output.
     """
 
     kind = "signal"

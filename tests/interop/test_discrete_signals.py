@@ -82,7 +82,8 @@ def system(tmp_path_factory) -> dict[str, Path]:
                                + ("outputs = [\"y\"]\n" if name == "gate" else "")
                                for name, fmu in fmus.items())
                      + "".join(f"[couplings.{source}_{output}]\ntype = \"signal\"\noutput = \"{source}.{output}\"\n"
-                               f"input = \"{target}.{variable}\"\n" for source, output, target, variable in CONNECTIONS))
+                               f"input = \"{target}.{variable}\"\n"
+                               for source, output, target, variable in CONNECTIONS))
     simulators = "".join(
         f'<Simulator name="{name}" source="{fmu}" stepSize="{STEP}"><InitialValues>'
         + "".join(f'<InitialValue variable="{k}"><Real value="{float(v)}"/></InitialValue>'

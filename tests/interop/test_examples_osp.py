@@ -17,8 +17,6 @@ pytest.importorskip("fmpy")
 
 import zencosim  # noqa: E402
 from tests.interop.libcosim_oracle import run_osp  # noqa: E402
-from tests.interop.peer_pair import write_system  # noqa: E402
-from tests.interop.scene_osp import write_osp  # noqa: E402
 from tests.interop.measures import (  # noqa: E402
     AGREEMENT,
     LIBCOSIM_NRMS,
@@ -28,6 +26,8 @@ from tests.interop.measures import (  # noqa: E402
     nrms,
     zencosim_signals,
 )
+from tests.interop.peer_pair import write_system  # noqa: E402
+from tests.interop.scene_osp import write_osp  # noqa: E402
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="building the example FMUs needs gcc")
 

@@ -67,7 +67,8 @@ def test_the_input_receives_the_transformed_output_as_fmpy_running_the_same_fmus
     fmu = str(examples / "oscillator_fmi2.fmu")
     source = fmpy.simulate_fmu(fmu, start_values=SOURCE, stop_time=DURATION, output_interval=STEP, output=["fc"])
     # ZOH over a macro-step, as FMPy applies an input at the start of each step: the samples are the input table
-    table = np.array(list(zip(source["time"], FACTOR * source["fc"] + OFFSET)), dtype=[("time", float), ("f_in", float)])
+    table = np.array(list(zip(source["time"], FACTOR * source["fc"] + OFFSET)),
+                     dtype=[("time", float), ("f_in", float)])
     target = fmpy.simulate_fmu(fmu, start_values=TARGET, stop_time=DURATION, output_interval=STEP, input=table,
                                output=["x", "v"])
     # the signal as exchanged (and recorded) is what the input received; FMPy passes each doStep

@@ -204,7 +204,8 @@ BROKEN = {
     "undeclared feedthrough": (USER_MODEL.replace("return np.array([z[0], z[1]", "return np.array([z[0] + u[0], z[1]"),
                                "output x changes with the inputs at the same instant but does not declare feedthrough"),
     # an output in J is checked like any other (docs/models.md): only the energy a scene names is zencosim's own
-    "undeclared feedthrough in J": (USER_MODEL.replace("0.5 * self.k * z[0] ** 2])", "0.5 * self.k * z[0] ** 2 + u[0]])"),
+    "undeclared feedthrough in J": (USER_MODEL.replace("0.5 * self.k * z[0] ** 2])",
+                                                       "0.5 * self.k * z[0] ** 2 + u[0]])"),
                                     "output E changes with the inputs at the same instant but does not declare "
                                     "feedthrough"),
 }

@@ -12,7 +12,7 @@ import pytest
 from zencosim.examples.write import write_examples
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.models.conformance import _drive, check_component
-from zencosim.subsystems.models.external.model import ExternalSpec, FmuModel, ExternalSettings
+from zencosim.subsystems.models.external.model import ExternalSettings, ExternalSpec, FmuModel
 from zencosim.subsystems.subsystem import Subsystem
 
 pytest.importorskip("fmpy")

@@ -13,7 +13,6 @@ from zencosim.manager.study.grid import GridError, default_axes, merge_axes, par
 from zencosim.manager.study.report import check_report_folder, write_report
 from zencosim.manager.study.study import ZENOH_CHOICES, StudyOptions, run_study
 
-
 _PHASES = {"inproc": "in process", "zenoh": "over Zenoh"}
 
 

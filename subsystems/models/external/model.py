@@ -31,13 +31,13 @@ import numpy as np
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
 from zencosim.subsystems.models.external.fmu import FmuError, describe_fmu, open_fmu
 from zencosim.subsystems.models.external.points import ROLES, PointMap
-from zencosim.subsystems.models.external.table import InputTable, read_input_table
 from zencosim.subsystems.models.external.python_model import (
     ModelClassError,
     PythonInstance,
     describe_python,
     find_class,
 )
+from zencosim.subsystems.models.external.table import InputTable, read_input_table
 from zencosim.subsystems.params import Problems, check_value, read_table
 from zencosim.subsystems.ports import UNITS, Attachments, Port
 from zencosim.subsystems.units import UnitError, describe, exponents
