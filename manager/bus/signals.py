@@ -32,6 +32,34 @@ class SignalNote:
         return None if self.signum is None else f"signal {signal.Signals(self.signum).name}"
 
 
+ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def interpose(handler) -> dict[int, object]:
+    """Install ``handler`` for SIGINT and SIGTERM (in the main thread) and return the handlers it replaced; a
+    handler installed from outside Python (``getsignal``: None) is left alone: it could not be put back."""
+    previous = {signum: found for signum in ENDING_SIGNALS if (found := signal.getsignal(signum)) is not None}
+    for signum in previous:
+        signal.signal(signum, handler)
+    return previous
+
+
+def act_as(handler, signum: int, frame) -> None:
+    """What ``handler`` (a replaced one) would have done with ``signum``: a function is called (Python's SIGINT
+    handler raises KeyboardInterrupt), the default action is taken, an ignored signal is ignored."""
+    if callable(handler):
+        handler(signum, frame)
+    elif handler == signal.SIG_DFL:
+        signal.signal(signum, signal.SIG_DFL)
+        signal.raise_signal(signum)
+
+
+def restore(previous: dict[int, object]) -> None:
+    """Put back the handlers ``interpose`` replaced."""
+    for signum, handler in previous.items():
+        signal.signal(signum, handler)
+
+
 class DeferredSignals:
     """SIGINT and SIGTERM handlers for the length of a run (install in the main thread; ``restore`` puts back the
     handlers that were there): inside ``held()``, entered in the thread that installed them, the signals that
@@ -42,17 +70,11 @@ class DeferredSignals:
     Holding is a flag, not a swap of handlers: ``signal.signal`` costs microseconds per call (its conversions to
     enums), which a recorder's flush, several times a second, paid for both signals twice."""
 
-    SIGNUMS = (signal.SIGINT, signal.SIGTERM)
-
     def __init__(self) -> None:
         self.thread = threading.get_ident()
-        # a handler installed from outside Python (getsignal: None) is left alone: it could not be put back
-        self.previous = {signum: handler for signum in self.SIGNUMS
-                         if (handler := signal.getsignal(signum)) is not None}
         self._holding = False
         self._arrived: list[int] = []  # while holding, in order of arrival, each once
-        for signum in self.previous:
-            signal.signal(signum, self._arrive)
+        self.previous = interpose(self._arrive)
 
     def _arrive(self, signum: int, frame) -> None:
         if self._holding:
@@ -62,12 +84,7 @@ class DeferredSignals:
         self._act(signum, frame)
 
     def _act(self, signum: int, frame) -> None:
-        handler = self.previous[signum]
-        if callable(handler):
-            handler(signum, frame)
-        elif handler == signal.SIG_DFL:
-            signal.signal(signum, signal.SIG_DFL)
-            signal.raise_signal(signum)
+        act_as(self.previous[signum], signum, frame)
 
     @contextlib.contextmanager
     def held(self):
@@ -87,13 +104,12 @@ class DeferredSignals:
 
     def restore(self) -> None:
         """Put back the handlers that were there before."""
-        for signum, handler in self.previous.items():
-            signal.signal(signum, handler)
+        restore(self.previous)
 
 
 class InterruptWatch:
     """A context manager, entered in the main thread for the length of an in-process run: SIGINT and SIGTERM that
-    arrive are noted, then act as the handlers that were there would (``DeferredSignals``), so that a
+    arrive are noted, then act as the handlers that were there would (``act_as``), so that a
     KeyboardInterrupt can be told from one that the running code (a model) raised itself: see
     :func:`raised_by_code`."""
 
@@ -106,29 +122,19 @@ class InterruptWatch:
 
     def __enter__(self) -> "InterruptWatch":
         if threading.current_thread() is threading.main_thread():
-            for signum in DeferredSignals.SIGNUMS:
-                handler = signal.getsignal(signum)
-                if handler is not None:  # one installed from outside Python is left alone (as DeferredSignals does)
-                    self.previous[signum] = handler
-                    signal.signal(signum, self._note)
+            self.previous = interpose(self._note)
             self.outer, InterruptWatch.active = InterruptWatch.active, self
         return self
 
     def _note(self, signum: int, frame) -> None:
         self.received = True
-        handler = self.previous[signum]
-        if callable(handler):
-            handler(signum, frame)
-        elif handler == signal.SIG_DFL:
-            signal.signal(signum, signal.SIG_DFL)
-            signal.raise_signal(signum)
+        act_as(self.previous[signum], signum, frame)
 
     def __exit__(self, *_exc) -> None:
         if InterruptWatch.active is self:
             InterruptWatch.active = self.outer
-        for signum, handler in self.previous.items():
-            signal.signal(signum, handler)
-        self.previous.clear()
+        restore(self.previous)
+        self.previous = {}
 
 
 def raised_by_code() -> bool:
