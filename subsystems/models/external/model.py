@@ -185,13 +185,11 @@ class ExternalModel:
         self.outputs: tuple[Port, ...] = tuple(ports.outputs)
         self.effects: tuple[str, ...] = ()
         self.second_order = spec.second_order
-        self._u_columns, self._u_scale = np.array(ports.u_columns, dtype=np.intp), np.array(ports.u_scale)
+        self._u_scale = np.array(ports.u_scale)
         self._u_factor, self._u_offset = np.array(ports.u_factor), np.array(ports.u_offset)
         self._table = None if expose_all else spec.input_table
         self._u_convert = bool(np.any(self._u_factor != 1.0) or np.any(self._u_offset != 0.0))
-        self._u_plain = (self._table is None and not self._u_convert and len(ports.u_columns) == len(self.inputs)
-                         and np.array_equal(self._u_columns, np.arange(len(self.inputs)))
-                         and bool(np.all(self._u_scale == 1.0)))
+        self._u_plain = self._table is None and not self._u_convert and bool(np.all(self._u_scale == 1.0))
         self._y = ports.assembly()
         variables = spec.description.variables
         self.component_start = {name: variables[name].to_component(value) for name, value in spec.start.items()}
@@ -207,7 +205,7 @@ class ExternalModel:
         into the component's units."""
         if self._u_plain:  # zencosim's inputs are the component's, in order, unscaled and in SI
             return w
-        u = w[self._u_columns] * self._u_scale
+        u = w * self._u_scale
         if self._table is not None:
             u = np.concatenate((u, self._table.at(t)))
         if self._u_convert:
@@ -404,9 +402,9 @@ class _Ports:
     expose_all: bool = False
     inputs: list[Port] = field(default_factory=list)
     outputs: list[Port] = field(default_factory=list)
-    u_columns: list[int] = field(default_factory=list)  # per component input: the zencosim input column
-    u_scale: list[float] = field(default_factory=list)  # and the sign it is applied with
-    u_factor: list[float] = field(default_factory=list)  # and its unit: SI = factor * value + offset
+    u_scale: list[float] = field(default_factory=list)  # per zencosim input: the sign it is applied with
+    u_factor: list[float] = field(default_factory=list)  # per component input (the table's last): its unit,
+    # SI = factor * value + offset
     u_offset: list[float] = field(default_factory=list)
     component_inputs: list[str] = field(default_factory=list)
     component_outputs: list[str] = field(default_factory=list)
@@ -442,11 +440,7 @@ class _Ports:
             self._joint_outputs(side, maps[side.point])
         description = self.spec.description
         for received in a.signal_inputs:
-            if received.variable in self.component_inputs:
-                raise ValueError(f"input {received.variable} of the component is fed twice (ports {received.port} "
-                                 "and another)")
-            self.inputs.append(replace(_port_of(received.variable, description), name=received.port))
-            self._component_input(received.variable, 1.0)
+            self._feed(replace(_port_of(received.variable, description), name=received.port), received.variable, 1.0)
         for sent in a.signal_outputs:
             self._variable_output(replace(_port_of(sent.variable, description), name=sent.port), sent.variable,
                                   sent.factor, sent.offset)
@@ -468,23 +462,22 @@ class _Ports:
     def _every_variable(self) -> None:
         description = self.spec.description
         for name in description.inputs:
-            self.inputs.append(_port_of(name, description))
-            self._component_input(name, 1.0)
+            self._feed(_port_of(name, description), name, 1.0)
         for name in description.outputs:
             self._variable_output(_port_of(name, description), name, 1.0)
 
     def _input(self, ports: tuple[str, ...], point_map: PointMap, role: str, sign: float) -> None:
         for port, variable in zip(ports, point_map.variables(role)):
-            if variable in self.component_inputs:
-                raise ValueError(f"input {variable} of the component is fed twice (ports {port} and another)")
-            self.inputs.append(Port(port, point_map.quantity(role)))
-            self._component_input(variable, sign)
+            self._feed(Port(port, point_map.quantity(role)), variable, sign)
 
-    def _component_input(self, variable: str, sign: float) -> None:
-        """The component input ``variable`` fed by the last zencosim input, times ``sign``."""
+    def _feed(self, port: Port, variable: str, sign: float) -> None:
+        """The zencosim input ``port`` feeds the component input ``variable``, times ``sign`` (zencosim's inputs
+        are the component's first ones, in the same order)."""
+        if variable in self.component_inputs:
+            raise ValueError(f"input {variable} of the component is fed twice (ports {port.name} and another)")
+        self.inputs.append(port)
         unit = self.spec.description.variables[variable]
         self.component_inputs.append(variable)
-        self.u_columns.append(len(self.inputs) - 1)
         self.u_scale.append(sign)
         self.u_factor.append(unit.factor)
         self.u_offset.append(unit.offset)
