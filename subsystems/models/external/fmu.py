@@ -305,18 +305,19 @@ class FmuCoSimulation(_FmuInstance):
 
     def _initialise(self, start: dict[str, float]) -> None:
         fmu = self.fmu
-        self._real_calls("fmi2SetReal", "fmi2GetReal") if self.version == "2" else \
-            self._real_calls("fmi3SetFloat64", "fmi3GetFloat64")
         if self.version == "2":
+            self._real_calls("fmi2SetReal", "fmi2GetReal")
+            self._step = getattr(fmu.dll, "fmi2DoStep")  # called as the others, on the status it returns
             self._serialize, self._deserialize = fmu.serializeFMUstate, fmu.deSerializeFMUstate
             fmu.setupExperiment(startTime=0.0)
             _set_start(fmu.setReal, self.references, start)
         else:
+            self._real_calls("fmi3SetFloat64", "fmi3GetFloat64")
+            self._step = fmu.doStep  # fmpy's, which hands back the flags fmi3DoStep writes
             self._serialize, self._deserialize = fmu.serializeFMUState, fmu.deserializeFMUState
             _set_start(fmu.setFloat64, self.references, start)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
-        self._step = getattr(fmu.dll, "fmi2DoStep") if self.version == "2" else fmu.doStep
 
     def initial_state(self) -> np.ndarray:
         return np.zeros(0)
