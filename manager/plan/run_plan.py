@@ -5,11 +5,11 @@ arithmetic. Indices refer to ``Plan.subsystems`` and to each subsystem's port or
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 from zencosim.manager.plan.memory import memory_problem
 from zencosim.manager.scene.load import Scene, SceneError
+from zencosim.manager.scene.settings import extrapolation_order
 from zencosim.subsystems.params import Problem, Problems
 from zencosim.subsystems.ports import Port
 from zencosim.subsystems.units import UnitError, exponents
@@ -18,12 +18,12 @@ from zencosim.subsystems.units import UnitError, exponents
 @dataclass(frozen=True)
 class Feed:
     """Outputs ``outputs`` of subsystem ``source`` feed inputs ``inputs`` of one target, in that order, as
-    polynomials of Lagrange order ``order`` (None: the target's ``SubsystemPlan.order``)."""
+    polynomials of Lagrange order ``order``."""
 
     source: int
     outputs: tuple[int, ...]
     inputs: tuple[int, ...]
-    order: int | None = None
+    order: int
 
 
 @dataclass(frozen=True)
@@ -45,7 +45,7 @@ class SubsystemPlan:
     feeds: tuple[Feed, ...]
     effects: tuple[str, ...]  # active effects, as built
     order: int  # Lagrange order of the input polynomials this subsystem receives (0 ZOH, 1 FOH, 2 SOH): the
-    # highest of its feeds'; a feed of its own order (a signal connection's, an Integer's 0) says so
+    # highest of its feeds' (each the subsystem's, or a signal connection's own, or an Integer's 0)
 
     @property
     def energy_output(self) -> int | None:
@@ -123,7 +123,7 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     port_index = {n: ({p.name: j for j, p in enumerate(ports[n][0])}, {p.name: j for j, p in enumerate(ports[n][1])})
                   for n in names}
 
-    fed: dict[str, dict[int, tuple[int, int, int | None]]] = {n: {} for n in names}
+    fed: dict[str, dict[int, tuple[int, int, int]]] = {n: {} for n in names}
     computed = {(sub, port_index[sub][0][port]) for c in scene.couplings.values()
                 for sub, port in getattr(c, "computed_inputs", tuple)()}
     for route in routes:
@@ -133,7 +133,12 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
         if not same_unit(source_port.unit, target_port.unit):
             problems.add("couplings", f"{route.source}.{route.output} [{source_port.unit}] feeds "
                          f"{route.target}.{route.input} [{target_port.unit}]: units differ")
-        order = 0 if target_port.discrete else route.order  # an Integer or Boolean is held over a step
+        if target_port.discrete:  # an Integer or Boolean is held over a step
+            order = 0
+        elif route.order is not None:
+            order = route.order
+        else:
+            order = extrapolation_order(scene.manager, scene.subsystems[route.target])
         fed[route.target][target_in] = (index[route.source], port_index[route.source][1][route.output], order)
 
     plans = []
@@ -142,16 +147,13 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
         for j, port in enumerate(inputs):
             if j not in fed[name] and (name, j) not in computed:
                 problems.add(f"subsystems.{name}", f"input {port.name} is fed by no coupling")
-        groups: dict[tuple[int, int | None], list[tuple[int, int]]] = {}
+        groups: dict[tuple[int, int], list[tuple[int, int]]] = {}
         for j, (source, output, order) in sorted(fed[name].items()):
             groups.setdefault((source, order), []).append((output, j))
         feeds = tuple(Feed(src, tuple(o for o, _ in pairs), tuple(j for _, j in pairs), order)
                       for (src, order), pairs in groups.items())
         settings = scene.subsystems[name].settings
-        order = scene.manager.extrapolation if settings.extrapolation is None else settings.extrapolation
-        if any(f.order is not None for f in feeds):  # its default applies to the feeds that state none
-            feeds = tuple(f if f.order is not None else dataclasses.replace(f, order=order) for f in feeds)
-            order = max(f.order for f in feeds)
+        order = max((f.order for f in feeds), default=extrapolation_order(scene.manager, scene.subsystems[name]))
         plans.append(SubsystemPlan(i, name, settings.comm_ratio, inputs, outputs, feeds, effects, order))
 
     bonds = []

@@ -80,8 +80,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     residuals = [math.nan] * (2 * n_bonds)  # the status's: δP of every bond evaluated at this step's end, then δE
     releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
-    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs),
-               s.order if f.order is None else f.order) for f in s.feeds if f.source in tracked] for s in subs]
+    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs), f.order) for f in s.feeds
+              if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] else _copied_inputs(s, readers) for s in subs]
