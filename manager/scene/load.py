@@ -25,7 +25,7 @@ from zencosim.manager.scene.checks import (
     check_timing,
 )
 from zencosim.manager.scene.couplings import COUPLINGS
-from zencosim.manager.scene.overrides import apply_overrides
+from zencosim.manager.scene.overrides import apply_overrides, parse_override
 from zencosim.manager.scene.settings import (
     CorrectionSettings,
     ImplicitSettings,
@@ -132,9 +132,13 @@ def _import_options(overrides: Sequence[str]) -> tuple[dict[str, str], list[str]
     input values); and the other overrides."""
     options, others = {}, []
     for override in overrides:
-        key, _, value = override.partition("=")
-        if key.strip() in IMPORT_OPTIONS:
-            options[IMPORT_OPTIONS[key.strip()]] = value.strip().strip("'\"")
+        try:
+            path, value = parse_override(override)
+        except ValueError:  # apply_overrides says what is wrong with it
+            path, value = [], None
+        key = ".".join(path)
+        if key in IMPORT_OPTIONS:
+            options[IMPORT_OPTIONS[key]] = str(value)
         else:
             others.append(override)
     return options, others
