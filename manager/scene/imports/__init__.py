@@ -230,6 +230,7 @@ class Fmu:
     variables: dict[str, Any]  # fmpy ModelVariable by name
     units: dict[str, UnitDefinition]
     default_step: float | None = None  # its DefaultExperiment stepSize [s]
+    description: Any = None  # fmpy's ModelDescription, as read (a lone FMU's run takes its experiment)
 
 
 def read_fmu(source: Path | bytes, label: str) -> tuple[Fmu | None, str | None]:
@@ -261,7 +262,8 @@ def read_fmu(source: Path | bytes, label: str) -> tuple[Fmu | None, str | None]:
         default_step = None
     if default_step is not None and not (math.isfinite(default_step) and default_step > 0.0):
         default_step = None
-    return Fmu(label, str(model.modelName), {v.name: v for v in model.modelVariables}, units, default_step), None
+    return Fmu(label, str(model.modelName), {v.name: v for v in model.modelVariables}, units, default_step,
+               model), None
 
 
 def variable_unit(variable: Any) -> str | None:

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 from zencosim.manager.scene.imports import Component, document_path, read_fmu, refusal, scene_name, settle_duration
+from zencosim.manager.scene.load import SceneError
 from zencosim.subsystems.params import Problems
 
 DEFAULT_STOP = 1.0  # [s] fmpy's duration when the FMU gives no stopTime
@@ -26,9 +27,8 @@ def import_fmu(path: Path, duration: float | None = None, input_table: str | Non
     fmu, why = read_fmu(path, path.name)
     if fmu is None:
         raise refusal(path, "fmu", why)
-    from fmpy import read_model_description
     from fmpy.util import auto_interval
-    model = read_model_description(str(path), validate=False)
+    model = fmu.description
     experiment = model.defaultExperiment
     notes: list[str] = []
     problems = Problems()
@@ -48,7 +48,7 @@ def import_fmu(path: Path, duration: float | None = None, input_table: str | Non
     if not (math.isfinite(step) and step > 0.0):
         problems.add("DefaultExperiment.stepSize", f"expected a positive step, got {step!r} s")
     if problems:
-        raise _refused(path, problems)
+        raise SceneError(str(path), problems)
     notes.append(f"manager.macro_step = {step!r} s: {origin}")
     name = scene_name(model.coSimulation.modelIdentifier if model.coSimulation is not None else fmu.model_name,
                       set(), "the FMU's model identifier", notes)
@@ -56,7 +56,7 @@ def import_fmu(path: Path, duration: float | None = None, input_table: str | Non
     run_for = settle_duration(duration, declared, "the DefaultExperiment's stopTime - startTime" if declared
                               else f"fmpy's {DEFAULT_STOP} s", step, [component], problems, notes)
     if problems:
-        raise _refused(path, problems)
+        raise SceneError(str(path), problems)
     table: dict = {"model": "fmu", "fmu": component.path, "micro_step": step, "outputs": "all"}
     if input_table is not None:
         table["input_table"] = Path(input_table).resolve().as_posix()
@@ -64,8 +64,3 @@ def import_fmu(path: Path, duration: float | None = None, input_table: str | Non
             "manager": {"duration": run_for, "macro_step": step},
             "outputs": {"reference": "none"},
             "subsystems": {name: table}}, notes
-
-
-def _refused(path: Path, problems: Problems):
-    from zencosim.manager.scene.load import SceneError
-    return SceneError(str(path), problems)
