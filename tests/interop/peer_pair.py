@@ -201,33 +201,22 @@ def build_fmu(model: str, out: Path, units: bool = True) -> Path:
 
 OSP_NAMESPACE = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
 
-PLAIN_CONNECTIONS = """
-    <VariableConnection powerBond="c">
-      <Variable simulator="mass1" name="fc" causality="output"/>
-      <Variable simulator="mass2" name="fc_in" causality="input"/>
-    </VariableConnection>
-    <VariableConnection powerBond="c">
-      <Variable simulator="mass2" name="v2" causality="output"/>
-      <Variable simulator="mass1" name="v2_in" causality="input"/>
-    </VariableConnection>
-    <VariableConnection>
-      <Variable simulator="mass2" name="x2"/>
-      <Variable simulator="mass1" name="x2_in"/>
-    </VariableConnection>"""
+def variable_connection(source: tuple[str, str], target: tuple[str, str], bond: str | None = None) -> str:
+    """An OSP ``VariableConnection`` from ``(simulator, variable)`` ``source`` to ``target``; with ``bond``, marked
+    as one side of that power bond (libcosim then wants each variable's causality too)."""
+    marked = bond is not None
+    attributes = [f' causality="{c}"' if marked else "" for c in ("output", "input")]
+    bond_attribute = f' powerBond="{bond}"' if marked else ""
+    return (f"\n    <VariableConnection{bond_attribute}>"
+            + "".join(f'\n      <Variable simulator="{simulator}" name="{name}"{attribute}/>'
+                      for (simulator, name), attribute in zip((source, target), attributes))
+            + "\n    </VariableConnection>")
 
-UNMARKED_CONNECTIONS = """
-    <VariableConnection>
-      <Variable simulator="mass1" name="fc"/>
-      <Variable simulator="mass2" name="fc_in"/>
-    </VariableConnection>
-    <VariableConnection>
-      <Variable simulator="mass2" name="v2"/>
-      <Variable simulator="mass1" name="v2_in"/>
-    </VariableConnection>
-    <VariableConnection>
-      <Variable simulator="mass2" name="x2"/>
-      <Variable simulator="mass1" name="x2_in"/>
-    </VariableConnection>"""
+
+PAIR = ((("mass1", "fc"), ("mass2", "fc_in")), (("mass2", "v2"), ("mass1", "v2_in")))  # force, velocity
+DISPLACEMENT = variable_connection(("mass2", "x2"), ("mass1", "x2_in"))
+PLAIN_CONNECTIONS = "".join(variable_connection(*ends, bond="c") for ends in PAIR) + DISPLACEMENT
+UNMARKED_CONNECTIONS = "".join(variable_connection(*ends) for ends in PAIR) + DISPLACEMENT
 
 GROUP_CONNECTIONS = """
     <VariableGroupConnection>

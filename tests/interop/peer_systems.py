@@ -21,14 +21,12 @@ from tests.interop.peer_pair import (
     MASS2_START,
     MODELS,
     OSP_NAMESPACE,
+    PAIR,
     build_fmu,
+    variable_connection,
 )
 
-SIGNAL_ONLY = """
-    <VariableConnection>
-      <Variable simulator="mass1" name="fc"/>
-      <Variable simulator="mass2" name="fc_in"/>
-    </VariableConnection>"""
+SIGNAL_ONLY = variable_connection(*PAIR[0])
 
 
 def _initial_values(values: dict[str, float]) -> str:

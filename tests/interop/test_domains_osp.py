@@ -35,11 +35,14 @@ import zencosim  # noqa: E402
 from tests.interop.libcosim_oracle import run_osp  # noqa: E402
 from tests.interop.measures import AGREEMENT, largest_difference  # noqa: E402
 from tests.interop.peer_pair import (  # noqa: E402
+    DISPLACEMENT,
     END_TIME,
     MASS1_START,
     MASS2_START,
+    PAIR,
     STEPS,
     model_identifier,
+    variable_connection,
 )
 from tests.interop.peer_systems import write_osp  # noqa: E402
 
@@ -79,19 +82,7 @@ def _group_connection(name_1: str, name_2: str) -> str:
     </VariableGroupConnection>"""
 
 
-HYDRAULIC_CONNECTIONS = """
-    <VariableConnection powerBond="line">
-      <Variable simulator="mass1" name="fc" causality="output"/>
-      <Variable simulator="mass2" name="fc_in" causality="input"/>
-    </VariableConnection>
-    <VariableConnection powerBond="line">
-      <Variable simulator="mass2" name="v2" causality="output"/>
-      <Variable simulator="mass1" name="v2_in" causality="input"/>
-    </VariableConnection>
-    <VariableConnection>
-      <Variable simulator="mass2" name="x2"/>
-      <Variable simulator="mass1" name="x2_in"/>
-    </VariableConnection>"""
+HYDRAULIC_CONNECTIONS = "".join(variable_connection(*ends, bond="line") for ends in PAIR) + DISPLACEMENT
 
 
 def write_domain_system(directory: Path, domain: str, models: tuple[str, str] | None = None) -> Path:
