@@ -7,10 +7,11 @@
 
 ``capture`` runs every bundled scene in process for ``DURATION`` s (its own duration where that is shorter than one
 period), and the hydraulic crane with energy correction and the undamped pair with the eigenstructure compensator
-besides (``--tree``: of another source tree, imported as bench_runtime.py does), and saves every signal of each run (outputs, residual power and energy) and the NRMS of its summary.
-``compare`` sorts the signals into bit-identical, exactly negated (a sign convention that moved) and changed, the
-last with their largest relative difference, and says whether every summary's NRMS is the same; exit 1 when any
-signal changed otherwise. Stop 28's sign convention: 157 identical, 23 negated (the coupling forces), 0 changed.
+besides (``--tree``: of another source tree, imported as bench_runtime.py does), and saves every signal of each run
+(outputs, residual power and energy) and the NRMS of its summary. ``compare`` sorts the signals into bit-identical,
+exactly negated (a sign convention that moved) and changed, the last with their largest relative difference, and
+says whether every summary's NRMS is the same; exit 1 when any signal changed otherwise. Stop 28's sign
+convention: 157 identical, 23 negated (the coupling forces), 0 changed.
 """
 from __future__ import annotations
 
