@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Callable
 
+from zencosim.manager.bus.watchdog import model_watch
 from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.plan.run_plan import Plan, compile_plan
 from zencosim.manager.scene.load import Scene
@@ -34,7 +35,13 @@ def attachments(scene: Scene) -> dict[str, Attachments]:
 
 def build_subsystems(scene: Scene) -> dict[str, Subsystem]:
     attached = attachments(scene)
-    return {name: build_subsystem(scene, name, attached[name]) for name in scene.subsystems}
+    watch = model_watch()  # marks each constructor in a watched run (manager.bus.watchdog)
+    watch.start(list(scene.subsystems), scene.manager.timeout)
+    built = {}
+    for index, name in enumerate(scene.subsystems):
+        with watch.constructing(index):
+            built[name] = build_subsystem(scene, name, attached[name])
+    return built
 
 
 def plan_scene(scene: Scene) -> tuple[Plan, dict]:

@@ -47,13 +47,14 @@ def record_of(scene_name: str, *overrides: str, bus: str = "inproc"):
 
 
 def children_of(pid: int) -> list[int]:
-    """Direct child processes of ``pid`` (Linux /proc)."""
+    """The child processes of ``pid`` and theirs, parents first (Linux /proc): an in-process run started from the
+    command line runs in a child of the process started (``manager.bus.watchdog``), its recorder in a child of that."""
     found = []
     for task in Path(f"/proc/{pid}/task").glob("*"):
         children = task / "children"
         if children.exists():
             found += [int(p) for p in children.read_text().split()]
-    return found
+    return found + [grandchild for child in found for grandchild in children_of(child)]
 
 
 def alive(pid: int) -> bool:

@@ -6,6 +6,7 @@ Commands and replies still pass through the wire protocol's ``encode``/``decode`
 from __future__ import annotations
 
 from zencosim.manager.bus.signals import InterruptWatch
+from zencosim.manager.bus.watchdog import model_watch
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.scheme.replica import Replica, Tap
@@ -24,4 +25,5 @@ def run_in_process(scheme, plan: Plan, subsystems: dict, tap: Tap | None = None
     message (``manager.scheme.replica``). A model that raises KeyboardInterrupt itself, with no SIGINT or SIGTERM
     received, has failed (``subsystems.process.endpoint``): the watch tells the two apart."""
     with InterruptWatch():
-        return Replica(scheme, [s.name for s in plan.subsystems], endpoints(plan, subsystems), tap=tap).run()
+        local = model_watch().endpoints(endpoints(plan, subsystems))  # marked in a watched run (manager.bus.watchdog)
+        return Replica(scheme, [s.name for s in plan.subsystems], local, tap=tap).run()

@@ -83,16 +83,22 @@ MODELS["mass1_own"] = tuple(Var("f1", "output", "N", depends=v.depends, initial=
                             for v in MODELS["mass1"])
 MODELS["mass2_mm"] = tuple(Var("x2", "output", "mm", initial=v.initial) if v.name == "x2" else v
                            for v in MODELS["mass2"])
+# and for the fault tests (tests/manager/test_faults.py) mass2_exits, whose doStep calls the C library's exit(0)
+# from t = 10 ms (-DPEER_EXIT_AT=0.01)
+MODELS["mass2_exits"] = MODELS["mass2"]
 BUILD = {"mass1": ("1", ()), "mass2": ("2", ()), "mass1_own": ("1", ("-DPEER_OWN_FORCE",)),
-         "mass2_mm": ("2", ("-DPEER_X_MM",))}  # model -> (PEER_MASS, further compiler flags)
+         "mass2_mm": ("2", ("-DPEER_X_MM",)),
+         "mass2_exits": ("2", ("-DPEER_EXIT_AT=0.01",))}  # model -> (PEER_MASS, further compiler flags)
 GUID = {"mass1": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass01}", "mass2": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass02}",
-        "mass1_own": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass11}", "mass2_mm": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass22}"}
+        "mass1_own": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass11}", "mass2_mm": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass22}",
+        "mass2_exits": "{a3c5e0f2-5d0b-4c52-9a1e-peer00mass32}"}
 DESCRIPTION = {"mass1": "mass 1 of paper 000's two_mass_damped with the coupling spring-damper; "
                         "fc is the force of the coupling element on mass 2",
                "mass2": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it",
                "mass1_own": "mass 1 of paper 000's two_mass_damped with the coupling spring-damper; "
                             "f1 is the force of the coupling element on mass 1 (its own point)",
-               "mass2_mm": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it; x2 in mm"}
+               "mass2_mm": "mass 2 of paper 000's two_mass_damped; fc_in is the force on it; x2 in mm",
+               "mass2_exits": "mass 2 of paper 000's two_mass_damped whose doStep ends the process from t = 10 ms"}
 
 # the same equations in the other domains of power bonds (tests/interop/test_domains_osp.py): the C source is
 # the same (units are the modelDescription's only), the units those of an inertia, a stiffness, a damping, an
@@ -301,15 +307,16 @@ SYSTEMS = {  # name -> (units declared by the FMUs, connections)
 }
 
 
-def write_system(directory: Path, name: str) -> Path:
+def write_system(directory: Path, name: str, mass2: str = "mass2") -> Path:
     """Build the two FMUs into ``directory`` and write the system ``name`` of :data:`SYSTEMS` there
-    (with the OSP model descriptions for groups); return its OspSystemStructure.xml."""
+    (with the OSP model descriptions for groups); return its OspSystemStructure.xml. ``mass2``: the model that
+    simulator mass2 runs (a variant of mass2 in a plain system)."""
     units, connections = SYSTEMS[name]
     directory.mkdir(parents=True, exist_ok=True)
     sources = {}
     for model in ("mass1", "mass2"):
         sources[model] = f"{model}.fmu"
-        build_fmu(model, directory / sources[model], units)
+        build_fmu(mass2 if model == "mass2" else model, directory / sources[model], units)
         if connections == "groups":
             (directory / f"{model_identifier(model)}_OspModelDescription.xml").write_text(
                 OSP_MODEL_DESCRIPTIONS[model])

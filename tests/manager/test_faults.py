@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import json
 import os
+import pty
 import random
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -23,6 +25,8 @@ import zenoh
 
 import zencosim.examples
 from tests.conftest import alive, children_of, cmdline, read_until, summary_of, wait_for
+from tests.interop.peer_pair import write_system
+from zencosim.manager.bus.children import cpu_time_s
 from zencosim.manager.bus.zenoh_session import free_tcp_port, key, session_config, wait_for_listener
 from zencosim.manager.wire.protocol import Kind, encode, encode_error
 from zencosim.recordings.reader import read_recording
@@ -195,7 +199,7 @@ def test_a_frozen_recorder_holds_the_run_back_and_is_named_not_a_subsystem(proce
 
 # The example model with a fault, chosen by the environment variable FAULT, once its time reaches 10 ms
 FAULTY_MODEL = """
-import os, sys, time
+import ctypes, os, sys, time
 from zencosim.examples.oscillator import Oscillator
 
 
@@ -203,6 +207,8 @@ class Faulty(Oscillator):
     def __init__(self, **parameters):
         if os.environ["FAULT"] == "init":
             raise RuntimeError("cannot open its lookup table")
+        if os.environ["FAULT"] == "init-exit":
+            os._exit(0)
         super().__init__(**parameters)
 
     def acceleration(self, t, z, u):
@@ -214,6 +220,12 @@ class Faulty(Oscillator):
                 raise KeyboardInterrupt
             if fault == "hang":
                 time.sleep(600)
+            if fault == "os-exit":
+                os._exit(0)
+            if fault == "segfault":
+                ctypes.string_at(0)
+            if fault == "abort":
+                os.abort()
         return super().acceleration(t, z, u)
 """
 
@@ -263,6 +275,96 @@ def test_a_subsystem_that_hangs_in_its_step_is_the_one_named(processes, tmp_path
     assert status == 1 and "Traceback" not in stderr, stderr
     assert stderr.startswith("run failed: subsystem S2: did not answer within the timeout of 2 s (manager.timeout)"), \
         stderr
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("fault, ended", [("os-exit", "exited with code 0"), ("segfault", "killed by SIGSEGV"),
+                                          ("abort", "killed by SIGABRT")])
+def test_a_model_that_ends_the_process_in_process_is_named_with_how(processes, tmp_path, fault, ended):
+    """In process a model shares the run's process: one that ends it (os._exit(0), a segmentation fault, abort())
+    fails the run with status 1 and names the subsystem, where it was and how the process ended (the command line
+    watches its run from a parent process: manager.bus.watchdog)."""
+    status, stderr = _faulty_run(processes, tmp_path, fault, "inproc")
+    assert status == 1, stderr
+    assert re.fullmatch(rf"run failed: subsystem S2: the model ended the run's process in its step from t = "
+                        rf"0\.0\d+ s \({ended}; in process every model shares it, over Zenoh each has its own\)",
+                        stderr.strip()), stderr
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("fault", ["os-exit", "segfault"])
+def test_a_model_that_ends_its_process_over_zenoh_is_named(processes, tmp_path, fault):
+    """Over Zenoh the same models end only their own subsystem process, which the manager names."""
+    status, stderr = _faulty_run(processes, tmp_path, fault, "zenoh")
+    assert status == 1, stderr
+    assert stderr.startswith("run failed: subsystem S2: process exited with code"), stderr
+
+
+@pytest.mark.timeout(180)
+@pytest.mark.parametrize("bus, said", [
+    ("inproc", ("run failed: subsystem mass2: the model ended the run's process in its step from t = 0.01 s (exited "
+                "with code 0; in process every model shares it, over Zenoh each has its own)")),
+    ("zenoh", "run failed: subsystem mass2: process exited with code 0")])
+def test_an_fmu_that_calls_exit_in_its_do_step_is_named(processes, tmp_path, bus, said):
+    """The peer pair (tests/interop/peer_pair.py) with mass2's doStep calling the C library's exit(0) from 10 ms:
+    no Python exit path runs, and the run still fails naming mass2, on both buses."""
+    if shutil.which("gcc") is None:
+        pytest.skip("building the peer FMUs needs gcc")
+    system = write_system(tmp_path / "system", "plain", mass2="mass2_exits")
+    manager = processes("run", str(system), "--bus", bus, "--quiet", "--set", "manager.duration=0.5")
+    _, stderr = manager.communicate(timeout=150)
+    assert manager.returncode == 1, stderr
+    assert stderr.strip().startswith(said), stderr
+
+
+@pytest.mark.timeout(120)
+def test_ctrl_c_at_a_terminal_interrupts_an_in_process_run_once():
+    """Ctrl-C at a terminal reaches the watching parent and the run's process (one process group): the parent waits
+    for the run to end (it does not pass the terminal's signal on a second time) and the run is interrupted once,
+    cleanly (status 130, one line)."""
+    pid, terminal = pty.fork()
+    if pid == 0:  # the command on a terminal of its own, as a user starts it
+        os.execv(sys.executable, [sys.executable, "-m", "zencosim", "run", "two_mass_damped", "--quiet",
+                                  "--set", "manager.duration=600"])
+    said = b""
+    try:
+        run = wait_for(lambda: children_of(pid), 60, "the run's process")[0]
+        wait_for(lambda: cpu_time_s(run) > 0.5, 120, "the run to be under way")
+        os.write(terminal, b"\x03")
+        while True:
+            try:
+                chunk = os.read(terminal, 4096)
+            except OSError:  # EIO: the terminal's last process has ended
+                break
+            if not chunk:
+                break
+            said += chunk
+        _, status = os.waitpid(pid, 0)
+    finally:
+        for process in [pid, *children_of(pid)]:
+            if alive(process):
+                os.kill(process, signal.SIGKILL)
+    text = said.decode(errors="replace")
+    assert os.waitstatus_to_exitcode(status) == 130, text
+    assert text.count("interrupted") == 1 and "Traceback" not in text, text
+
+
+@pytest.mark.timeout(120)
+def test_a_model_that_ends_the_process_in_its_constructor_is_named(processes, tmp_path):
+    status, stderr = _faulty_run(processes, tmp_path, "init-exit", "inproc")
+    assert status == 1, stderr
+    assert stderr.strip() == ("run failed: subsystem S2: the model ended the run's process in its constructor (exited "
+                              "with code 0; in process every model shares it, over Zenoh each has its own)"), stderr
+
+
+@pytest.mark.timeout(120)
+def test_a_model_that_hangs_in_process_is_named_within_the_timeout(processes, tmp_path):
+    """The parent process times every call into a model: one that outlasts manager.timeout is ended and named."""
+    status, stderr = _faulty_run(processes, tmp_path, "hang", "inproc", "--set", "manager.timeout=2")
+    assert status == 1 and "Traceback" not in stderr, stderr
+    assert re.fullmatch(r"run failed: subsystem S2: did not answer within the timeout of 2 s \(manager\.timeout\): "
+                        r"its step from t = 0\.0\d+ s did not return, and the run's process was ended \(in process "
+                        r"every model shares it; over Zenoh each has its own\)", stderr.strip()), stderr
 
 
 # Starts CPU-bound processes, writes their ids to a file, then becomes the command after it: in the run's session,

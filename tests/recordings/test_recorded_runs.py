@@ -149,8 +149,8 @@ def test_a_run_whose_subsystem_was_killed_leaves_every_step_before_the_crash(pro
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("bus, signum", [("inproc", signal.SIGTERM), ("zenoh", signal.SIGINT)],
-                         ids=["inproc-SIGTERM", "zenoh-SIGINT"])
+@pytest.mark.parametrize("bus, signum", [("inproc", signal.SIGTERM), ("inproc", signal.SIGINT), ("zenoh", signal.SIGINT)],
+                         ids=["inproc-SIGTERM", "inproc-SIGINT", "zenoh-SIGINT"])
 def test_a_signalled_run_finishes_its_recording(processes, tmp_path, bus, signum):
     mcap = tmp_path / "signalled.mcap"
     manager = _start_long_recorded_run(processes, mcap, bus)

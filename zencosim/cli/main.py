@@ -21,6 +21,7 @@ from zencosim.extras import MissingExtra
 from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.security import SecurityError
+from zencosim.manager.bus.watchdog import watched
 from zencosim.manager.bus.zenoh_session import SessionError
 from zencosim.manager.results.output_files import OutputFileError
 from zencosim.manager.scene.load import SceneError
@@ -68,8 +69,24 @@ def _interrupt(signum: int, _frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
+    """The command line's exit status for ``argv`` (default: the process's arguments). Run from the command line
+    (``argv`` None), ``run --bus inproc`` runs in a child process that this one watches (``manager.bus.watchdog``):
+    a model that ends or hangs the process is named."""
+    command_line = argv is None
+    argv = sys.argv[1:] if command_line else argv
     args = build_parser(argv[0] if argv else None).parse_args(argv)
+    if command_line and args.command == "run" and args.bus == "inproc":
+        return watched(lambda: _handle(args), _failed)
+    return _handle(args)
+
+
+def _failed(reason: str) -> None:
+    err.print("[bold red]run failed:[/]", highlight=False, end=" ")
+    warn(reason)
+
+
+def _handle(args: argparse.Namespace) -> int:
+    """Run the command ``args`` names; its exit status (see the module text)."""
     signal.signal(signal.SIGTERM, _interrupt)
     try:
         end_with_parent()  # a subsystem process: SIGTERM (an interrupt, as above) when its manager dies
@@ -79,13 +96,11 @@ def main(argv: list[str] | None = None) -> int:
         warn(str(error))
         return 2
     except RUN_FAILED as error:
-        err.print("[bold red]run failed:[/]", highlight=False, end=" ")
-        warn(str(error))
+        _failed(str(error))
         return 1
     except KeyboardInterrupt:
         err.print("interrupted")
         return 130
-
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -18,7 +18,8 @@
 
    Variants (tests/interop/peer_pair.py BUILD): -DPEER_OWN_FORCE (mass1) outputs f1 = -fc, the force of the
    coupling element on mass 1 itself, instead of fc; -DPEER_X_MM (mass2) outputs x2 in mm (x2 * 1000), its
-   state and x0 staying in m.
+   state and x0 staying in m; -DPEER_EXIT_AT=<t> (mass2) ends the process with exit(0) in the first doStep
+   from time t on, as a model with a fatal fault may.
 
    Every doStep(t, h) is one symplectic Euler step over h (kick, then drift): v += h*a; x += h*v, with
    a from the state and the inputs at the start of the step. x and v start at the parameters x0 and v0
@@ -257,6 +258,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     double a, h = communicationStepSize;
     if (!inst || inst->mode != STEP) return fail(c, "fmi2DoStep: not initialized");
     if (!(h > 0.0)) return fail(c, "fmi2DoStep: the step size is not positive");
+#ifdef PEER_EXIT_AT
+    if (currentCommunicationPoint >= PEER_EXIT_AT) exit(0);
+#endif
     a = acceleration(inst);
     inst->value[VR_V] = inst->value[VR_V] + h * a;
     inst->value[VR_X] = inst->value[VR_X] + h * inst->value[VR_V];
