@@ -94,6 +94,13 @@ class Subsystem:
         self.w = inputs.at(span * 1e-9)
         return self.model.outputs_at(t1_ns * 1e-9, self.z, self.w)
 
+    def free_step(self, span_ns: int) -> np.ndarray | None:
+        """The matrix ``advance`` multiplies the state by over a step of ``span_ns`` when the model is linear and
+        has no inputs (then that is the whole step), else None."""
+        if self._linear is None or len(self.inputs):
+            return None
+        return self._composed_step(span_ns // self.micro_step_ns, 1, self.micro_step_ns * 1e-9)[0]
+
     def _composed_step(self, micro_steps: int, rows: int, h: float) -> tuple[np.ndarray, np.ndarray]:
         """``(Φ^m, Ψ)`` with ``Ψ`` flattened to ``(2n, rows * n_inputs)``, cached."""
         key = (micro_steps, rows)

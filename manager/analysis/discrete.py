@@ -33,12 +33,12 @@ correction is not linear); ``LinearSceneError`` otherwise.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from zencosim.compensation.eigenstructure.modes import normalize_mode_shape
+from zencosim.manager.analysis.monolithic import linear_unavailable
+from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.plan.run_plan import Plan, compile_plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.extrapolation import extrapolation_matrix
@@ -114,6 +114,10 @@ class DiscreteScheme:
     def primary_eigenstructure(self, monolithic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``primary_poles`` and their mode shapes: the body positions of each eigenvector of ``Ψ``
         (subsystems in plan order, ``z = [x, v]``), unit norm, largest entry real and positive."""
+        # imported here: scipy.optimize takes a third of a second to import, which a run's summary need not pay
+        from scipy.optimize import linear_sum_assignment
+
+        from zencosim.compensation.eigenstructure.modes import normalize_mode_shape
         mu, V = np.linalg.eig(self.Psi)
         live = np.abs(mu) > ZERO_EIGENVALUE
         poles, V = np.log(mu[live].astype(complex)) / self.period, V[:, live]
@@ -175,3 +179,25 @@ def scene_scheme(scene: Scene, subsystems: dict[str, Subsystem]) -> DiscreteSche
                                "(manager.correction); expected it disabled")
     plan = compile_plan(scene, {name: (s.inputs, s.outputs, s.effects) for name, s in subsystems.items()})
     return discrete_scheme(plan, subsystems)
+
+
+def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
+    """The exact discrete scheme of ``scene`` run without its compensator (``LinearSceneError``: not linear)."""
+    plain = replace(scene, manager=replace(scene.manager, compensation="none"))
+    return scene_scheme(plain, {name: build_subsystem(plain, name, attached)
+                                for name, attached in coupling_attachments(plain).items()})
+
+
+def run_scheme(scene: Scene) -> DiscreteScheme | None:
+    """The exact discrete scheme of the run ``scene`` describes — compensated when it asks for the compensator,
+    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix).
+    ``SceneError`` when the compensator cannot be designed."""
+    if linear_unavailable(scene) or scene.manager.corrects:
+        return None
+    try:
+        if scene.manager.compensation == "eigenstructure":
+            from zencosim.manager.analysis.compensator import scene_compensator  # needs scipy.optimize
+            return scene_compensator(scene).scheme
+        return uncompensated_scheme(scene)
+    except LinearSceneError:  # a model whose public matrices are not its whole dynamics
+        return None

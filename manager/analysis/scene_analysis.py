@@ -20,9 +20,8 @@ from zencosim.compensation.eigenstructure.modes import CosimEigenstructure, cosi
 from zencosim.compensation.eigenstructure.perturbation import cosimulated_stiffness
 from zencosim.manager.analysis import compensator
 from zencosim.manager.analysis.compensator import scene_compensator
-from zencosim.manager.analysis.discrete import DiscreteScheme, LinearSceneError, scene_scheme
+from zencosim.manager.analysis.discrete import DiscreteScheme, uncompensated_scheme
 from zencosim.manager.analysis.monolithic import linear_model, linear_unavailable
-from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.scene.checks import check_compensation
 from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.params import Problem, Problems
@@ -141,27 +140,6 @@ def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order:
         compensated_model=compensated_model,
         compensated=Eigenpairs(*corrected.scheme.primary_eigenstructure(analysis.monolithic.poles)),
     )
-
-
-def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
-    """The exact discrete scheme of ``scene`` run without its compensator (``LinearSceneError``: not linear)."""
-    plain = replace(scene, manager=replace(scene.manager, compensation="none"))
-    return scene_scheme(plain, {name: build_subsystem(plain, name, attached)
-                                for name, attached in coupling_attachments(plain).items()})
-
-
-def run_scheme(scene: Scene) -> DiscreteScheme | None:
-    """The exact discrete scheme of the run ``scene`` describes — compensated when it asks for the compensator,
-    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix).
-    ``SceneError`` when the compensator cannot be designed."""
-    if linear_unavailable(scene) or scene.manager.corrects:
-        return None
-    try:
-        if scene.manager.compensation == "eigenstructure":
-            return scene_compensator(scene).scheme
-        return uncompensated_scheme(scene)
-    except LinearSceneError:  # a model whose public matrices are not its whole dynamics
-        return None
 
 
 def write_pole_map(result: SceneAnalysis, path: str) -> None:

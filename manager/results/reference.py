@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 
@@ -63,6 +64,11 @@ class _ReferenceRows:
         for window, value in zip(self.windows, values):
             window.put(tick, value)
 
+    def put_rows(self, first: int, values: np.ndarray) -> None:
+        """The signals' values (columns, energy last) at ticks ``first …``, a row per tick."""
+        for window, column in zip(self.windows, values.T):
+            window.put_rows(first, column)
+
     def finish(self, kind: str) -> Reference:
         arrays = [window.finish() for window in self.windows]
         return Reference(kind, dict(zip(self.names, arrays[:-1])), arrays[-1])
@@ -72,6 +78,27 @@ def _monolithic_rows(n_ticks: int, ports, spill: Spill | None) -> tuple[_Referen
     """Rows for the monolithic model's outputs (energy last) and the output indices of its signals."""
     signals = [j for j, p in enumerate(ports) if p.quantity != "energy"]
     return _ReferenceRows(n_ticks, [ports[j].name for j in signals], spill), [*signals, -1]
+
+
+def _put_free_response(rows: _ReferenceRows, columns: list[int], model, states: Iterator[np.ndarray],
+                       step: float) -> None:
+    """The outputs (``columns`` of them) of the monolithic ``model``, which has no inputs, at ``states``, the
+    states at ticks 0, 1, … ``step`` [s] apart: a block of states at a time, their outputs in two matrix
+    products (``MassesModel.outputs_of_rows``), so that a reference costs a few products per sample, not a run."""
+    first = 0
+    while block := list(itertools.islice(states, BLOCK_ROWS)):
+        times = np.arange(first, first + len(block)) * step
+        rows.put_rows(first, model.outputs_of_rows(times, np.array(block))[:, columns])
+        first += len(block)
+
+
+def _free_states(step_matrix: np.ndarray, z0: np.ndarray, n_steps: int) -> Iterator[np.ndarray]:
+    """``z0`` and the ``n_steps`` states after it, each the product of ``step_matrix`` with the one before."""
+    z = z0
+    yield z
+    for _ in range(n_steps):
+        z = step_matrix.dot(z)
+        yield z
 
 
 def analytic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
@@ -94,10 +121,9 @@ def analytic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
         for j, (_, body) in enumerate(model.external):
             B[n:, j] = Minv[:, body]
         force = lambda t: np.array([effect.force(t) for effect, _ in model.external])  # noqa: E731
-    no_inputs = np.empty(0)
     rows, columns = _monolithic_rows(n_ticks, model.outputs, spill)
-    for k, z in enumerate(linear_response_states(A, model.initial_state(), step, n_ticks, B, force)):
-        rows.put(k, np.asarray(model.outputs_at(k * step, z, no_inputs), dtype=float)[columns])
+    _put_free_response(rows, columns, model, linear_response_states(A, model.initial_state(), step, n_ticks, B, force),
+                       step)
     return rows.finish("analytic")
 
 
@@ -109,6 +135,10 @@ def monolithic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
     n_ticks = scene.manager.duration_ns // base
     no_inputs = InputPolynomial(np.empty((1, 0)))
     rows, columns = _monolithic_rows(n_ticks, mono.outputs, spill)
+    step_matrix = mono.free_step(base)
+    if step_matrix is not None:  # linear: the states as advance computes them, one product each
+        _put_free_response(rows, columns, mono.model, _free_states(step_matrix, mono.z.copy(), n_ticks), base * 1e-9)
+        return rows.finish("monolithic")
     rows.put(0, np.asarray(mono.output_values(np.empty(0)), dtype=float)[columns])
     for k in range(n_ticks):
         rows.put(k + 1, np.asarray(mono.advance(k * base, (k + 1) * base, no_inputs), dtype=float)[columns])

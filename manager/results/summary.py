@@ -28,6 +28,7 @@ from typing import Iterator
 import numpy as np
 
 from zencosim.compensation.implicit.coupling_laws import method_name
+from zencosim.manager.analysis.discrete import run_scheme
 from zencosim.manager.bus.timing import run_timing
 from zencosim.manager.results.monitor import residual_power_spikes
 from zencosim.manager.results.reference import Reference
@@ -262,8 +263,6 @@ def first_non_finite_time(record: RunRecord) -> float | None:
 def discrete_verdict(scene: Scene) -> dict | None:
     """``zencosim analyze``'s verdict on the scheme this scene runs: ``spectral_radius`` ρ, ``growth_rate_per_s``
     ``2 ln ρ / T`` and ``stable`` (ρ <= 1); None when the scene is not linear or corrects energy."""
-    # imported here: the analysis needs scipy.optimize, which nothing else of a run's summary loads
-    from zencosim.manager.analysis.scene_analysis import run_scheme
     try:
         scheme = run_scheme(scene)
     except (ValueError, ArithmeticError):  # a transition matrix that cannot be built or decomposed (singular)

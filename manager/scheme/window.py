@@ -77,6 +77,18 @@ class RowWindow:
             self.advance(index)
         self.array[index - self.offset] = value
 
+    def put_rows(self, start: int, values: np.ndarray) -> None:
+        """Write rows ``start …`` from ``values`` (the next rows to write, in order), advancing the window as
+        they pass its end."""
+        done = 0
+        while done < len(values):
+            index = start + done
+            if index >= self.end:
+                self.advance(index)
+            count = min(len(values) - done, self.end - index)
+            self.array[index - self.offset:index - self.offset + count] = values[done:done + count]
+            done += count
+
     def row(self, index: int) -> np.ndarray:
         """Row ``index`` of the window (one of its newest ``history`` rows, or a later one)."""
         return self.array[index - self.offset]

@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from zencosim.manager.analysis.scene_analysis import run_scheme
+from zencosim.manager.analysis.discrete import run_scheme
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.bus.zenoh_session import ZenohOptions

@@ -5,6 +5,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from scipy.integrate import solve_ivp
 
 from zencosim.compensation.analytic import linear_response
@@ -12,6 +15,7 @@ from zencosim.manager.analysis.monolithic import build_monolithic, linear_model
 from zencosim.manager.results.reference import analytic_reference, monolithic_reference
 from zencosim.manager.results.summary import nrms
 from zencosim.manager.scene.load import load_scene
+from zencosim.subsystems.inputs import InputPolynomial
 
 
 def test_free_response_matches_the_closed_form_of_a_damped_oscillator():
@@ -62,3 +66,39 @@ def test_linear_model_of_the_four_mass_chain_is_paper_000_eq_44_45():
     assert np.array_equal(np.diag(model.M), [1.0, 2.0, 3.0, 4.0])
     (bond,) = model.bonds
     assert (bond.force_dof, bond.motion_dof, bond.stiffness, bond.damping) == (1, 2, 300.0, 0.03)
+
+
+@pytest.mark.parametrize("name", ["two_mass_damped", "four_mass", "multiple_oscillator_n5", "double_oscillator"])
+def test_the_monolithic_reference_is_the_monolithic_model_stepped_and_evaluated_sample_by_sample(name):
+    """The reference takes the step matrix and evaluates outputs a block of samples at a time (two products, not
+    a run of the model); it equals stepping the monolithic subsystem with ``advance`` and its outputs, sample by
+    sample: the states bit for bit (the same product), the outputs to rounding (gemm and gemv may add in another
+    order: a few ulps of each signal's range, far inside 1e-12)."""
+    scene = load_scene(name, ["manager.duration=3.0"])
+    fast = monolithic_reference(scene)
+    mono = build_monolithic(scene)
+    base = scene.manager.macro_step_ns
+    none = InputPolynomial(np.empty((1, 0)))
+    rows = [mono.output_values(np.empty(0))] + [mono.advance(k * base, (k + 1) * base, none).copy()
+                                                for k in range(scene.manager.duration_ns // base)]
+    stepped = np.array(rows)
+    columns = {port.name: j for j, port in enumerate(mono.outputs)}
+    for signal, values in [*fast.signals.items(), ("energy", fast.energy)]:
+        expected = stepped[:, columns[signal] if signal != "energy" else -1]
+        assert np.max(np.abs(values - expected)) <= 1e-12 * max(np.ptp(expected), np.max(np.abs(expected))), signal
+
+
+@settings(max_examples=50, deadline=None)
+@given(arrays(float, (7, 10), elements=st.floats(-1e3, 1e3)), st.sampled_from(["four_mass", "multiple_oscillator_n5"]))
+def test_outputs_of_rows_are_outputs_of_each_row(states, name):
+    """``MassesModel.outputs_of_rows`` (the references' batched outputs) against ``outputs_of`` row by row, at
+    arbitrary states: equal to rounding, that is to 1e-13 of the sums of the terms' magnitudes (a signal or an
+    energy that cancels to near zero keeps the rounding of its terms)."""
+    model = build_monolithic(load_scene(name)).model
+    S = states[:, :2 * model.n_dof]
+    times = np.arange(len(S)) * 1e-3
+    expected = np.array([model.outputs_of(t, s) for t, s in zip(times, S)])
+    magnitudes = np.abs(S) @ np.abs(model._G.T)  # the one matrix of the outputs and the energy's quadratic form
+    k = len(model.outputs) - 1
+    bound = np.column_stack((magnitudes[:, :k], np.sum(magnitudes[:, k:] * np.abs(S), axis=1)))
+    assert np.all(np.abs(model.outputs_of_rows(times, S) - expected) <= 1e-13 * (bound + 1e-300))
