@@ -82,7 +82,9 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             started = True
         tap = recorder
         if bus == "inproc":
-            scheme = make_scheme(scene, plan, realtime, None, progress, status, keep=keep, cpu=0)
+            # untapped: the scheme calls the subsystems itself (manager.scheme.direct)
+            scheme = make_scheme(scene, plan, realtime, None, progress, status, keep=keep, cpu=0,
+                                 direct=subsystems if tap is None else None)
             start = time.perf_counter()
             with np.errstate(over="ignore", invalid="ignore"):  # a diverging run: its summary says so
                 record = run_in_process(scheme, plan, subsystems, tap)

@@ -77,12 +77,24 @@ class ModelWatch:
         finally:
             slots[SUBSYSTEM] = -1
 
+    def index(self, name: str) -> int:
+        """The number the marks give subsystem ``name`` (its place among the names given to :meth:`start`)."""
+        return self.names().index(name)
+
+    def calling(self, index: int, t_ns: int) -> None:
+        """Marks a call into the step of subsystem number ``index`` from time ``t_ns`` (until :meth:`returned`)."""
+        slots = self.slots
+        slots[SUBSYSTEM], slots[PHASE], slots[T_NS] = index, STEPPING, t_ns
+        slots[CALLS] += 1
+
+    def returned(self) -> None:
+        self.slots[SUBSYSTEM] = -1
+
     def endpoints(self, endpoints: dict) -> dict:
         """The in-process bus's endpoints (``subsystems.process.endpoint``), each marking its calls when watched."""
         if not self.shared:
             return endpoints
-        order = self.names()
-        return {name: _WatchedEndpoint(endpoint, order.index(name), self.slots) for name, endpoint in endpoints.items()}
+        return {name: _WatchedEndpoint(endpoint, self.index(name), self) for name, endpoint in endpoints.items()}
 
     def where(self) -> tuple[str, str] | None:
         """The subsystem the child is in and what it runs there (``("S2", "its step from t = 0.01 s")``), or None."""
@@ -95,20 +107,19 @@ class ModelWatch:
 
 
 class _WatchedEndpoint:
-    """A subsystem endpoint whose every call is marked on the shared page (``STEPPING`` from the subsystem's time)."""
+    """A subsystem endpoint whose every call is marked (``STEPPING`` from the subsystem's time)."""
 
-    __slots__ = ("endpoint", "index", "slots", "subsystem")
+    __slots__ = ("endpoint", "index", "watch", "subsystem")
 
-    def __init__(self, endpoint, index: int, slots: memoryview) -> None:
-        self.endpoint, self.index, self.slots, self.subsystem = endpoint, index, slots, endpoint.subsystem
+    def __init__(self, endpoint, index: int, watch: ModelWatch) -> None:
+        self.endpoint, self.index, self.watch, self.subsystem = endpoint, index, watch, endpoint.subsystem
 
     def handle(self, data: bytes) -> bytes:
-        slots = self.slots
-        slots[SUBSYSTEM], slots[PHASE], slots[T_NS] = self.index, STEPPING, self.subsystem.t_ns
-        slots[CALLS] += 1
-        reply = self.endpoint.handle(data)
-        slots[SUBSYSTEM] = -1
-        return reply
+        self.watch.calling(self.index, self.subsystem.t_ns)
+        try:
+            return self.endpoint.handle(data)
+        finally:
+            self.watch.returned()
 
 
 UNWATCHED = ModelWatch(shared=False)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, Sequence
 
 import numpy as np
 
@@ -138,7 +138,7 @@ class OutputReader:
         self._bytes = memoryview(self.window.array.view(np.uint8).reshape(-1))  # also for no rows (an untracked source)
         self._width = 8 * len(sub.outputs)
         self._unpack = struct.Struct(f"<{len(sub.outputs)}d").unpack_from
-        self.newest: tuple[float, ...] = ()  # the values of the newest reply
+        self.newest: Sequence[float] = ()  # the values of the newest reply
         self.newest_bytes = b""  # the newest reply, header and values
 
     def commit(self, data: bytes, step: int) -> None:
@@ -152,6 +152,18 @@ class OutputReader:
         self._bytes[start:start + self._width] = memoryview(data)[HEADER.size:]
         self.newest = self._unpack(data, HEADER.size)
         self.newest_bytes = data
+
+    def commit_values(self, y: np.ndarray, step: int) -> None:
+        """Take ``sub``'s outputs for ``step`` as this process computed them (the scheme calling the subsystem
+        itself: ``manager.scheme.direct``): the values ``commit`` takes from their reply, without the bytes."""
+        if y.shape != self.window.row_shape:
+            raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {y.size}")
+        row = step // self.sub.ratio
+        window = self.window
+        if row >= window.end:
+            window.advance(row)
+        window.array[row - window.offset] = y
+        self.newest = y.tolist()
 
 
 def expect_reply(data: bytes, sub: SubsystemPlan, expected: Kind, step: int, command: Kind | None = None):

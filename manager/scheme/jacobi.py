@@ -29,6 +29,7 @@ import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Corrector, Exchange, OutputReader, RunRecord
+from zencosim.manager.scheme.direct import DirectCalls
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.residual import residual_power
@@ -46,7 +47,7 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
            correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None,
-           local: frozenset[int] | None = None, spill: Spill | None = None
+           local: frozenset[int] | None = None, spill: Spill | None = None, direct: DirectCalls | None = None
            ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
@@ -61,7 +62,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     None: every subsystem (the manager's replica, the in-process bus).
 
     ``spill``: where a long run's arrays go as it runs (``manager.scheme.window``): the scheme then holds only
-    the newest rows of each in memory. None: they are held whole."""
+    the newest rows of each in memory. None: they are held whole.
+
+    ``direct``: the subsystems, which the scheme then calls itself (``manager.scheme.direct``: an in-process run
+    that nothing taps): it yields nothing and hands them arrays; every value is the one the messages carry."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
@@ -84,7 +88,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
               if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
-    copied = [None if adjusters[s.index] else _copied_inputs(s, readers) for s in subs]
+    copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
     unpack_inputs = [struct.Struct(f"<{len(s.inputs)}d").unpack_from for s in subs]  # a ZOH command's values
 
     def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
@@ -98,7 +102,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked)
+    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct)
     period, starting, partners_starting, due, due_names, bonds_due = _schedule(plan, local, tracked)
     some_bonds_idle = [len(bonds) < n_bonds for bonds in bonds_due]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
@@ -106,6 +110,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     log_residuals, log_times = (status.log_residuals, status.log_times) if status is not None else (None, None)
     header = HEADER.pack
     step_kind = int(Kind.STEP)
+    stepping: list[tuple[SubsystemPlan, np.ndarray]] = []  # direct: the steps to call once released
+    computed: list[np.ndarray | None] = [None] * len(subs)  # direct: the outputs each subsystem's step computed
 
     for tick in range(n_ticks):
         phase = tick % period
@@ -121,15 +127,25 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             sent[s.index] = (tick, coefficients.tolist())
             for corrector in adjusters[s.index]:
                 coefficients = corrector.adjust(s.index, tick, coefficients)
-            sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
+            if direct is None:
+                sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
+            else:
+                stepping.append((s, coefficients))
         for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
             sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
         released_ns = releases.release(tick)
-        # after the first step, a step's names are its phase's (the step before it is the phase before)
-        replies = yield Exchange(sends, due_names[phase], step_status, next_tick, phase if tick else None)
-        for s in due[phase]:
-            readers[s.index].commit(replies[s.name], next_tick)
+        if direct is None:
+            # after the first step, a step's names are its phase's (the step before it is the phase before)
+            replies = yield Exchange(sends, due_names[phase], step_status, next_tick, phase if tick else None)
+            for s in due[phase]:
+                readers[s.index].commit(replies[s.name], next_tick)
+        else:
+            for s, coefficients in stepping:
+                computed[s.index] = direct.step(s, tick, coefficients)
+            stepping.clear()
+            for s in due[phase]:
+                readers[s.index].commit_values(computed[s.index], next_tick)
         if next_tick >= p_window.end:
             p_window.advance(next_tick)
             e_window.advance(next_tick)
@@ -180,13 +196,14 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
-                     tracked: frozenset[int]) -> Generator[Exchange, dict[str, bytes], None]:
+                     tracked: frozenset[int], direct: DirectCalls | None) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
-    its last reply. Requests go to the ``local`` subsystems; the replies of the ``tracked`` ones are taken."""
+    its last reply. Requests go to the ``local`` subsystems; the replies of the ``tracked`` ones are taken
+    (``direct``: the subsystems are called, as ``jacobi`` says)."""
     subs = plan.subsystems
     for round_ in plan.init_rounds:
-        sends = {}
+        sends, computed = {}, {}
         for step in round_:
             if step.subsystem not in local:
                 continue
@@ -194,8 +211,15 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
             w0 = np.zeros((1, len(s.inputs)))
             if step.ready:
                 w0[0, list(step.ready)] = input_polynomial(s, 0)[0, list(step.ready)]
-            sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
+            if direct is None:
+                sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
+            else:
+                computed[s.index] = direct.initial(s, w0[0])
         taken = [step.subsystem for step in round_ if step.subsystem in tracked]
+        if direct is not None:
+            for i in taken:
+                readers[i].commit_values(computed[i], 0)
+            continue
         replies = yield Exchange(sends, tuple(subs[i].name for i in taken), None, 0)
         for i in taken:
             readers[i].commit(replies[subs[i].name], 0)

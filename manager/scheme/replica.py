@@ -93,7 +93,11 @@ class Replica:
         return [name for name in self.request.awaits if not self.replies[name]]
 
     def start(self) -> None:
-        self.request = next(self.scheme)
+        try:
+            self.request = next(self.scheme)
+        except StopIteration as done:  # a scheme that called its subsystems itself (manager.scheme.direct)
+            self.result = done.value
+            return
         self._execute(None)
         self._advance()
 

@@ -11,6 +11,17 @@ from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.subsystem import SavedState, Subsystem
 
 
+def failure_reason(error: BaseException) -> str | None:
+    """Why a command failed, as its ERROR reply says: an exception, a model that called ``sys.exit()`` (its failure,
+    not the end of the run) or raised KeyboardInterrupt itself (``manager.bus.signals.raised_by_code``); None for
+    a KeyboardInterrupt of the user's (Ctrl-C, SIGTERM), which interrupts the run."""
+    if isinstance(error, SystemExit):
+        return f"the model exited (SystemExit {error.code})"
+    if isinstance(error, KeyboardInterrupt):
+        return "the model raised KeyboardInterrupt (no SIGINT or SIGTERM was received)" if raised_by_code() else None
+    return f"{type(error).__name__}: {error}"
+
+
 class SubsystemEndpoint:
     """Answers manager commands for one subsystem that communicates every ``ratio`` base steps."""
 
@@ -23,22 +34,17 @@ class SubsystemEndpoint:
 
     def handle(self, data: bytes) -> bytes:
         """One command in, one reply out (carrying the command's reference); a failing command is
-        answered with an ERROR message — also one whose model called ``sys.exit()`` or raised KeyboardInterrupt
-        itself (``manager.bus.signals.raised_by_code``); a KeyboardInterrupt of the user's goes on."""
+        answered with an ERROR message (:func:`failure_reason`); a KeyboardInterrupt of the user's goes on."""
         step, time_ns, ref = -1, -1, command_ref(data)
         try:
             message = decode(data, "manager")
             step, time_ns = message.step, message.time_ns
             return self._dispatch(message, ref)
-        except Exception as error:  # the manager names the subsystem and stops the run
-            return encode_error(step, time_ns, f"{type(error).__name__}: {error}", ref)
-        except SystemExit as error:  # the model called sys.exit(): its failure, not the end of the run
-            return encode_error(step, time_ns, f"the model exited (SystemExit {error.code})", ref)
-        except KeyboardInterrupt:
-            if not raised_by_code():
-                raise  # the user's Ctrl-C (or SIGTERM): the run is interrupted
-            return encode_error(step, time_ns, "the model raised KeyboardInterrupt (no SIGINT or SIGTERM was received)",
-                                ref)
+        except (Exception, SystemExit, KeyboardInterrupt) as error:  # the manager names the subsystem, stops the run
+            reason = failure_reason(error)
+            if reason is None:
+                raise
+            return encode_error(step, time_ns, reason, ref)
 
     def _inputs(self, message) -> InputPolynomial:
         rows = message.rows

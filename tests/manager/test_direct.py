@@ -1,0 +1,94 @@
+"""The in-process fast path (``manager.scheme.direct``): the scheme calling the subsystems itself, with arrays,
+computes every value that the run through the wire protocol computes, bit for bit — the one digest of both buses
+stays one — and names a failing model as its ERROR reply would.
+
+The oracle is the general path on the same scene (commands and replies encoded, decoded and checked, as over
+Zenoh), whose equality with a Zenoh run tests/manager/test_buses.py checks."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import zencosim.examples
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.results.summary import digest
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.base import SubsystemFailure
+from zencosim.scenes import __path__ as bundled
+
+EXAMPLES = Path(zencosim.examples.__file__).parent / "scenes"
+SCENES = sorted(p.stem for p in Path(bundled[0]).glob("*.toml"))
+VARIANTS = {  # the schemes' branches: extrapolation orders, multi-rate, energy correction, the compensator
+    "two_mass_damped_soh": ("two_mass_damped", ["manager.extrapolation=2"]),
+    "double_oscillator_multi_rate_foh": ("double_oscillator", ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10",
+                                                               "subsystems.M2.micro_step=0.0001",
+                                                               "manager.extrapolation=1"]),
+    "double_oscillator_corrected": ("double_oscillator", ["manager.correction.enabled=true"]),
+    "hydraulic_crane_corrected": ("hydraulic_crane", ["manager.correction.enabled=true"]),
+    "four_mass_compensated": ("four_mass", ["manager.compensation=eigenstructure"]),
+    "python_model": (str(EXAMPLES / "two_mass_damped_python.toml"), []),
+    "dc_motor": (str(EXAMPLES / "dc_motor_drive.toml"), []),
+}
+STEPS = 300  # base macro-steps of each run (rounded up to the schedule's period)
+
+
+def _two_runs(name: str, overrides: list[str]):
+    """The same scene run through the wire protocol and directly: (record through messages, direct record)."""
+    records = []
+    for direct in (False, True):
+        scene = load_scene(name, overrides)
+        plan, _ = plan_scene(scene)
+        period = math.lcm(*(s.ratio for s in plan.subsystems))
+        ticks = -(-STEPS // period) * period
+        scene = load_scene(name, [*overrides, f"manager.duration={ticks * scene.manager.macro_step_ns / 1e9!r}"])
+        plan, subsystems = plan_scene(scene)
+        scheme = make_scheme(scene, plan, direct=subsystems if direct else None)
+        with np.errstate(over="ignore", invalid="ignore"):
+            records.append(run_in_process(scheme, plan, subsystems))
+    return records
+
+
+@pytest.mark.parametrize("name, overrides", [*((name, []) for name in SCENES), *VARIANTS.values()],
+                         ids=[*SCENES, *VARIANTS])
+def test_the_direct_path_computes_every_value_of_the_message_path(name, overrides):
+    through_messages, direct = _two_runs(name, overrides)
+    assert digest(direct) == digest(through_messages)
+    for ours, theirs in zip(direct.trajectories, through_messages.trajectories):
+        assert np.array_equal(ours, theirs, equal_nan=True)
+    assert np.array_equal(direct.residual_power, through_messages.residual_power, equal_nan=True)
+    assert np.array_equal(direct.residual_energy, through_messages.residual_energy, equal_nan=True)
+    assert len(direct.corrections) == len(through_messages.corrections)
+    for ours, theirs in zip(direct.corrections, through_messages.corrections):
+        assert np.array_equal(np.asarray(ours.work), np.asarray(theirs.work), equal_nan=True)
+    if direct.implicit is not None:  # the implicit scheme exchanges messages either way
+        assert np.array_equal(direct.implicit.coupling_variables, through_messages.implicit.coupling_variables)
+
+
+def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypatch):
+    """A model raising in its step: the same one line on both paths (the subsystem, the step, the exception)."""
+    (tmp_path / "failing_model.py").write_text(
+        "from zencosim.examples.oscillator import Oscillator\n"
+        "class Failing(Oscillator):\n"
+        "    def acceleration(self, t, z, u):\n"
+        "        if t >= 0.05:\n"
+        "            raise ValueError('table lookup out of range')\n"
+        "        return super().acceleration(t, z, u)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    text = (EXAMPLES / "two_mass_damped_python.toml").read_text()
+    head, _, tail = text.partition("[subsystems.S2]")
+    scene_file = tmp_path / "failing.toml"
+    scene_file.write_text(head + "[subsystems.S2]" + tail.replace("zencosim.examples.oscillator:Oscillator",
+                                                                  "failing_model:Failing", 1))
+    said = []
+    for direct in (False, True):
+        scene = load_scene(str(scene_file), ["manager.duration=0.2"])
+        plan, subsystems = plan_scene(scene)
+        with pytest.raises(SubsystemFailure) as failure:
+            run_in_process(make_scheme(scene, plan, direct=subsystems if direct else None), plan, subsystems)
+        said.append(str(failure.value))
+    assert said[0] == said[1] and said[1].startswith("subsystem S2: failed at step ")
+    assert said[1].endswith(": ValueError: table lookup out of range"), said
