@@ -26,6 +26,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 STEPS = (500, 2500)
@@ -66,7 +67,9 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
                              sys.executable, "-c", program, what, str(steps), layout, where],
                             env={**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1",
-                                 "OMP_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}, capture_output=True, text=True)
+                                 "OMP_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}, capture_output=True, text=True,
+                            cwd=tempfile.gettempdir())  # `python -c` imports from its working directory first:
+    # from the repository's root that would be this tree's zencosim, whatever PYTHONPATH says
     if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
         raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
                          f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
@@ -80,8 +83,6 @@ def per_step(what: str, pythonpath: str = "", layout: str = "package", where: st
 
 def fmu_pair(show) -> None:
     """The in-process step with both subsystems as the example C FMUs, and libcosim's step of the same FMUs."""
-    import tempfile
-
     from zencosim.examples.write import write_examples
     with tempfile.TemporaryDirectory() as directory:
         write_examples(Path(directory))

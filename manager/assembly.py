@@ -5,14 +5,14 @@ the run plan, and the scheme generator with the correctors the scene asks for.
 """
 from __future__ import annotations
 
+from contextlib import AbstractContextManager, nullcontext
 from typing import Callable
 
-from zencosim.manager.bus.watchdog import model_watch
 from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.plan.run_plan import Plan, compile_plan
 from zencosim.manager.scene.load import Scene
+from zencosim.manager.scheme.base import SubsystemCalls
 from zencosim.manager.scheme.correction import build_correctors
-from zencosim.manager.scheme.direct import DirectCalls
 from zencosim.manager.scheme.implicit import compile_joint, implicit
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.pacing import SPIN_ALONE_NS, Pacer, ThreadScheduling
@@ -34,20 +34,23 @@ def attachments(scene: Scene) -> dict[str, Attachments]:
     return result
 
 
-def build_subsystems(scene: Scene) -> dict[str, Subsystem]:
+def build_subsystems(scene: Scene, constructing: Callable[[str], AbstractContextManager] = nullcontext
+                     ) -> dict[str, Subsystem]:
+    """Every subsystem of ``scene``, built; each construction inside ``constructing(name)`` (a watched run marks
+    them: ``manager.bus.watchdog``)."""
     attached = attachments(scene)
-    watch = model_watch()  # marks each constructor in a watched run (manager.bus.watchdog)
-    watch.start(list(scene.subsystems), scene.manager.timeout)
     built = {}
-    for index, name in enumerate(scene.subsystems):
-        with watch.constructing(index):
+    for name in scene.subsystems:
+        with constructing(name):
             built[name] = build_subsystem(scene, name, attached[name])
     return built
 
 
-def plan_scene(scene: Scene) -> tuple[Plan, dict]:
-    """The run plan and the built subsystems (the manager builds them too, to know their ports)."""
-    subsystems = build_subsystems(scene)
+def plan_scene(scene: Scene, constructing: Callable[[str], AbstractContextManager] = nullcontext
+               ) -> tuple[Plan, dict]:
+    """The run plan and the built subsystems (the manager builds them too, to know their ports); ``constructing``
+    as in ``build_subsystems``."""
+    subsystems = build_subsystems(scene, constructing)
     plan = compile_plan(scene, {n: (s.inputs, s.outputs, s.effects) for n, s in subsystems.items()})
     return plan, subsystems
 
@@ -55,7 +58,7 @@ def plan_scene(scene: Scene) -> tuple[Plan, dict]:
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
                 progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
                 spin_ns: int = SPIN_ALONE_NS, local: frozenset[int] | None = None, keep: bool | None = None,
-                cpu: int | None = None, who: str = "zencosim", direct: dict[str, Subsystem] | None = None):
+                cpu: int | None = None, who: str = "zencosim", direct: SubsystemCalls | None = None):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
@@ -64,8 +67,9 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     run's arrays whole in memory (True), spill them to files as the run goes (False), or spill those of a
     long run only (None; ``manager.scheme.window.spill_for``); ``cpu``: the CPU the pacing thread keeps to when
     the scene sets ``manager.realtime_affinity`` (``who`` names the process in a warning when a real-time lever
-    is refused); ``direct``: the built subsystems of an in-process run that nothing taps, which the Jacobi scheme
-    then calls itself (``manager.scheme.direct``; the implicit scheme exchanges messages)."""
+    is refused); ``direct``: the subsystems of an in-process run that nothing taps, which the Jacobi scheme then
+    calls itself (``manager.bus.inproc.DirectCalls``; the implicit scheme exchanges messages), unless it reports
+    its status."""
     levers = scene.manager
     scheduling = (ThreadScheduling(levers.realtime_priority, cpu if levers.realtime_affinity else None, who)
                   if levers.realtime_priority or levers.realtime_affinity else None)
@@ -73,9 +77,8 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     spill = spill_for(plan.n_ticks, keep)
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
-    calls = None if direct is None or status is not None else DirectCalls(plan, direct)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,
-                  spill, calls)
+                  spill, direct if status is None else None)
 
 
 def process_scope(scene: Scene, plan: Plan, name: str) -> tuple[frozenset[int] | None, frozenset[str]]:

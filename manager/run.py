@@ -14,7 +14,8 @@ import numpy as np
 
 from zencosim.manager.analysis.monolithic import monolithic_unavailable
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.inproc import DirectCalls, run_in_process
+from zencosim.manager.bus.watchdog import model_watch
 from zencosim.manager.bus.zenoh_bus import ZenohBus
 from zencosim.manager.bus.zenoh_session import ZenohOptions, new_run_id
 from zencosim.manager.plan.run_plan import Plan
@@ -70,7 +71,9 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
     if bus not in BUSES:
         raise ValueError(f"unknown bus {bus!r}; expected one of {', '.join(BUSES)}")
     realtime = scene.manager.realtime if realtime is None else realtime
-    plan, subsystems = plan_scene(scene)
+    watch = model_watch()  # a watched run marks each constructor (manager.bus.watchdog)
+    watch.start(list(scene.subsystems), scene.manager.timeout)
+    plan, subsystems = plan_scene(scene, watch.constructing)
     # the status's lateness is measured where the steps are paced: in process only (over Zenoh each
     # subsystem paces its own replica and reports its lateness at the end)
     status = StatusReport(plan, realtime and bus == "inproc") if recorder is not None else None
@@ -82,9 +85,9 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             started = True
         tap = recorder
         if bus == "inproc":
-            # untapped: the scheme calls the subsystems itself (manager.scheme.direct)
+            # untapped: the scheme calls the subsystems itself (manager.bus.inproc)
             scheme = make_scheme(scene, plan, realtime, None, progress, status, keep=keep, cpu=0,
-                                 direct=subsystems if tap is None else None)
+                                 direct=DirectCalls(plan, subsystems) if tap is None else None)
             start = time.perf_counter()
             with np.errstate(over="ignore", invalid="ignore"):  # a diverging run: its summary says so
                 record = run_in_process(scheme, plan, subsystems, tap)

@@ -1,16 +1,64 @@
 """The in-process bus: one replica of the scheme holds every subsystem and executes every command itself.
 
-Commands and replies still pass through the wire protocol's ``encode``/``decode``
-(``subsystems.process.endpoint``), so a codec bug shows on both buses.
+A run that something taps (a recording, the live view) passes its commands and replies through the wire
+protocol's ``encode``/``decode`` (``subsystems.process.endpoint``), as over Zenoh, and the tap sees them. A run
+that nothing taps needs no messages: its Jacobi scheme calls the subsystems itself (:class:`DirectCalls`), handing
+each its input polynomial and taking its outputs as arrays, with no encoding, CRC, decoding or replica between
+them. The arithmetic is the same — the same input polynomials (a zero-order one is the source's newest outputs,
+as the bytes a command would copy), the same ``Subsystem.advance``, the same committed values — so the digest
+equals that of a run through the messages and over Zenoh (tests/manager/test_direct.py compares every array of
+every bundled scene). A failing model is named as its ERROR reply would name it (``failure_reason``), and a
+watched run (``manager.bus.watchdog``) marks every call.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from zencosim.manager.bus.signals import InterruptWatch
 from zencosim.manager.bus.watchdog import model_watch
-from zencosim.manager.plan.run_plan import Plan
-from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
+from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
 from zencosim.manager.scheme.replica import Replica, Tap
-from zencosim.subsystems.process.endpoint import SubsystemEndpoint
+from zencosim.manager.wire.text import printable
+from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.process.endpoint import SubsystemEndpoint, failure_reason
+from zencosim.subsystems.subsystem import Subsystem
+
+
+class DirectCalls:
+    """The subsystems of ``plan`` (built, ``subsystems`` by name), called by the scheme (``SubsystemCalls``)."""
+
+    def __init__(self, plan: Plan, subsystems: dict[str, Subsystem]) -> None:
+        self.subsystems = [subsystems[s.name] for s in plan.subsystems]
+        self.base_step_ns = plan.base_step_ns
+        watch = model_watch()
+        self.watch = watch if watch.shared else None
+        self.watched = [watch.index(s.name) for s in plan.subsystems] if watch.shared else []
+
+    def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
+        return self._call(s, 0, 0, self.subsystems[s.index].output_values, w0)
+
+    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
+        t0_ns = tick * self.base_step_ns
+        return self._call(s, tick + s.ratio, t0_ns, self.subsystems[s.index].advance, t0_ns,
+                          t0_ns + s.ratio * self.base_step_ns, InputPolynomial(coefficients))
+
+    def _call(self, s: SubsystemPlan, due: int, t_ns: int, function, *arguments) -> np.ndarray:
+        """``function(*arguments)`` of subsystem ``s``, whose outputs are due at step ``due``, from time ``t_ns``."""
+        watch = self.watch
+        try:
+            if watch is None:
+                return function(*arguments)
+            watch.calling(self.watched[s.index], t_ns)
+            try:
+                return function(*arguments)
+            finally:
+                watch.returned()
+        except (Exception, SystemExit, KeyboardInterrupt) as error:
+            reason = failure_reason(error)
+            if reason is None:
+                raise
+            raise SubsystemFailure(s.name, f"failed at step {due}: {printable(reason)}") from None
 
 
 def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:

@@ -67,10 +67,10 @@ class ModelWatch:
             return []
 
     @contextmanager
-    def constructing(self, index: int) -> Iterator[None]:
-        """Marks the construction of subsystem number ``index`` (of the names given to :meth:`start`)."""
+    def constructing(self, name: str) -> Iterator[None]:
+        """Marks the construction of subsystem ``name`` (one of the names given to :meth:`start`)."""
         slots = self.slots
-        slots[SUBSYSTEM], slots[PHASE] = index, CONSTRUCTING
+        slots[SUBSYSTEM], slots[PHASE] = self.index(name), CONSTRUCTING
         slots[CALLS] += 1
         try:
             yield
@@ -78,8 +78,10 @@ class ModelWatch:
             slots[SUBSYSTEM] = -1
 
     def index(self, name: str) -> int:
-        """The number the marks give subsystem ``name`` (its place among the names given to :meth:`start`)."""
-        return self.names().index(name)
+        """The number the marks give subsystem ``name`` (its place among the names given to :meth:`start`; -1, no
+        mark, for a name the page does not hold)."""
+        names = self.names()
+        return names.index(name) if name in names else -1
 
     def calling(self, index: int, t_ns: int) -> None:
         """Marks a call into the step of subsystem number ``index`` from time ``t_ns`` (until :meth:`returned`)."""

@@ -77,6 +77,17 @@ class ImplicitRecord:
     diverged_at: int | None  # macro-step at whose end the joint opened wider than divergence_gap (or not finite)
 
 
+class SubsystemCalls(Protocol):
+    """The subsystems of an in-process run, called by the scheme itself (``manager.bus.inproc.DirectCalls``)."""
+
+    def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
+        """``s``'s outputs at t_0 with the input values ``w0`` (an INIT command's)."""
+
+    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
+        """``s``'s outputs at the end of its step from base step ``tick`` over the input polynomial ``coefficients``
+        (a STEP command's)."""
+
+
 @dataclass
 class RunRecord:
     """What one run produced, on the base macro-step grid."""
@@ -155,7 +166,7 @@ class OutputReader:
 
     def commit_values(self, y: np.ndarray, step: int) -> None:
         """Take ``sub``'s outputs for ``step`` as this process computed them (the scheme calling the subsystem
-        itself: ``manager.scheme.direct``): the values ``commit`` takes from their reply, without the bytes."""
+        itself: ``manager.bus.inproc.DirectCalls``): the values ``commit`` takes from their reply, without the bytes."""
         if y.shape != self.window.row_shape:
             raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {y.size}")
         row = step // self.sub.ratio

@@ -28,8 +28,15 @@ from typing import Callable, Generator
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
-from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Corrector, Exchange, OutputReader, RunRecord
-from zencosim.manager.scheme.direct import DirectCalls
+from zencosim.manager.scheme.base import (
+    HISTORY_ROWS,
+    PROGRESS_EVERY,
+    Corrector,
+    Exchange,
+    OutputReader,
+    RunRecord,
+    SubsystemCalls,
+)
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.residual import residual_power
@@ -47,7 +54,7 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
            correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None,
-           local: frozenset[int] | None = None, spill: Spill | None = None, direct: DirectCalls | None = None
+           local: frozenset[int] | None = None, spill: Spill | None = None, direct: SubsystemCalls | None = None
            ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
@@ -64,8 +71,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     ``spill``: where a long run's arrays go as it runs (``manager.scheme.window``): the scheme then holds only
     the newest rows of each in memory. None: they are held whole.
 
-    ``direct``: the subsystems, which the scheme then calls itself (``manager.scheme.direct``: an in-process run
-    that nothing taps): it yields nothing and hands them arrays; every value is the one the messages carry."""
+    ``direct``: the subsystems, which the scheme then calls itself (``manager.bus.inproc.DirectCalls``: an in-process
+    run that nothing taps): it yields nothing and hands them arrays; every value is the one the messages carry."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
@@ -196,7 +203,7 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
-                     tracked: frozenset[int], direct: DirectCalls | None) -> Generator[Exchange, dict[str, bytes], None]:
+                     tracked: frozenset[int], direct: SubsystemCalls | None) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
     its last reply. Requests go to the ``local`` subsystems; the replies of the ``tracked`` ones are taken

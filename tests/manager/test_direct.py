@@ -1,4 +1,4 @@
-"""The in-process fast path (``manager.scheme.direct``): the scheme calling the subsystems itself, with arrays,
+"""The in-process fast path (``manager.bus.inproc.DirectCalls``): the scheme calling the subsystems itself, with arrays,
 computes every value that the run through the wire protocol computes, bit for bit — the one digest of both buses
 stays one — and names a failing model as its ERROR reply would.
 
@@ -14,7 +14,7 @@ import pytest
 
 import zencosim.examples
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
@@ -46,7 +46,7 @@ def _two_runs(name: str, overrides: list[str]):
         ticks = -(-STEPS // period) * period
         scene = load_scene(name, [*overrides, f"manager.duration={ticks * scene.manager.macro_step_ns / 1e9!r}"])
         plan, subsystems = plan_scene(scene)
-        scheme = make_scheme(scene, plan, direct=subsystems if direct else None)
+        scheme = make_scheme(scene, plan, direct=DirectCalls(plan, subsystems) if direct else None)
         with np.errstate(over="ignore", invalid="ignore"):
             records.append(run_in_process(scheme, plan, subsystems))
     return records
@@ -88,7 +88,7 @@ def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypa
         scene = load_scene(str(scene_file), ["manager.duration=0.2"])
         plan, subsystems = plan_scene(scene)
         with pytest.raises(SubsystemFailure) as failure:
-            run_in_process(make_scheme(scene, plan, direct=subsystems if direct else None), plan, subsystems)
+            run_in_process(make_scheme(scene, plan, direct=DirectCalls(plan, subsystems) if direct else None), plan, subsystems)
         said.append(str(failure.value))
     assert said[0] == said[1] and said[1].startswith("subsystem S2: failed at step ")
     assert said[1].endswith(": ValueError: table lookup out of range"), said
