@@ -64,12 +64,17 @@ else:  # the stepping loop: "plain", with the "status", with the status and the 
 
 def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str = "") -> int:
     program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
+    env = {**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+           "PYTHONHASHSEED": "0"}
+    # `python -c` imports from its working directory first (from the repository's root: this tree's zencosim,
+    # whatever PYTHONPATH says), so it runs in the temporary directory; and once without valgrind first: a module
+    # changed since its last import is compiled to bytecode then, not in the first of the two counted runs (which
+    # made the floor's count 1,400 instructions per step too low)
+    subprocess.run([sys.executable, "-c", program, what, "10", layout, where], env=env, capture_output=True,
+                   cwd=tempfile.gettempdir(), check=False)
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
                              sys.executable, "-c", program, what, str(steps), layout, where],
-                            env={**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1",
-                                 "OMP_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}, capture_output=True, text=True,
-                            cwd=tempfile.gettempdir())  # `python -c` imports from its working directory first:
-    # from the repository's root that would be this tree's zencosim, whatever PYTHONPATH says
+                            env=env, capture_output=True, text=True, cwd=tempfile.gettempdir())
     if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
         raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
                          f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
