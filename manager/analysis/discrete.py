@@ -128,7 +128,8 @@ class DiscreteScheme:
 
 
 def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
-    """``Ψ`` of the explicit Jacobi scheme (``manager.scheme.jacobi``) for ``plan`` and its built subsystems."""
+    """``Ψ`` of the explicit scheme (``manager.scheme.jacobi``: Jacobi, or Gauss–Seidel stage after stage as
+    ``plan.stages`` orders them) for ``plan`` and its built subsystems."""
     subs = plan.subsystems
     depth = max(s.order for s in subs)  # history kept: depth + 1 samples of every subsystem
     base = plan.base_step_ns
@@ -147,27 +148,31 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
     history = [[identity[index] for index in samples] for samples in history_index]  # oldest first
 
     period = math.lcm(*(s.ratio for s in subs))
+    stage_of = {i: number for number, stage in enumerate(plan.stages) for i in stage}
     pending: dict[int, list[tuple[int, np.ndarray]]] = {}
     for tick in range(period):
-        for s in subs:
-            if tick % s.ratio:
-                continue
-            order = s.order
-            c = np.zeros((order + 1, len(s.inputs), offset))
-            for feed in s.feeds:
-                ratio = subs[feed.source].ratio
-                newest = depth + tick // ratio  # position of the newest committed sample in the history
-                P = extrapolation_matrix(order + 1, ratio * base, (tick - (tick // ratio) * ratio) * base)
-                samples = history[feed.source][newest - order:newest + 1]
-                for output, target in zip(feed.outputs, feed.inputs):
-                    values = np.stack([sample[output] for sample in samples])
-                    c[:, target] = P @ values
-            m = maps[s.index]
-            z[s.index] = m.Phi @ z[s.index] + np.einsum("qab,qbx->ax", m.Gamma, c)
-            w_end = np.einsum("q,qbx->bx", m.span ** np.arange(order + 1), c)
-            pending.setdefault(tick + s.ratio, []).append((s.index, m.C_y @ z[s.index] + m.D_y @ w_end))
-        for index, y in pending.pop(tick + 1, []):
-            history[index].append(y)
+        for stage in plan.stages:
+            for s in (subs[i] for i in stage):
+                if tick % s.ratio:
+                    continue
+                order = s.order
+                c = np.zeros((order + 1, len(s.inputs), offset))
+                for feed in s.feeds:
+                    ratio = subs[feed.source].ratio
+                    # a source of an earlier stage (Gauss–Seidel) has its sample at the step's end already
+                    newest_sample = tick // ratio + (stage_of[feed.source] < stage_of[s.index])
+                    newest = depth + newest_sample  # its position in the history
+                    P = extrapolation_matrix(order + 1, ratio * base, (tick - newest_sample * ratio) * base)
+                    samples = history[feed.source][newest - order:newest + 1]
+                    for output, target in zip(feed.outputs, feed.inputs):
+                        values = np.stack([sample[output] for sample in samples])
+                        c[:, target] = P @ values
+                m = maps[s.index]
+                z[s.index] = m.Phi @ z[s.index] + np.einsum("qab,qbx->ax", m.Gamma, c)
+                w_end = np.einsum("q,qbx->bx", m.span ** np.arange(order + 1), c)
+                pending.setdefault(tick + s.ratio, []).append((s.index, m.C_y @ z[s.index] + m.D_y @ w_end))
+            for index, y in pending.pop(tick + 1, []):
+                history[index].append(y)
     Psi = np.vstack(z + [sample for samples in history for sample in samples[-(depth + 1):]])
     return DiscreteScheme(Psi, period * base * 1e-9, tuple(z_index), tuple(history_index))
 

@@ -79,6 +79,9 @@ class Plan:
     signals: dict[str, tuple[int, int]]  # coupling signal name -> (subsystem, output)
     base_step_ns: int
     n_ticks: int
+    # the subsystems that step together, stage after stage, within a macro-step (indices): Jacobi one stage of
+    # all, Gauss–Seidel one per subsystem in its order (``stages``)
+    stages: tuple[tuple[int, ...], ...] = ()
 
     def by_name(self, name: str) -> SubsystemPlan:
         return next(s for s in self.subsystems if s.name == name)
@@ -171,11 +174,26 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     signals = {p.name: (s.index, j) for s in plans for j, p in enumerate(s.outputs) if p.quantity != "energy"}
     manager = scene.manager
     plan = Plan(tuple(plans), tuple(bonds), init_rounds, signals, manager.macro_step_ns,
-                manager.duration_ns // manager.macro_step_ns)
+                manager.duration_ns // manager.macro_step_ns, stages(scene, plans, init_rounds))
     reason = memory_problem(plan, plan.n_ticks, manager.duration, manager.macro_step)
     if reason:
         raise SceneError(scene.path, [Problem("manager.duration", reason)])
     return plan
+
+
+def stages(scene: Scene, plans: list[SubsystemPlan], init_rounds: tuple[tuple[InitStep, ...], ...]
+           ) -> tuple[tuple[int, ...], ...]:
+    """The stages of a macro-step: one of every subsystem (Jacobi, implicit), or one per subsystem (Gauss–Seidel)
+    in ``manager.order``, by default in the order their outputs become final at initialisation: a subsystem
+    after those whose outputs it passes through directly (a force side after its motion side), ties in scene
+    order."""
+    if scene.manager.scheme != "gauss-seidel":
+        return (tuple(s.index for s in plans),)
+    if scene.manager.order:
+        index = {s.name: s.index for s in plans}
+        return tuple((index[name],) for name in scene.manager.order)
+    last_round = {step.subsystem: number for number, round_ in enumerate(init_rounds) for step in round_}
+    return tuple((s.index,) for s in sorted(plans, key=lambda s: last_round.get(s.index, 0)))
 
 
 def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[InitStep, ...], ...]:

@@ -21,7 +21,12 @@ def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, coupl
     """Rigid joints need the implicit scheme, which handles one rigid joint, single-rate, with the scene's
     extrapolation order as k and no energy correction (paper 003 §2)."""
     joints = [c for c in couplings.values() if isinstance(c, RigidJoint)]
-    if manager.scheme == "jacobi":
+    if manager.scheme == "gauss-seidel":
+        _check_gauss_seidel(manager, subsystems, problems)
+    elif manager.order:
+        problems.add("manager.order", f"the order subsystems step in belongs to manager.scheme = 'gauss-seidel', "
+                     f"got {manager.scheme!r}: remove it")
+    if manager.scheme != "implicit":
         for joint in joints:
             problems.add(f"couplings.{joint.name}.type", "a rigid joint needs manager.scheme = 'implicit': an "
                          "explicit scheme cannot hold an algebraic constraint")
@@ -62,6 +67,26 @@ def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, coupl
     if outputs is not None and joints and outputs.reference == "analytic":
         problems.add("outputs.reference", "a scene with a rigid joint has no analytic reference here; expected "
                      "'solve_ivp' (the subsystems integrated together, the joint held exactly) or 'none'")
+
+
+def _check_gauss_seidel(manager: ManagerSettings, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
+    """The Gauss–Seidel scheme here: single-rate, without energy correction (derived for Jacobi; the compensator:
+    ``check_compensation``), ``manager.order`` naming every subsystem once when given."""
+    for sub in subsystems.values():
+        if sub.settings.comm_ratio != 1:
+            problems.add(f"subsystems.{sub.name}.comm_ratio", "expected 1: the Gauss–Seidel scheme is single-rate "
+                         "here (multi-rate runs use manager.scheme = 'jacobi')")
+    if manager.corrects:
+        problems.add("manager.correction", "energy correction (paper 002) is derived for the Jacobi scheme; expected "
+                     "it disabled with manager.scheme = 'gauss-seidel'")
+    if manager.order:
+        unknown = [name for name in manager.order if name not in subsystems]
+        repeated = sorted({name for name in manager.order if manager.order.count(name) > 1})
+        missing = [name for name in subsystems if name not in manager.order]
+        for what, names in (("no such subsystem", unknown), ("named twice", repeated), ("missing", missing)):
+            if names:
+                problems.add("manager.order", f"{what}: {', '.join(names)}; expected every subsystem once "
+                             f"({', '.join(subsystems)})")
 
 
 # times travel as signed 64-bit nanoseconds (docs/protocol.md): the longest time a scene can state [s]
@@ -154,6 +179,9 @@ def check_compensation(manager: ManagerSettings, couplings: dict, subsystems: di
     if manager.corrects:
         problems.add("manager.compensation", "expected no energy correction (manager.correction) with the "
                      "compensator: its discrete correction does not model it")
+    if manager.scheme == "gauss-seidel":
+        problems.add("manager.compensation", "the compensator (paper 000) is designed for the Jacobi scheme; "
+                     "expected manager.scheme = 'jacobi' with it")
 
 
 def check_couplings(couplings: dict, subsystems: dict[str, SubsystemScene], tables: dict,

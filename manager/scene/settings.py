@@ -70,7 +70,9 @@ class ManagerSettings:
 
     duration: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # simulated time [s]
     macro_step: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # base communication step [s]
-    scheme: Literal["jacobi", "implicit"] = "jacobi"
+    scheme: Literal["jacobi", "gauss-seidel", "implicit"] = "jacobi"
+    # gauss-seidel: the subsystems in the order they step within a macro-step (() : the plan's, run_plan.stages)
+    order: tuple[str, ...] = ()
     extrapolation: int = field(default=0, metadata=quantity("", minimum=0, maximum=2))  # Lagrange order (implicit: k)
     timeout: float = field(default=10.0, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))
     realtime: bool = False

@@ -91,18 +91,23 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     residuals = [math.nan] * (2 * n_bonds)  # the status's: δP of every bond evaluated at this step's end, then δE
     releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
-    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs), f.order) for f in s.feeds
-              if f.source in tracked] for s in subs]
+    stage_of = {i: number for number, stage in enumerate(plan.stages) for i in stage}
+    # per feed: its source's newest sample is the one at the end of the step when the source steps in an earlier
+    # stage (Gauss–Seidel, single-rate: the polynomial interpolates up to it), else the one at or before its start
+    feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs), f.order,
+               int(stage_of[f.source] < stage_of[s.index])) for f in s.feeds if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
     unpack_inputs = [struct.Struct(f"<{len(s.inputs)}d").unpack_from for s in subs]  # a ZOH command's values
 
-    def input_polynomial(s: SubsystemPlan, tick: int) -> np.ndarray:
+    def input_polynomial(s: SubsystemPlan, tick: int, stepping: bool = True) -> np.ndarray:
+        """``s``'s input polynomial over its step from ``tick`` (``stepping`` False: the values at t_0, from every
+        source's first sample)."""
         order = s.order
         coefficients = np.zeros((order + 1, len(s.inputs)))
-        for source, ratio, outputs, inputs, feed_order in feeds[s.index]:
-            newest = tick // ratio
+        for source, ratio, outputs, inputs, feed_order, fresh in feeds[s.index]:
+            newest = tick // ratio + (fresh and stepping)
             window = windows[source]
             rows = lagrange_coefficients(window.array, outputs, newest, feed_order, ratio * base,
                                          (tick - newest * ratio) * base, window.offset)
@@ -110,8 +115,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         return coefficients
 
     yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct)
-    period, starting, partners_starting, due, due_names, bonds_due = _schedule(plan, local, tracked)
-    some_bonds_idle = [len(bonds) < n_bonds for bonds in bonds_due]  # their status fields are NaN (multi-rate)
+    period, stages = _schedule(plan, local, tracked)
+    n_stages = len(plan.stages)
+    some_bonds_idle = [len(bonds) < n_bonds for _, bonds in stages]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
     step_status = None  # the step whose status the next exchange reports
     log_residuals, log_times = (status.log_residuals, status.log_times) if status is not None else (None, None)
@@ -122,44 +128,48 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
     for tick in range(n_ticks):
         phase = tick % period
-        sends = {}
-        for s in starting[phase]:
-            segments = copied[s.index]
-            if segments is not None:  # ZOH: the sources' newest values, as they arrived
-                payload = b"".join([reader.newest_bytes[start:end] for reader, start, end in segments])
-                sends[s.name] = command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
-                sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
-                continue
-            coefficients = input_polynomial(s, tick)
-            sent[s.index] = (tick, coefficients.tolist())
-            for corrector in adjusters[s.index]:
-                coefficients = corrector.adjust(s.index, tick, coefficients)
-            if direct is None:
-                sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
-            else:
-                stepping.append((s, coefficients))
-        for s in partners_starting[phase]:  # the other side of a local bond: its polynomial, for the residual
-            sent[s.index] = (tick, input_polynomial(s, tick).tolist())
         next_tick = tick + 1
-        released_ns = releases.release(tick)
-        if direct is None:
-            # after the first step, a step's names are its phase's (the step before it is the phase before)
-            replies = yield Exchange(sends, due_names[phase], step_status, next_tick, phase if tick else None)
-            for s in due[phase]:
-                readers[s.index].commit(replies[s.name], next_tick)
-        else:
-            for s, coefficients in stepping:
-                computed[s.index] = direct.step(s, tick, coefficients)
-            stepping.clear()
-            for s in due[phase]:
-                readers[s.index].commit_values(computed[s.index], next_tick)
+        released_ns = None
+        for number, (starting, partners_starting, due, due_names) in enumerate(stages[phase][0]):
+            sends = {}
+            for s in starting:
+                segments = copied[s.index]
+                if segments is not None:  # ZOH: the sources' newest values, as they arrived
+                    payload = b"".join([reader.newest_bytes[start:end] for reader, start, end in segments])
+                    sends[s.name] = command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
+                    sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
+                    continue
+                coefficients = input_polynomial(s, tick)
+                sent[s.index] = (tick, coefficients.tolist())
+                for corrector in adjusters[s.index]:
+                    coefficients = corrector.adjust(s.index, tick, coefficients)
+                if direct is None:
+                    sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
+                else:
+                    stepping.append((s, coefficients))
+            for s in partners_starting:  # the other side of a local bond: its polynomial, for the residual
+                sent[s.index] = (tick, input_polynomial(s, tick).tolist())
+            if released_ns is None:
+                released_ns = releases.release(tick)
+            if direct is None:
+                # a request's names repeat with its stage and phase (after the first: the requests before them do)
+                shape = phase * n_stages + number if tick or number else None
+                replies = yield Exchange(sends, due_names, None if number else step_status, next_tick, shape)
+                for s in due:
+                    readers[s.index].commit(replies[s.name], next_tick)
+            else:
+                for s, coefficients in stepping:
+                    computed[s.index] = direct.step(s, tick, coefficients)
+                stepping.clear()
+                for s in due:
+                    readers[s.index].commit_values(computed[s.index], next_tick)
         if next_tick >= p_window.end:
             p_window.advance(next_tick)
             e_window.advance(next_tick)
         row = next_tick - p_window.offset
         if some_bonds_idle[phase]:
             residuals = [math.nan] * (2 * n_bonds)
-        for b, bond, components in bonds_due[phase]:
+        for b, bond, components in stages[phase][1]:
             delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
             p_res[row, b] = residuals[b] = delta_p
             e_res[row, b] = last_bond_energy[b] = residuals[n_bonds + b] = (
@@ -217,7 +227,7 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
             s = subs[step.subsystem]
             w0 = np.zeros((1, len(s.inputs)))
             if step.ready:
-                w0[0, list(step.ready)] = input_polynomial(s, 0)[0, list(step.ready)]
+                w0[0, list(step.ready)] = input_polynomial(s, 0, stepping=False)[0, list(step.ready)]
             if direct is None:
                 sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
             else:
@@ -233,24 +243,30 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
 
 
 def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:
-    """What happens at each phase of the schedule, which repeats every lcm of the ratios: (period, the local
-    subsystems starting a step, the non-local sides of their bonds starting one (whose input polynomial the
-    residual power needs: the columns this replica can compute are those it needs), the tracked subsystems
-    due at its end and their names, the bonds of local subsystems evaluated at its end)."""
+    """What happens at each phase of the schedule, which repeats every lcm of the ratios: ``(period, phases)``, each
+    phase ``(stages, bonds)``: per stage of the plan (``Plan.stages``) the local subsystems starting a step, the
+    non-local sides of their bonds starting one (whose input polynomial the residual power needs: the columns
+    this replica can compute are those it needs), the tracked subsystems due at its end and their names; then the
+    bonds of local subsystems evaluated at the phase's end."""
     subs = plan.subsystems
     period = math.lcm(*(s.ratio for s in subs))
     partners = {side for bond in plan.bonds if {bond.force_side, bond.motion_side} & local
                 for side in (bond.force_side, bond.motion_side)} - local
-    starting = [tuple(s for s in subs if phase % s.ratio == 0 and s.index in local) for phase in range(period)]
-    partners_starting = [tuple(s for s in subs if phase % s.ratio == 0 and s.index in partners)
-                         for phase in range(period)]
-    due = [tuple(s for s in subs if (phase + 1) % s.ratio == 0 and s.index in tracked) for phase in range(period)]
-    due_names = [tuple(s.name for s in d) for d in due]
-    bonds_due = [tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
-                       if (phase + 1) % subs[bond.force_side].ratio == 0
-                       and (phase + 1) % subs[bond.motion_side].ratio == 0
-                       and {bond.force_side, bond.motion_side} & local) for phase in range(period)]
-    return period, starting, partners_starting, due, due_names, bonds_due
+    phases = []
+    for phase in range(period):
+        stages = []
+        for stage in plan.stages:
+            members = [subs[i] for i in stage]
+            due = tuple(s for s in members if (phase + 1) % s.ratio == 0 and s.index in tracked)
+            stages.append((tuple(s for s in members if phase % s.ratio == 0 and s.index in local),
+                           tuple(s for s in members if phase % s.ratio == 0 and s.index in partners),
+                           due, tuple(s.name for s in due)))
+        bonds = tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
+                      if (phase + 1) % subs[bond.force_side].ratio == 0
+                      and (phase + 1) % subs[bond.motion_side].ratio == 0
+                      and {bond.force_side, bond.motion_side} & local)
+        phases.append((tuple(stages), bonds))
+    return period, phases
 
 
 def _bond_residual_power(readers: list[OutputReader], sent: list, bond, components, tick: int, step_s: float) -> float:

@@ -30,6 +30,8 @@ VARIANTS = {  # the schemes' branches: extrapolation orders, multi-rate, energy 
     "double_oscillator_corrected": ("double_oscillator", ["manager.correction.enabled=true"]),
     "hydraulic_crane_corrected": ("hydraulic_crane", ["manager.correction.enabled=true"]),
     "four_mass_compensated": ("four_mass", ["manager.compensation=eigenstructure"]),
+    "four_mass_gauss_seidel_soh": ("four_mass", ["manager.scheme=gauss-seidel", "manager.extrapolation=2"]),
+    "mass_chain_gauss_seidel_order": ("mass_chain", ["manager.scheme=gauss-seidel"]),
     "python_model": (str(EXAMPLES / "two_mass_damped_python.toml"), []),
     "dc_motor": (str(EXAMPLES / "dc_motor_drive.toml"), []),
 }

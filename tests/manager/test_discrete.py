@@ -18,6 +18,8 @@ MULTI_RATE = ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsy
 RK4 = ["subsystems.S1.integrator=rk4", "subsystems.S2.integrator=rk4",
        "subsystems.S1.micro_step=0.00025", "subsystems.S2.micro_step=0.0005"]
 
+GAUSS_SEIDEL = "manager.scheme=gauss-seidel"
+
 CONFIGURATIONS = {
     "two_mass_damped_zoh": ("two_mass_damped", []),
     "two_mass_damped_foh": ("two_mass_damped", ["manager.extrapolation=1"]),
@@ -28,6 +30,13 @@ CONFIGURATIONS = {
     "four_mass": ("four_mass", []),
     "multiple_oscillator_n3": ("multiple_oscillator_n3", ["manager.extrapolation=1"]),
     "double_oscillator_multi_rate_foh": ("double_oscillator", [*MULTI_RATE, "manager.extrapolation=1"]),
+    # Gauss–Seidel: the default order (motion sides first), the other order, interpolated inputs, a chain, a star
+    "two_mass_damped_gauss_seidel": ("two_mass_damped", [GAUSS_SEIDEL]),
+    "two_mass_damped_gauss_seidel_s1_first": ("two_mass_damped", [GAUSS_SEIDEL, 'manager.order=["S1", "S2"]']),
+    "two_mass_damped_gauss_seidel_soh_4ms": ("two_mass_damped", [GAUSS_SEIDEL, "manager.extrapolation=2", *FOUR_MS]),
+    "two_mass_undamped_gauss_seidel_rk4": ("two_mass_undamped", [GAUSS_SEIDEL, *RK4]),
+    "four_mass_gauss_seidel_foh": ("four_mass", [GAUSS_SEIDEL, "manager.extrapolation=1"]),
+    "multiple_oscillator_n5_gauss_seidel": ("multiple_oscillator_n5", [GAUSS_SEIDEL]),
     "two_mass_undamped_compensated": ("two_mass_undamped", ["manager.compensation=eigenstructure"]),
     "four_mass_compensated": ("four_mass", ["manager.compensation=eigenstructure"]),
 }

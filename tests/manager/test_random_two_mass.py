@@ -73,3 +73,21 @@ def test_every_random_system_is_stable_compensated(systems, record_property):
             simulated += 1
     record_property("worst_pole_error_per_s", worst)
     assert simulated == 15
+
+
+@pytest.mark.slow
+def test_gauss_seidel_prediction_agrees_with_the_simulation_of_200_random_systems(record_property):
+    """The Gauss–Seidel scheme (motion side first, the force side interpolating its fresh outputs) on 200 systems
+    drawn as above (seed 1): the exact discrete analysis of the scheme that runs says stable or unstable as a long
+    run of it does, every one: 16 of 200 unstable (Jacobi, on the same draws: 22)."""
+    rng = np.random.default_rng(1)
+    unstable = jacobi_unstable = 0
+    for overrides in (random_two_mass(rng) for _ in range(2 * N_SYSTEMS)):
+        sequential = [*overrides, "manager.scheme=gauss-seidel"]
+        scheme = discrete_scheme(*plan_scene(load_scene(SCENE, sequential)))
+        assert_prediction_agrees(scheme, late_growth(SCENE, sequential, scheme))
+        unstable += not scheme.stable
+        jacobi_unstable += not discrete_scheme(*plan_scene(load_scene(SCENE, overrides))).stable
+    record_property("unstable_gauss_seidel", unstable)
+    record_property("unstable_jacobi", jacobi_unstable)
+    assert (unstable, jacobi_unstable) == (16, 22)

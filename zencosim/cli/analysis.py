@@ -10,6 +10,7 @@ from rich.table import Table
 
 from zencosim.cli.console import UsageError, add_scene_arguments, examples, out, say
 from zencosim.extras import require
+from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import load_scene
 
@@ -28,6 +29,11 @@ def _print_analysis(result) -> None:
     interface = report["interface"]
     out.print(f"[bold]{escape(result.scene.name)}[/]: {interface['extrapolation']}, T_s = {interface['macro_step']:g} s, "
               f"Padé order {interface['pade_order']}")
+    if result.scene.manager.scheme == "gauss-seidel":
+        plan, _ = plan_scene(result.scene)
+        order = ", ".join(plan.subsystems[i].name for stage in plan.stages for i in stage)
+        out.print(escape(f"Gauss–Seidel, stepping {order}: the co-sim. discrete column is its exact scheme; the "
+                         "Padé and D(s) columns model paper 000's Jacobi scheme"))
     systems = result.systems()
     for i in range(0, len(result.monolithic.poles), 2):
         table = Table(title=f"λ{i + 1},{i + 2}")
