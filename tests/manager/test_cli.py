@@ -94,7 +94,15 @@ def test_docker_compose_is_a_run_through_its_router_with_valid_command_lines(tmp
             assert a.connect == [f"tls/{router}:{port}"], name
             scene = load_scene(a.scene, a.overrides)
             assert set(served) <= set(scene.subsystems), name
-    assert all("build" in service for service in services.values())
+    # one image, built once: one service builds it, every service runs it by name
+    assert len({service["image"] for service in services.values()}) == 1
+    assert sum("build" in service for service in services.values()) == 1
+    (built,) = [service["build"] for service in services.values() if "build" in service]
+    copied = {line.split()[1] for line in (REPO / "docker" / "Dockerfile").read_text().splitlines()
+              if line.startswith("COPY ")} | {"pyproject.toml", "setup.py", "README.md", "LICENSE"}
+    let_in = {line[1:] for line in (REPO / ".dockerignore").read_text().splitlines() if line.startswith("!")}
+    assert built["context"] == ".." and copied - {"./"} <= let_in  # the context holds what the image copies
+    assert manager.record and manager.record.startswith("/out/") and "./out:/out" in services["manager"]["volumes"]
     if shutil.which("openssl") is None:
         pytest.skip("needs the openssl command to make the certificates")
     subprocess.run(["sh", str(REPO / "docker" / "certificates.sh"), str(tmp_path)], check=True, capture_output=True,
