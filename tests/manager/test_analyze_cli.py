@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -52,3 +55,17 @@ def test_an_unassignable_architecture_exits_2_with_the_ranks():
 def test_a_nonlinear_scene_exits_2(capsys):
     assert main(["analyze", "nonlinear_oscillator_case1"]) == 2
     assert "expected a linear scene for the analysis: nonlinear effects M1.k1" in capsys.readouterr().err
+
+
+def test_its_tables_are_whole_when_piped():
+    """Written to a pipe (a log file, CI), a table is as wide as it needs, not cut at rich's 80 columns: every
+    pole pair's row holds all seven columns on one line."""
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    result = subprocess.run([sys.executable, "-m", "zencosim", "analyze", "two_mass_damped"], capture_output=True,
+                            text=True, env=env, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr
+    assert "…" not in result.stdout
+    header = next(line for line in result.stdout.splitlines() if "monolithic" in line)
+    assert "co-sim. discrete" in header and "compensated discrete" in header
+    rows = [line for line in result.stdout.splitlines() if line.startswith("│ λ [1/s]")]
+    assert rows and all(line.count("j") == 6 for line in rows)  # six complex poles on one line

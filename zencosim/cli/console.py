@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 
 from rich.console import Console
 from rich.markup import escape
@@ -13,8 +14,20 @@ class UsageError(ValueError):
     """Arguments that do not fit together (exit status 2)."""
 
 
-out = Console()
-err = Console(stderr=True)
+PIPED_WIDTH = 200  # columns of output that is not a terminal (a pipe, a log file): rich would cut tables at 80
+
+
+def _console(stderr: bool = False) -> Console:
+    """A console as wide as its terminal; output that is not a terminal gets ``PIPED_WIDTH`` columns (unless
+    ``COLUMNS`` says otherwise), so that a table written to a file or a pipe is not cut or wrapped at 80."""
+    console = Console(stderr=stderr)
+    if console.is_terminal or "COLUMNS" in os.environ:
+        return console
+    return Console(stderr=stderr, width=PIPED_WIDTH)
+
+
+out = _console()
+err = _console(stderr=True)
 
 
 def say(text: str) -> None:

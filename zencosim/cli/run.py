@@ -42,7 +42,9 @@ def _print_summary(summary: dict) -> None:
     for name, entry in summary["signals"].items():
         if entry.get("nrms") is not None:
             mono = entry.get("nrms_monolithic")
-            row(f"NRMS {name} [{entry['unit']}]", f"{entry['nrms']:.4g}" + (f"  (monolithic {mono:.4g})" if mono is not None else ""))
+            # normalised by the reference's range: a number without unit
+            row(f"NRMS {name} (of its range)", f"{entry['nrms']:.4g}"
+                + (f"  (monolithic {mono:.4g})" if mono is not None else ""))
     energy = summary["energy"]
     if energy is None:
         row("energy", "not reported by any subsystem")
