@@ -43,6 +43,7 @@ class RateResult:
     meets: bool = False
     adjusted: tuple[str, ...] = ()  # overrides the probe added at this rate (a micro-step shortened)
     error: str | None = None  # the scene does not run at this rate (its settings refuse the macro-step)
+    skipped: str | None = None  # not run: a lower rate already missed the budget (``probe``'s ``every_rate`` False)
 
 
 def rate_overrides(scene: Scene, macro_step_s: float) -> tuple[list[str], tuple[str, ...]]:
@@ -76,6 +77,8 @@ def highest_rate(results: list[RateResult]) -> float | None:
     """The highest rate that meets the budget with every lower rate meeting it too (None: not even the lowest)."""
     best = None
     for result in sorted(results, key=lambda r: r.rate_hz):
+        if result.skipped is not None:
+            break
         if result.error is not None:
             continue
         if not result.meets:
@@ -86,13 +89,20 @@ def highest_rate(results: list[RateResult]) -> float | None:
 
 def probe(source: str, overrides: Iterable[str] = (), bus: str = "inproc", rates_hz: Iterable[float] = DEFAULT_RATES_HZ,
           duration_s: float = DEFAULT_DURATION_S, budget: Budget = Budget(),
-          done: Callable[[RateResult], None] | None = None, **bus_options) -> dict:
-    """Probe every rate of the ladder (ascending); ``done`` sees each result as it is measured. The report's
-    keys are documented in docs/realtime.md."""
+          done: Callable[[RateResult], None] | None = None, every_rate: bool = False, **bus_options) -> dict:
+    """Probe the rates of the ladder, ascending, until one runs and misses the budget: the rates above it are
+    reported skipped (no higher rate can be the answer), unless ``every_rate``; ``done`` sees each result as it is
+    measured. The report's keys are documented in docs/realtime.md."""
     overrides = list(overrides)
-    results = []
+    results: list[RateResult] = []
+    missed = None  # the first rate that ran and missed the budget
     for rate_hz in sorted(set(rates_hz)):
-        results.append(probe_rate(source, overrides, bus, rate_hz, duration_s, budget, **bus_options))
+        if missed is not None and not every_rate:
+            results.append(RateResult(rate_hz, 1.0 / rate_hz, skipped=f"{missed:g} Hz already missed the budget"))
+        else:
+            results.append(probe_rate(source, overrides, bus, rate_hz, duration_s, budget, **bus_options))
+            if missed is None and results[-1].error is None and not results[-1].meets:
+                missed = rate_hz
         if done is not None:
             done(results[-1])
     return {"scene": source, "overrides": overrides, "bus": bus, "duration_s": duration_s, "budget": asdict(budget),

@@ -16,10 +16,11 @@ from zencosim.manager.realtime_probe import RateResult, highest_rate
 def test_the_probe_paces_every_rate_and_applies_the_budget_to_what_it_measured(tmp_path):
     report_path = tmp_path / "probe.json"
     result = zencosim("realtime-probe", "two_mass_damped", "--rates", "100,250,300", "--duration", "0.2",
-                      "--json", str(report_path))
+                      "--json", str(report_path), "--every-rate")
     assert result.returncode == 0, result.stderr
     report = json.loads(report_path.read_text())
     assert set(report) == {"scene", "overrides", "bus", "duration_s", "budget", "rates", "highest_rate_hz"}
+    assert all(entry["skipped"] is None for entry in report["rates"])  # --every-rate
     by_rate = {entry["rate_hz"]: entry for entry in report["rates"]}
     assert sorted(by_rate) == [100.0, 250.0, 300.0]
     # 300 Hz: a 3.33… ms step, not a whole number of nanoseconds (nor divided by the 1 ms micro-step); reported
@@ -52,6 +53,22 @@ def test_bad_probe_arguments_exit_2():
     assert zencosim("realtime-probe", "two_mass_damped", "--rates", "fast").returncode == 2
     assert zencosim("realtime-probe", "two_mass_damped", "--rates", "100,-5").returncode == 2
     assert zencosim("realtime-probe", "two_mass_damped", "--missed", "2").returncode == 2
+
+
+def test_the_ladder_stops_at_the_first_rate_that_misses_the_budget(tmp_path):
+    """A budget no run keeps (p99 lateness below 0 µs): 100 Hz runs and misses, the higher rates are not run and
+    say why; --every-rate runs them all."""
+    for every, run in (((), [100.0]), (("--every-rate",), [100.0, 250.0, 500.0])):
+        report_path = tmp_path / "probe.json"
+        result = zencosim("realtime-probe", "two_mass_damped", "--rates", "100,250,500", "--duration", "0.2",
+                          "--p99", "1e-12", "--missed", "0", "--json", str(report_path), *every)
+        assert result.returncode == 0, result.stderr
+        report = json.loads(report_path.read_text())
+        assert [e["rate_hz"] for e in report["rates"] if e["steps"] is not None] == run
+        assert report["highest_rate_hz"] is None
+        if not every:
+            assert all(e["skipped"] == "100 Hz already missed the budget" for e in report["rates"][1:])
+            assert "not run: 100 Hz already missed the budget" in result.stdout
 
 
 @given(st.lists(st.tuples(st.integers(1, 50), st.booleans(), st.booleans()), max_size=8, unique_by=lambda t: t[0]))

@@ -26,6 +26,8 @@ def _rates(text: str) -> list[float]:
 
 
 def _row(result: RateResult) -> list[str]:
+    if result.skipped is not None:
+        return [f"{result.rate_hz:g}", f"{result.macro_step_s * 1e3:.4g}", "—", "—", "—", "—", "not run"]
     if result.error is not None:
         return [f"{result.rate_hz:g}", f"{result.macro_step_s * 1e3:.4g}", "—", "—", "—", "—", "cannot run"]
     return [f"{result.rate_hz:g}", f"{result.macro_step_s * 1e3:.4g}", f"{result.missed_share:.2%}",
@@ -35,7 +37,8 @@ def _row(result: RateResult) -> list[str]:
 
 def _say_result(result: RateResult) -> None:
     say("  " + "  ".join(f"{h}: {v}" for h, v in zip(HEADER, _row(result))))
-    for note in ([f"scene: {result.error}"] if result.error else []) + [f"probe set {a}" for a in result.adjusted]:
+    notes = [f"scene: {result.error}"] if result.error else [f"not run: {result.skipped}"] if result.skipped else []
+    for note in notes + [f"probe set {a}" for a in result.adjusted]:
         say(f"    {note}")
 
 
@@ -49,8 +52,7 @@ def cmd_realtime_probe(args: argparse.Namespace) -> int:
         say(f"{args.scene} on the {args.bus} bus, {args.duration:g} s per rate; budget: at most {budget.missed_share:.1%} "
             f"missed, p99 lateness at most {budget.p99_share_of_step:.0%} of the step")
     report = probe(args.scene, args.overrides, args.bus, args.rates, args.duration, budget,
-                   None if args.quiet else _say_result,
-                   **bus_options)
+                   None if args.quiet else _say_result, args.every_rate, **bus_options)
     if not args.quiet:
         table = Table(title=f"{args.scene}: paced runs on the {args.bus} bus")
         for column in HEADER:
@@ -83,6 +85,8 @@ def add_parsers(commands) -> None:
                      help=f"budget: at most this share of missed deadlines (default {Budget.missed_share:g})")
     sub.add_argument("--p99", type=float, default=Budget.p99_share_of_step, metavar="SHARE",
                      help=f"budget: p99 lateness at most this share of the step (default {Budget.p99_share_of_step:g})")
+    sub.add_argument("--every-rate", action="store_true",
+                     help="run every rate of the ladder (default: stop at the first that misses the budget)")
     sub.add_argument("--json", metavar="FILE", help="write the report as JSON (keys: docs/realtime.md)")
     sub.add_argument("--no-lowlatency", action="store_true", help="over Zenoh: Zenoh's default transport")
     sub.add_argument("--quiet", action="store_true", help="print nothing but errors")
