@@ -41,6 +41,31 @@ def test_a_diverged_run_exits_3_with_a_strict_json_summary_that_says_why(tmp_pat
     assert summary["discrete"]["spectral_radius"] > 1.0
 
 
+@pytest.mark.parametrize("strict", [False, True])
+def test_an_unstable_verdict_fails_the_run_only_with_strict(strict):
+    """two_mass_undamped at 1 ms is unstable (ρ > 1, paper 000 Table 1) but stays finite for 10 s: reported, exit 0;
+    with --strict it fails as a diverged run does (status 3), saying why."""
+    done = _zencosim("run", "two_mass_undamped", "--quiet", *(["--strict"] if strict else []))
+    assert done.returncode == (3 if strict else 0), done.stderr
+    if strict:
+        assert done.stderr.strip() == ("--strict: the run completed, but its verdict is unstable (exact discrete "
+                                       "spectral radius); exit status 3")
+
+
+def test_a_real_time_run_over_its_missed_deadline_budget_fails_with_strict():
+    """A budget of no missed deadline at all, which a shared machine's scheduler does not keep for 2,000 steps of
+    0.1 ms; the same run without --strict exits 0. (Met budgets are the realtime-probe's tests.)"""
+    run = ("run", "two_mass_damped", "--quiet", "--realtime", "--set", "manager.macro_step=0.0001",
+           "--set", "subsystems.S1.micro_step=0.0001", "--set", "subsystems.S2.micro_step=0.0001",
+           "--set", "manager.duration=0.2", "--summary")
+    done = _zencosim(*run, "/dev/null", "--strict", "--max-missed", "0")
+    if done.returncode == 0:
+        pytest.skip("this machine met every 0.1 ms deadline of the run (nothing to fail)")
+    assert done.returncode == 3, done.stderr
+    assert "of its deadlines, more than --max-missed 0.0%; exit status 3" in done.stderr
+    assert _zencosim("run", "--max-missed", "2", "two_mass_damped").returncode == 2  # not a share
+
+
 def test_a_run_that_stays_finite_exits_0_and_lists_no_non_finite_value(tmp_path):
     summary_path = tmp_path / "summary.json"
     done = _zencosim("run", "two_mass_damped", "--set", "manager.duration=1", "--quiet", "--summary", str(summary_path))

@@ -5,7 +5,9 @@ recorder was lost under --record-lost stop) or a recording did not verify (damag
 ``inspect``: damaged or cut off), 2 bad input (scene, overrides, arguments, recording file, output path, a missing
 optional dependency, a Zenoh session that cannot open: an endpoint to listen on that is taken, a
 certificate file missing), 3 a run completed but diverged (a value not finite, or an implicit run's joint
-opened; its summary and tables are still written), 130 interrupted (SIGINT or SIGTERM).
+opened; its summary and tables are still written) or, with ``run --strict``, its verdict is unstable or a
+real-time run missed more than ``--max-missed`` of its deadlines (reported, exit 0, without it), 130
+interrupted (SIGINT or SIGTERM).
 """
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ from zencosim.manager.results.tables import check_table_path, record_tables, wri
 from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import load_scene
 
-DIVERGED = 3  # exit status of a run whose values did not stay finite (zencosim.cli.main)
+DIVERGED = 3  # exit status of a run whose values did not stay finite, or that --strict fails (zencosim.cli.main)
 
 
 def _print_summary(summary: dict) -> None:
@@ -172,7 +172,35 @@ def cmd_run(args: argparse.Namespace) -> int:
         warn(f"the run diverged ({what}; the summary's non_finite lists the values written as null); "
              f"exit status {DIVERGED}")
         return DIVERGED
+    failed = _strict_failures(summary, args.max_missed) if args.strict else []
+    if failed:
+        warn(f"--strict: the run completed, but {'; and '.join(failed)}; exit status {DIVERGED}")
+        return DIVERGED
     return 0
+
+
+def _strict_failures(summary: dict, max_missed: float) -> list[str]:
+    """What fails a completed run under ``--strict``: an unstable verdict, and a real-time run that missed more
+    than ``max_missed`` of its deadlines."""
+    failed = []
+    if not summary["stable"]:
+        failed.append(f"its verdict is unstable ({summary['stable_from']})")
+    timing = summary["timing"]
+    if timing.get("realtime") and timing["paced_steps"]:
+        share = timing["missed_deadlines"] / timing["paced_steps"]
+        if share > max_missed:
+            failed.append(f"it missed {share:.1%} of its deadlines, more than --max-missed {max_missed:.1%}")
+    return failed
+
+
+def _share(text: str) -> float:
+    try:
+        share = float(text)
+    except ValueError:
+        share = -1.0
+    if not 0.0 <= share <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a share of the steps in [0, 1]")
+    return share
 
 
 def add_parsers(commands) -> None:
@@ -196,6 +224,11 @@ def add_parsers(commands) -> None:
                                                    "multi-rate run writes one file per communication step")
     run.add_argument("--realtime", action="store_true", help="pace macro-steps to wall-clock deadlines")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    run.add_argument("--strict", action="store_true",
+                     help=f"exit with status {DIVERGED}, as for a diverged run, when the run's verdict is unstable or a "
+                          "real-time run missed more than --max-missed of its deadlines (default: only report them)")
+    run.add_argument("--max-missed", type=_share, default=0.01, metavar="SHARE",
+                     help="with --strict and --realtime: the share of missed deadlines a run may have (default 0.01)")
     run.add_argument("--listen", metavar="ENDPOINT", help="Zenoh endpoint of the manager (default: a free port on 127.0.0.1)")
     run.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                      help="a Zenoh router (zencosim router) to reach subsystems started by hand through (repeatable)")
