@@ -28,7 +28,7 @@ _KINDS[[kind.value for kind in Kind]] = True
 _MCAP_MESSAGE = struct.Struct("<BQHI")  # opcode, record length, channel id, sequence; then log and publish time
 _OPCODE_MESSAGE = 0x05
 # the variable bytes of one message, in the table a group's records are gathered from
-_STEP, _TIME, _SIM, _REF, _LOG, _PAYLOAD = 0, 8, 16, 24, 28, 36
+STEP_AT, TIME_AT, SIM_AT, REF_AT, LOG_AT, PAYLOAD_AT = 0, 8, 16, 24, 28, 36
 
 
 @dataclass
@@ -43,20 +43,20 @@ class EncodedBatch:
     carry: int  # the stamp of the batch's last status: it also stamps the first messages of the next batch
 
 
-def _body_pieces(schema: ChannelSchema, kind: int, rows: int, count: int) -> list[bytes | tuple[int, int]]:
+def body_pieces(schema: ChannelSchema, kind: int, rows: int, count: int) -> list[bytes | tuple[int, int]]:
     """The protobuf body of a message of this layout: constant bytes, or (offset, length) in the variable table."""
-    pieces: list[bytes | tuple[int, int]] = [tag(HEADER_FIELDS["step"], 1), (_STEP, 8), tag(HEADER_FIELDS["time_ns"], 1),
-                                             (_TIME, 8), tag(HEADER_FIELDS["kind"], 0) + varint(kind),
+    pieces: list[bytes | tuple[int, int]] = [tag(HEADER_FIELDS["step"], 1), (STEP_AT, 8), tag(HEADER_FIELDS["time_ns"], 1),
+                                             (TIME_AT, 8), tag(HEADER_FIELDS["kind"], 0) + varint(kind),
                                              tag(HEADER_FIELDS["rows"], 5) + struct.pack("<I", rows),
-                                             tag(HEADER_FIELDS["ref"], 5), (_REF, 4),
-                                             tag(HEADER_FIELDS["sim_time"], 1), (_SIM, 8)]
+                                             tag(HEADER_FIELDS["ref"], 5), (REF_AT, 4),
+                                             tag(HEADER_FIELDS["sim_time"], 1), (SIM_AT, 8)]
     n = len(schema.slots)
     if not (schema.named(kind, rows) and count == max(rows, 1) * n):
         if count:
-            pieces += [tag(HEADER_FIELDS["values"], 2) + varint(8 * count), (_PAYLOAD, 8 * count)]
+            pieces += [tag(HEADER_FIELDS["values"], 2) + varint(8 * count), (PAYLOAD_AT, 8 * count)]
         return pieces
     def value(j: int) -> tuple[int, int]:
-        return _PAYLOAD + 8 * j, 8
+        return PAYLOAD_AT + 8 * j, 8
 
     done: set[int] = set()
     for j, slot in enumerate(schema.slots):
@@ -79,11 +79,11 @@ class _GroupLayout:
     rows are the messages' variable bytes followed by the layout's constant bytes."""
 
     def __init__(self, schema: ChannelSchema, channel_id: int, kind: int, rows: int, count: int) -> None:
-        self.variable = _PAYLOAD + 8 * count
-        body = _body_pieces(schema, kind, rows, count)
+        self.variable = PAYLOAD_AT + 8 * count
+        body = body_pieces(schema, kind, rows, count)
         body_size = sum(len(p) if isinstance(p, bytes) else p[1] for p in body)
         prefix = _MCAP_MESSAGE.pack(_OPCODE_MESSAGE, 2 + 4 + 8 + 8 + body_size, channel_id, 0)
-        pieces = [prefix, (_LOG, 8), (_LOG, 8)] + body  # log time and publish time: the wall clock
+        pieces = [prefix, (LOG_AT, 8), (LOG_AT, 8)] + body  # log time and publish time: the wall clock
         constant = bytearray()
         gather: list[np.ndarray] = []
         for piece in pieces:
@@ -173,13 +173,13 @@ class BatchEncoder:
         for members, layout in groups:
             table = np.empty((members.size, layout.variable + layout.constant.size), dtype=np.uint8)
             heads_m = heads[members]
-            for start, column in ((_STEP, heads_m["step"]), (_TIME, heads_m["time_ns"]),
-                                  (_SIM, heads_m["time_ns"] * 1e-9), (_REF, heads_m["ref"]), (_LOG, log_times[members])):
+            for start, column in ((STEP_AT, heads_m["step"]), (TIME_AT, heads_m["time_ns"]),
+                                  (SIM_AT, heads_m["time_ns"] * 1e-9), (REF_AT, heads_m["ref"]), (LOG_AT, log_times[members])):
                 column = np.ascontiguousarray(column)
                 table[:, start:start + column.itemsize] = column.view(np.uint8).reshape(-1, column.itemsize)
-            if layout.variable > _PAYLOAD:
-                payload = starts[members, None] + HEADER.size + np.arange(layout.variable - _PAYLOAD)
-                table[:, _PAYLOAD:layout.variable] = data[payload]
+            if layout.variable > PAYLOAD_AT:
+                payload = starts[members, None] + HEADER.size + np.arange(layout.variable - PAYLOAD_AT)
+                table[:, PAYLOAD_AT:layout.variable] = data[payload]
             out[offsets[members, None] + np.arange(layout.size)] = layout.records(table)
         for i, record in error_records.items():
             out[offsets[i]:offsets[i] + len(record)] = np.frombuffer(record, dtype=np.uint8)

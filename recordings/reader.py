@@ -22,6 +22,7 @@ from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from zencosim.manager.scene.load import Scene, SceneError, scene_from_text
 from zencosim.manager.wire.protocol import Kind
 from zencosim.recordings import RecordingError
+from zencosim.recordings.decoding import decode_messages
 from zencosim.recordings.layout import (
     CONTENT_DIGEST,
     END_METADATA,
@@ -33,8 +34,9 @@ from zencosim.recordings.layout import (
     ChannelSpec,
 )
 from zencosim.recordings.mcap_read import MAGIC, McapScan
-from zencosim.recordings.schema import ChannelSchema, StoredMessage, decode
+from zencosim.recordings.schema import ChannelSchema, StoredMessage
 
+DECODE_BLOCK = 8192  # messages of a channel decoded at once (recordings.decoding)
 FORMAT_1_SCHEMA = "zencosim.Message"  # the one generic message of every channel of a format 1 recording
 
 
@@ -149,16 +151,16 @@ def _read(path: Path, data: bytes) -> Recording:
     scan = McapScan(data)
     damage = scan.damage
     last_chunk = 0
+    pending: dict[int, list[tuple[int, bytes]]] = {}  # per channel id: (chunk offset, data) not decoded yet
     for at, record in scan.records():
         if isinstance(record, Message):
             channel = channels.get(record.channel_id)
             if channel is None:
                 raise RecordingError(f"{path}: a message on channel id {record.channel_id}, which is not declared")
-            try:
-                channel.messages.append(decode(record.data, channel.schema))
-            except ValueError as error:
-                raise RecordingError(f"{path}: channel {channel.spec.topic}, message {len(channel.messages) + 1} "
-                                     f"(in the chunk at byte {at}): {error}") from None
+            waiting = pending.setdefault(record.channel_id, [])
+            waiting.append((at, record.data))
+            if len(waiting) == DECODE_BLOCK:
+                _decode_pending(path, channel, waiting)
             channel.log_ns.append(record.log_time)
             last_chunk = at
         elif isinstance(record, Channel) and record.id not in channels:
@@ -185,6 +187,8 @@ def _read(path: Path, data: bytes) -> Recording:
                 scene_toml = record.data.decode("utf-8")
             except UnicodeDecodeError as error:
                 raise RecordingError(f"{path}: its scene attachment is not UTF-8 text ({error})") from None
+    for channel_id, waiting in pending.items():
+        _decode_pending(path, channels[channel_id], waiting)
     if info is None:
         if scan.stopped:
             raise RecordingError(f"{path} is a cut-off or damaged recording: {scan.stopped}, before its run metadata "
@@ -205,6 +209,17 @@ def _read(path: Path, data: bytes) -> Recording:
     elif info["format"] == FORMAT and scan.stopped is None:
         damage.append("it has no end record although its footer was written")
     return Recording(path, info, end, scene_toml, by_topic, scan.stopped, damage)
+
+
+def _decode_pending(path: Path, channel: ChannelRecord, waiting: list[tuple[int, bytes]]) -> None:
+    """Decode a channel's messages read so far (``recordings.decoding``, a block at a time) and empty ``waiting``."""
+    for number, (message, (at, _)) in enumerate(zip(decode_messages([data for _, data in waiting], channel.schema),
+                                                    waiting), start=len(channel.messages) + 1):
+        if isinstance(message, ValueError):
+            raise RecordingError(f"{path}: channel {channel.spec.topic}, message {number} (in the chunk at byte {at}): "
+                                 f"{message}")
+        channel.messages.append(message)
+    waiting.clear()
 
 
 def _channel_spec(path: Path, record: Channel) -> ChannelSpec:
