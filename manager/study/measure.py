@@ -45,10 +45,15 @@ def predicted_stability(scene: Scene) -> tuple[bool | None, float | None]:
 
 
 def _energy_error(summary: dict) -> float | None:
+    """The final energy's error relative to the initial energy; None where there is no reference energy, or a value
+    was not finite (the summary writes it as null: a diverged point)."""
     energy = summary["energy"]
-    if energy is None or "reference_final" not in energy or energy["initial"] == 0.0 or not summary["signals"]:
+    if energy is None or "reference_final" not in energy or not summary["signals"]:
         return None
-    return (energy["final"] - energy["reference_final"]) / abs(energy["initial"])
+    final, reference, initial = energy["final"], energy["reference_final"], energy["initial"]
+    if final is None or reference is None or not initial:
+        return None
+    return (final - reference) / abs(initial)
 
 
 def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> dict:

@@ -245,3 +245,12 @@ def test_bad_input_exits_2_before_any_work(args, message, tmp_path):
     assert result.returncode == 2, result.stderr
     assert message in result.stderr.replace("\n", " ")
     assert not (tmp_path / "cache").exists()
+
+
+def test_a_point_whose_run_diverges_is_measured_unstable_without_an_energy_error():
+    """two_mass_undamped at a 0.1 s step overflows to infinity (tests/manager/test_verdicts.py): its summary writes
+    the final energy as null, and the point says so (no energy error, unstable) instead of failing the study."""
+    from zencosim.manager.study.measure import measure_point
+    measured = measure_point("two_mass_undamped", ("manager.macro_step=0.1", "subsystems.S1.micro_step=0.1",
+                                                   "subsystems.S2.micro_step=0.1", "manager.duration=30"), 1)
+    assert measured["energy_error"] is None and measured["stable"] is False
