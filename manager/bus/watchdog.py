@@ -18,7 +18,8 @@ Signals: the parent blocks SIGINT, SIGTERM and SIGHUP and passes each on to the 
 to its whole foreground process group (``si_code`` ``SI_KERNEL``), which the child has received itself; the child
 ends with its parent (``PR_SET_PDEATHSIG``), as the run's other child processes do.
 
-A run started from Python (``zencosim.run``) runs in the caller's process, unwatched: :func:`model_watch` is then
+Linux only (``WATCHABLE``: ``sigtimedwait`` and ``PR_SET_PDEATHSIG``); elsewhere the run is not watched. A run
+started from Python (``zencosim.run``) runs in the caller's process, unwatched: :func:`model_watch` is then
 the unshared :data:`UNWATCHED`, whose marks nobody reads, and endpoints are not wrapped (no cost per step).
 """
 from __future__ import annotations
@@ -42,6 +43,7 @@ POLL_S = 0.25  # how often the parent looks at a child that has not ended
 PASSED_ON = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 SI_KERNEL = 0x80  # siginfo's si_code of a signal the kernel sent (the terminal's Ctrl-C to its foreground group)
 PR_SET_PDEATHSIG = 1
+WATCHABLE = sys.platform.startswith("linux") and hasattr(signal, "sigtimedwait")  # where watched() can run
 
 
 class ModelWatch:

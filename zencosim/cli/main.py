@@ -23,7 +23,7 @@ from zencosim.extras import MissingExtra
 from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.security import SecurityError
-from zencosim.manager.bus.watchdog import watched
+from zencosim.manager.bus.watchdog import WATCHABLE, watched
 from zencosim.manager.bus.zenoh_session import SessionError
 from zencosim.manager.results.output_files import OutputFileError
 from zencosim.manager.scene.load import SceneError
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     command_line = argv is None
     argv = sys.argv[1:] if command_line else argv
     args = build_parser(argv[0] if argv else None).parse_args(argv)
-    if command_line and args.command == "run" and args.bus == "inproc":
+    if command_line and args.command == "run" and args.bus == "inproc" and WATCHABLE:
         return watched(lambda: _handle(args), _failed)
     return _handle(args)
 
