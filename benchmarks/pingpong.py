@@ -24,6 +24,7 @@ from pathlib import Path
 
 import zenoh
 
+from zencosim.manager.bus.children import cpu_time_s
 from zencosim.manager.bus.security import ZenohSecurity
 from zencosim.manager.bus.zenoh_session import ZenohOptions, coupling_publisher, free_tcp_port, session_config
 
@@ -133,6 +134,16 @@ def _lockstep_side(endpoint: str, last: int) -> None:
 def jacobi_lockstep_steps(n: int) -> list[float]:
     """Times [s] of ``n`` lock-step Jacobi steps (between consecutive publications of one side) after
     ``WARM_UP`` steps, both processes peers on loopback with the bus's settings."""
+    return _lockstep(n)[0]
+
+
+def jacobi_lockstep_cpu(n: int) -> float:
+    """CPU time [s] of both lock-step processes together per step (every thread of each: Zenoh's and Python's),
+    over ``n`` steps after ``WARM_UP``."""
+    return _lockstep(n)[1]
+
+
+def _lockstep(n: int) -> tuple[list[float], float]:
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
     last = n + WARM_UP
     with zenoh.open(_config(endpoint, True, official=False)) as session:
@@ -140,13 +151,17 @@ def jacobi_lockstep_steps(n: int) -> list[float]:
         child = subprocess.Popen([sys.executable, __file__, "lockstep", endpoint, str(last)])
         try:
             side.start()
+            while len(side.published) < WARM_UP and not side.done.is_set():
+                time.sleep(0.001)
+            first, cpu = len(side.published), time.process_time() + cpu_time_s(child.pid)
             if not side.done.wait(600):
                 raise RuntimeError("the lock step did not finish within 600 s")
+            cpu_per_step = (time.process_time() + cpu_time_s(child.pid) - cpu) / max(len(side.published) - first, 1)
         finally:
             child.kill()
             child.wait()
     published = side.published[WARM_UP:]
-    return [(later - earlier) * 1e-9 for earlier, later in zip(published, published[1:])]
+    return [(later - earlier) * 1e-9 for earlier, later in zip(published, published[1:])], cpu_per_step
 
 
 def _udp_echo(port: int) -> None:
