@@ -1,7 +1,8 @@
 """The subsystem side of the wire protocol: decode a command, act on the subsystem, encode the reply.
 
-The same endpoint serves the in-process bus (called directly) and a subsystem process (called from
-its Zenoh subscriber), so both buses run identical arithmetic on identical bytes.
+The same endpoint serves a tapped in-process run (called directly) and a subsystem process (called from
+its Zenoh subscriber), so both run identical arithmetic on identical bytes; an untapped in-process run calls
+the subsystems without bytes (``manager.bus.inproc.DirectCalls``), naming a failure as ``failure_reason`` does.
 """
 from __future__ import annotations
 
