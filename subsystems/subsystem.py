@@ -80,7 +80,8 @@ class Subsystem:
         h = h_ns * 1e-9
         if self._linear is not None:  # z ← Φ^m z + Ψ c in place; the outputs from s = [z, w(t1)] as it stands
             c = inputs.coefficients
-            Phi_m, Psi = self._composed_step(span // h_ns, c.shape[0], h)
+            composed = self._steps.get((span // h_ns, c.shape[0]))  # the step's maps, once composed
+            Phi_m, Psi = composed if composed is not None else self._composed_step(span // h_ns, c.shape[0], h)
             z = self.z
             np.add(Phi_m.dot(z), Psi.dot(c.ravel()), z)  # out=z, positional: no keyword parsing each step
             self.t_ns = t1_ns

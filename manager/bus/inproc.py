@@ -36,15 +36,21 @@ class DirectCalls:
         self.watched = [watch.index(s.name) for s in plan.subsystems] if watch.shared else []
 
     def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
-        return self._call(s, 0, 0, self.subsystems[s.index].output_values, w0)
+        return self._watched(s, 0, 0, self.subsystems[s.index].output_values, w0)
 
     def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
         t0_ns = tick * self.base_step_ns
-        return self._call(s, tick + s.ratio, t0_ns, self.subsystems[s.index].advance, t0_ns,
-                          t0_ns + s.ratio * self.base_step_ns, InputPolynomial(coefficients))
+        arguments = (t0_ns, t0_ns + s.ratio * self.base_step_ns, InputPolynomial(coefficients))
+        if self.watch is not None:
+            return self._watched(s, tick + s.ratio, t0_ns, self.subsystems[s.index].advance, *arguments)
+        try:  # the stepping loop's path: no further call in between
+            return self.subsystems[s.index].advance(*arguments)
+        except (Exception, SystemExit, KeyboardInterrupt) as error:
+            raise self._failure(s, tick + s.ratio, error) from None
 
-    def _call(self, s: SubsystemPlan, due: int, t_ns: int, function, *arguments) -> np.ndarray:
-        """``function(*arguments)`` of subsystem ``s``, whose outputs are due at step ``due``, from time ``t_ns``."""
+    def _watched(self, s: SubsystemPlan, due: int, t_ns: int, function, *arguments) -> np.ndarray:
+        """``function(*arguments)`` of subsystem ``s``, whose outputs are due at step ``due``, from time ``t_ns``:
+        marked in a watched run."""
         watch = self.watch
         try:
             if watch is None:
@@ -55,10 +61,13 @@ class DirectCalls:
             finally:
                 watch.returned()
         except (Exception, SystemExit, KeyboardInterrupt) as error:
-            reason = failure_reason(error)
-            if reason is None:
-                raise
-            raise SubsystemFailure(s.name, f"failed at step {due}: {printable(reason)}") from None
+            raise self._failure(s, due, error) from None
+
+    @staticmethod
+    def _failure(s: SubsystemPlan, due: int, error: BaseException) -> BaseException:
+        """``s``'s failure as its ERROR reply would name it, or the user's interrupt as it was."""
+        reason = failure_reason(error)
+        return error if reason is None else SubsystemFailure(s.name, f"failed at step {due}: {printable(reason)}")
 
 
 def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:

@@ -109,6 +109,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         for source, ratio, outputs, inputs, feed_order, fresh in feeds[s.index]:
             newest = tick // ratio + (fresh and stepping)
             window = windows[source]
+            if feed_order == 0 or newest == 0:  # one sample: the constant lagrange_coefficients would give
+                coefficients[0, inputs] = window.array[newest - window.offset, outputs]
+                continue
             rows = lagrange_coefficients(window.array, outputs, newest, feed_order, ratio * base,
                                          (tick - newest * ratio) * base, window.offset)
             coefficients[:len(rows), inputs] = rows
