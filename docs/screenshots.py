@@ -9,7 +9,9 @@ GPU, sandbox or network (WebGL through its software renderer) in a new, empty pr
 over the DevTools protocol on a pipe (``--remote-debugging-pipe``: JSON messages ended by a NUL byte),
 so no websocket library is needed. The viewer loads the recording and draws it in software, which
 takes minutes on a busy machine: the page is photographed every ``POLL_S`` and the picture kept once
-two in a row are the same (the view has settled), after at most ``LOAD_TIMEOUT_S``.
+two in a row are the same (the view has settled), after at most ``LOAD_TIMEOUT_S``. The viewer without the
+recording is photographed first: a picture of the run that equals that welcome page fails, naming the file (a
+viewer that did not load the recording once reported success with the welcome page).
 
 The Rerun server and Chromium each start a process group of their own (``rerun`` from rerun-sdk is a
 Python launcher that starts the viewer's binary; Chromium starts its helpers), and the whole group is
@@ -146,8 +148,14 @@ def photograph(rrd: Path, png: Path, chromium: str) -> None:
                 session = browser.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
                 browser.call("Emulation.setDeviceMetricsOverride", session, width=WINDOW[0], height=WINDOW[1],
                              deviceScaleFactor=1, mobile=False)
+                # the viewer without a recording first: its welcome page, which a picture of the run must not be
+                browser.call("Page.navigate", session, url=f"http://localhost:{web}")
+                welcome = _settled(browser, session)
                 browser.call("Page.navigate", session, url=url)
-                png.write_bytes(_settled(browser, session))
+                picture = _settled(browser, session)
+                if picture == welcome:
+                    raise RuntimeError(f"the viewer shows its welcome page, not {rrd.name}: nothing to photograph")
+                png.write_bytes(picture)
             finally:
                 browser.close()
     finally:
