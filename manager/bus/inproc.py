@@ -21,6 +21,7 @@ from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
 from zencosim.manager.scheme.replica import Replica, Tap
 from zencosim.manager.wire.text import printable
 from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.models import MODELS
 from zencosim.subsystems.process.endpoint import SubsystemEndpoint, failure_reason
 from zencosim.subsystems.subsystem import Subsystem
 
@@ -33,7 +34,8 @@ class DirectCalls:
         self.base_step_ns = plan.base_step_ns
         watch = model_watch()
         self.watch = watch if watch.shared else None
-        self.watched = [watch.index(s.name) for s in plan.subsystems] if watch.shared else []
+        # a watched run marks the calls into models that are not zencosim's own (watched_models)
+        self.watched = [watch.index(s.name) if s.name in watched_models(subsystems) else -1 for s in plan.subsystems]
 
     def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
         return self._watched(s, 0, 0, self.subsystems[s.index].output_values, w0)
@@ -41,7 +43,7 @@ class DirectCalls:
     def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
         t0_ns = tick * self.base_step_ns
         arguments = (t0_ns, t0_ns + s.ratio * self.base_step_ns, InputPolynomial(coefficients))
-        if self.watch is not None:
+        if self.watch is not None and self.watched[s.index] >= 0:
             return self._watched(s, tick + s.ratio, t0_ns, self.subsystems[s.index].advance, *arguments)
         try:  # the stepping loop's path: no further call in between
             return self.subsystems[s.index].advance(*arguments)
@@ -53,7 +55,7 @@ class DirectCalls:
         marked in a watched run."""
         watch = self.watch
         try:
-            if watch is None:
+            if watch is None or self.watched[s.index] < 0:
                 return function(*arguments)
             watch.calling(self.watched[s.index], t_ns)
             try:
@@ -70,6 +72,13 @@ class DirectCalls:
         return error if reason is None else SubsystemFailure(s.name, f"failed at step {due}: {printable(reason)}")
 
 
+def watched_models(subsystems: dict[str, Subsystem]) -> set[str]:
+    """The subsystems whose models a watched run marks: every one that is not one of zencosim's own models (an FMU,
+    a Python class, an input table), which alone can end the process or hang in a step."""
+    own = tuple(MODELS.values())
+    return {name for name, subsystem in subsystems.items() if not isinstance(subsystem.model, own)}
+
+
 def endpoints(plan: Plan, subsystems: dict, names: list[str] | None = None) -> dict[str, SubsystemEndpoint]:
     """Protocol endpoints of the built subsystems (all of them, or ``names``)."""
     return {s.name: SubsystemEndpoint(subsystems[s.name], s.ratio, plan.base_step_ns)
@@ -82,5 +91,6 @@ def run_in_process(scheme, plan: Plan, subsystems: dict, tap: Tap | None = None
     message (``manager.scheme.replica``). A model that raises KeyboardInterrupt itself, with no SIGINT or SIGTERM
     received, has failed (``subsystems.process.endpoint``): the watch tells the two apart."""
     with InterruptWatch():
-        local = model_watch().endpoints(endpoints(plan, subsystems))  # marked in a watched run (manager.bus.watchdog)
+        # a watched run marks the calls into models not zencosim's own (manager.bus.watchdog)
+        local = model_watch().endpoints(endpoints(plan, subsystems), watched_models(subsystems))
         return Replica(scheme, [s.name for s in plan.subsystems], local, tap=tap).run()

@@ -6,8 +6,9 @@ says nothing (0 for ``os._exit(0)``), and one that hangs would hang it. The comm
 run (:func:`watched`): the child runs the command as it always did, the parent only waits for it.
 
 They share one page (:class:`ModelWatch`): the child writes its subsystems' names and ``manager.timeout`` once,
-then, around every call into a model (its constructor, every command of the stepping loop), which subsystem it is in
-and from what simulation time; as its command ends it writes that it has ended. The parent, when the child ends
+then, around every call into a model (its constructor, every command of the stepping loop; in the loop only models
+that are not zencosim's own, which alone can end the process), which subsystem it is in and from what simulation
+time; as its command ends it writes that it has ended. The parent, when the child ends
 without that mark, names the subsystem it was in and how the process ended (``exited with code 0``, ``killed by
 SIGSEGV``: exit status 1); when one call into a model lasts longer than ``manager.timeout``, it kills the child and
 names the subsystem as the Zenoh bus does a subsystem that does not answer (exit status 1). A constructor is not
@@ -94,11 +95,13 @@ class ModelWatch:
     def returned(self) -> None:
         self.slots[SUBSYSTEM] = -1
 
-    def endpoints(self, endpoints: dict) -> dict:
-        """The in-process bus's endpoints (``subsystems.process.endpoint``), each marking its calls when watched."""
+    def endpoints(self, endpoints: dict, marked: set[str]) -> dict:
+        """The in-process bus's endpoints (``subsystems.process.endpoint``); those of ``marked`` mark their calls when
+        watched."""
         if not self.shared:
             return endpoints
-        return {name: _WatchedEndpoint(endpoint, self.index(name), self) for name, endpoint in endpoints.items()}
+        return {name: _WatchedEndpoint(endpoint, self.index(name), self) if name in marked else endpoint
+                for name, endpoint in endpoints.items()}
 
     def where(self) -> tuple[str, str] | None:
         """The subsystem the child is in and what it runs there (``("S2", "its step from t = 0.01 s")``), or None."""
