@@ -5,7 +5,8 @@ places (``encoding.body_pieces``): only the step, time, simulated time, referenc
 messages of a block that have one length are stacked into a byte matrix; those whose constant bytes are the
 layout's (one comparison over the whole matrix) are decoded by slicing its columns, and every other one (an
 ERROR, a message another writer encoded, a damaged one) by the generic decoder, ``schema.decode``, which
-accepts any valid protobuf encoding and names what is wrong. Both give the same ``StoredMessage``, bit for bit
+accepts any valid protobuf encoding and names what is wrong. A layout is used only once it reads the first
+message of its block exactly as the generic decoder does. Both give the same ``StoredMessage``, bit for bit
 (tests/recordings/test_decoding.py).
 """
 from __future__ import annotations
@@ -31,8 +32,10 @@ class _Layout:
                 position += len(piece)
                 continue
             start, length = piece
-            if start >= PAYLOAD_AT:
-                values_at[(start - PAYLOAD_AT) // 8] = position
+            if start >= PAYLOAD_AT:  # one value, or a packed run of them (a message the named fields do not describe)
+                first = (start - PAYLOAD_AT) // 8
+                for j in range(length // 8):
+                    values_at[first + j] = position + 8 * j
             else:
                 self.fields[start] = position
             position += length
@@ -74,12 +77,23 @@ def decode_messages(datas: list[bytes], schema: ChannelSchema | None) -> list[St
                 decoded[i] = _generic(datas[i], schema)
             continue
         block = np.frombuffer(b"".join(datas[i] for i in indices), dtype=np.uint8).reshape(len(indices), size)
+        if not (layout.matches(block[:1])[0] and same_message(layout.decode(block[:1])[0], first)):
+            # the layout does not read its own first message as the generic decoder does: decode them all so
+            for i in indices:
+                decoded[i] = _generic(datas[i], schema)
+            continue
         matches = layout.matches(block)
         for i, message in zip((i for i, ok in zip(indices, matches) if ok), layout.decode(block[matches])):
             decoded[i] = message
         for i in (i for i, ok in zip(indices, matches) if not ok):
             decoded[i] = _generic(datas[i], schema)
     return decoded
+
+
+def same_message(a: StoredMessage, b: StoredMessage) -> bool:
+    """Two decoded messages alike to the bit (their values' bytes compared, so NaN payloads too)."""
+    return ((a.step, a.time_ns, a.kind, a.rows, a.text, a.ref) == (b.step, b.time_ns, b.kind, b.rows, b.text, b.ref)
+            and a.values.tobytes() == b.values.tobytes())
 
 
 def _generic(data: bytes, schema: ChannelSchema | None) -> StoredMessage | ValueError:
