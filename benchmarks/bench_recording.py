@@ -42,7 +42,7 @@ from rich.console import Console
 from rich.table import Table
 
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.bus.zenoh_session import free_tcp_port
 from zencosim.manager.run import execute
 from zencosim.manager.scene.load import load_scene
@@ -182,7 +182,10 @@ def stepping_loop(scene, what: str, plan, subsystems, progress: Callable[[int], 
     if tap is not None:
         tap.start(scene, plan, status, "inproc", "", False)
     try:
-        return run_in_process(make_scheme(scene, plan, status=status, progress=progress), plan, subsystems, tap)
+        # as a run makes it (manager.run.execute): the scheme calls the subsystems and hands the tap the messages
+        scheme = make_scheme(scene, plan, status=status, progress=progress, direct=DirectCalls(plan, subsystems),
+                             tap=tap)
+        return run_in_process(scheme, plan, subsystems, tap)
     finally:
         if tap is not None:
             tap.close()

@@ -16,6 +16,7 @@ from zencosim.manager.scheme.correction import build_correctors
 from zencosim.manager.scheme.implicit import compile_joint, implicit
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.pacing import SPIN_ALONE_NS, Pacer, ThreadScheduling
+from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.window import spill_for
 from zencosim.manager.wire.status import StatusReport
 from zencosim.subsystems.ports import Attachments
@@ -58,7 +59,8 @@ def plan_scene(scene: Scene, constructing: Callable[[str], AbstractContextManage
 def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int | None = None,
                 progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
                 spin_ns: int = SPIN_ALONE_NS, local: frozenset[int] | None = None, keep: bool | None = None,
-                cpu: int | None = None, who: str = "zencosim", direct: SubsystemCalls | None = None):
+                cpu: int | None = None, who: str = "zencosim", direct: SubsystemCalls | None = None,
+                tap: Tap | None = None):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
@@ -67,9 +69,9 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     run's arrays whole in memory (True), spill them to files as the run goes (False), or spill those of a
     long run only (None; ``manager.scheme.window.spill_for``); ``cpu``: the CPU the pacing thread keeps to when
     the scene sets ``manager.realtime_affinity`` (``who`` names the process in a warning when a real-time lever
-    is refused); ``direct``: the subsystems of an in-process run that nothing taps, which the Jacobi scheme then
-    calls itself (``manager.bus.inproc.DirectCalls``; the implicit scheme exchanges messages), unless it reports
-    its status."""
+    is refused); ``direct``: the subsystems of an in-process run, which the Jacobi scheme then calls itself
+    (``manager.bus.inproc.DirectCalls``; the implicit scheme exchanges messages), handing ``tap`` (a recorded run's)
+    the messages a replica would."""
     levers = scene.manager
     scheduling = (ThreadScheduling(levers.realtime_priority, cpu if levers.realtime_affinity else None, who)
                   if levers.realtime_priority or levers.realtime_affinity else None)
@@ -78,7 +80,7 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,
-                  spill, direct if status is None else None)
+                  spill, direct, tap)
 
 
 def process_scope(scene: Scene, plan: Plan, name: str) -> tuple[frozenset[int] | None, frozenset[str]]:

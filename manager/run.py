@@ -85,9 +85,9 @@ def execute(scene: Scene, bus: str = "inproc", realtime: bool | None = None,
             started = True
         tap = recorder
         if bus == "inproc":
-            # untapped: the scheme calls the subsystems itself (manager.bus.inproc)
+            # the scheme calls the subsystems itself and hands the tap the messages (manager.bus.inproc)
             scheme = make_scheme(scene, plan, realtime, None, progress, status, keep=keep, cpu=0,
-                                 direct=DirectCalls(plan, subsystems) if tap is None else None)
+                                 direct=DirectCalls(plan, subsystems), tap=tap)
             start = time.perf_counter()
             with np.errstate(over="ignore", invalid="ignore"):  # a diverging run: its summary says so
                 record = run_in_process(scheme, plan, subsystems, tap)

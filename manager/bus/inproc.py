@@ -1,14 +1,15 @@
-"""The in-process bus: one replica of the scheme holds every subsystem and executes every command itself.
+"""The in-process bus: every subsystem in this process.
 
-A run that something taps (a recording, the live view) passes its commands and replies through the wire
-protocol's ``encode``/``decode`` (``subsystems.process.endpoint``), as over Zenoh, and the tap sees them. A run
-that nothing taps needs no messages: its Jacobi scheme calls the subsystems itself (:class:`DirectCalls`), handing
-each its input polynomial and taking its outputs as arrays, with no encoding, CRC, decoding or replica between
-them. The arithmetic is the same — the same input polynomials (a zero-order one is the source's newest outputs,
-as the bytes a command would copy), the same ``Subsystem.advance``, the same committed values — so the digest
-equals that of a run through the messages and over Zenoh (tests/manager/test_direct.py compares every array of
-every bundled scene). A failing model is named as its ERROR reply would name it (``failure_reason``), and a
-watched run (``manager.bus.watchdog``) marks every call.
+The Jacobi scheme calls the subsystems itself (:class:`DirectCalls`), handing each its input polynomial and
+taking its outputs as arrays, with no decoding, CRC check or replica between them. The arithmetic is the
+message path's — the same input polynomials (a zero-order one is the source's newest outputs, as the bytes a
+command would copy), the same ``Subsystem.advance``, the same committed values — so the digest equals that of a
+run through the messages and over Zenoh (tests/manager/test_direct.py compares every array of every bundled
+scene). A recorded run's tap gets the commands and replies the scheme encodes for it, byte for byte and in the
+order a replica would hand them over. The implicit scheme, which saves, restores and projects, exchanges its
+messages through ``encode``/``decode`` and a replica of its scheme (``subsystems.process.endpoint``). A failing
+model is named as its ERROR reply would name it (``failure_reason``), and a watched run
+(``manager.bus.watchdog``) marks the calls into models that are not zencosim's own.
 """
 from __future__ import annotations
 

@@ -39,9 +39,10 @@ from zencosim.manager.scheme.base import (
 )
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
 from zencosim.manager.scheme.pacing import Releases
+from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.residual import residual_power
 from zencosim.manager.scheme.window import RowWindow, Spill
-from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, command_ref, encode
 from zencosim.manager.wire.status import StatusReport
 
 
@@ -54,8 +55,8 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
            correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None,
-           local: frozenset[int] | None = None, spill: Spill | None = None, direct: SubsystemCalls | None = None
-           ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+           local: frozenset[int] | None = None, spill: Spill | None = None, direct: SubsystemCalls | None = None,
+           tap: Tap | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
     With ``status``, every exchange after the first step carries the status of the step before it (its step:
@@ -72,7 +73,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     the newest rows of each in memory. None: they are held whole.
 
     ``direct``: the subsystems, which the scheme then calls itself (``manager.bus.inproc.DirectCalls``: an in-process
-    run that nothing taps): it yields nothing and hands them arrays; every value is the one the messages carry."""
+    run): it yields nothing and hands them arrays; every value is the one the messages carry. With ``tap`` too (a
+    recorded in-process run), it encodes the commands and the replies the subsystems would have sent and hands
+    them to the tap exactly as a replica driving it would (``manager.scheme.replica``)."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
@@ -117,7 +120,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct)
+    taken = _Taken(tap if direct is not None else None)  # a direct run's messages, for its tap
+    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     period, stages = _schedule(plan, local, tracked)
     n_stages = len(plan.stages)
     some_bonds_idle = [len(bonds) < n_bonds for _, bonds in stages]  # their status fields are NaN (multi-rate)
@@ -146,26 +150,29 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 sent[s.index] = (tick, coefficients.tolist())
                 for corrector in adjusters[s.index]:
                     coefficients = corrector.adjust(s.index, tick, coefficients)
-                if direct is None:
+                if direct is None or taken.tap is not None:
                     sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
-                else:
+                if direct is not None:
                     stepping.append((s, coefficients))
             for s in partners_starting:  # the other side of a local bond: its polynomial, for the residual
                 sent[s.index] = (tick, input_polynomial(s, tick).tolist())
             if released_ns is None:
                 released_ns = releases.release(tick)
+            # a request's names repeat with its stage and phase (after the first: the requests before them do)
+            shape = phase * n_stages + number if tick or number else None
             if direct is None:
-                # a request's names repeat with its stage and phase (after the first: the requests before them do)
-                shape = phase * n_stages + number if tick or number else None
                 replies = yield Exchange(sends, due_names, None if number else step_status, next_tick, shape)
                 for s in due:
                     readers[s.index].commit(replies[s.name], next_tick)
             else:
+                taken.request(Exchange(sends, due_names, None if number else step_status, next_tick, shape))
                 for s, coefficients in stepping:
                     computed[s.index] = direct.step(s, tick, coefficients)
+                    taken.reply(s, sends, tick + s.ratio, (tick + s.ratio) * base, computed[s.index])
                 stepping.clear()
                 for s in due:
                     readers[s.index].commit_values(computed[s.index], next_tick)
+                taken.took(due)
         if next_tick >= p_window.end:
             p_window.advance(next_tick)
             e_window.advance(next_tick)
@@ -187,7 +194,12 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         if progress is not None and next_tick % PROGRESS_EVERY == 0:
             progress(next_tick)
     if step_status is not None:
-        yield Exchange({}, (), step_status)
+        if direct is None:
+            yield Exchange({}, (), step_status)
+        else:
+            taken.request(Exchange({}, (), step_status))
+            taken.took(())
+    taken.request(None)
 
     return RunRecord(plan, [w.finish() for w in windows], p_window.finish(), e_window.finish(), *releases.finish(),
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
@@ -216,7 +228,8 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
-                     tracked: frozenset[int], direct: SubsystemCalls | None) -> Generator[Exchange, dict[str, bytes], None]:
+                     tracked: frozenset[int], direct: SubsystemCalls | None, taken: _Taken
+                     ) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
     its last reply. Requests go to the ``local`` subsystems; the replies of the ``tracked`` ones are taken
@@ -231,18 +244,45 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
             w0 = np.zeros((1, len(s.inputs)))
             if step.ready:
                 w0[0, list(step.ready)] = input_polynomial(s, 0, stepping=False)[0, list(step.ready)]
-            if direct is None:
+            if direct is None or taken.tap is not None:
                 sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
-            else:
+            if direct is not None:
                 computed[s.index] = direct.initial(s, w0[0])
-        taken = [step.subsystem for step in round_ if step.subsystem in tracked]
+        awaited = [step.subsystem for step in round_ if step.subsystem in tracked]
         if direct is not None:
-            for i in taken:
+            taken.request(Exchange(sends, tuple(subs[i].name for i in awaited), None, 0))
+            for i in awaited:
+                taken.reply(subs[i], sends, 0, 0, computed[i])
                 readers[i].commit_values(computed[i], 0)
+            taken.took([subs[i] for i in awaited])
             continue
-        replies = yield Exchange(sends, tuple(subs[i].name for i in taken), None, 0)
-        for i in taken:
+        replies = yield Exchange(sends, tuple(subs[i].name for i in awaited), None, 0)
+        for i in awaited:
             readers[i].commit(replies[subs[i].name], 0)
+
+
+class _Taken:
+    """What a replica driving a direct run would hand its tap: each request with the replies taken to make it (None
+    before the first), then the replies of the last with None. Without a tap, nothing is encoded or kept."""
+
+    def __init__(self, tap: Tap | None) -> None:
+        self.tap = tap
+        self.replies: dict[int, bytes] = {}  # per subsystem: its reply to its last command
+        self.last: dict[str, bytes] | None = None  # the replies the next request follows
+
+    def request(self, request: Exchange | None) -> None:
+        if self.tap is not None:
+            self.tap.exchange(self.last, request)
+
+    def reply(self, s: SubsystemPlan, sends: dict[str, bytes], step: int, time_ns: int, outputs: np.ndarray) -> None:
+        """``s``'s reply to its command in ``sends``, as its endpoint encodes it (``subsystems.process.endpoint``)."""
+        if self.tap is not None:
+            self.replies[s.index] = encode(Kind.OUTPUT, step, time_ns, outputs, ref=command_ref(sends[s.name]))
+
+    def took(self, due) -> None:
+        """The scheme took the replies of ``due`` (subsystem plans, in the request's order)."""
+        if self.tap is not None:
+            self.last = {s.name: self.replies[s.index] for s in due}
 
 
 def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:

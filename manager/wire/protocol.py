@@ -3,7 +3,8 @@
 Header (little endian): version u8, kind u8, rows u16 (rows of a polynomial payload, else 0),
 count u32 (number of float64 values; for ERROR the number of UTF-8 bytes), step i64 (index of the
 communication point on the base macro-step grid), time i64 [ns]. The same ``encode``/``decode`` run
-over Zenoh and on a tapped in-process run (an untapped one hands arrays: ``manager.bus.inproc``).
+over Zenoh and by the in-process implicit scheme (the in-process Jacobi scheme hands arrays, and encodes for a
+recording's tap only: ``manager.bus.inproc``).
 """
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
 """The subsystem side of the wire protocol: decode a command, act on the subsystem, encode the reply.
 
-The same endpoint serves a tapped in-process run (called directly) and a subsystem process (called from
-its Zenoh subscriber), so both run identical arithmetic on identical bytes; an untapped in-process run calls
-the subsystems without bytes (``manager.bus.inproc.DirectCalls``), naming a failure as ``failure_reason`` does.
+The same endpoint serves a subsystem process (called from its Zenoh subscriber) and the in-process implicit
+scheme (called directly), on identical bytes; the in-process Jacobi scheme calls the subsystems without bytes
+(``manager.bus.inproc.DirectCalls``), naming a failure as ``failure_reason`` does.
 """
 from __future__ import annotations
 
