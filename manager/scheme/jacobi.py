@@ -120,7 +120,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    taken = _Taken(tap if direct is not None else None)  # a direct run's messages, for its tap
+    tapped = direct is not None and tap is not None
+    taken = _Taken(tap if tapped else None)  # a direct run's messages, for its tap
     yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     period, stages = _schedule(plan, local, tracked)
     n_stages = len(plan.stages)
@@ -150,7 +151,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 sent[s.index] = (tick, coefficients.tolist())
                 for corrector in adjusters[s.index]:
                     coefficients = corrector.adjust(s.index, tick, coefficients)
-                if direct is None or taken.tap is not None:
+                if direct is None or tapped:
                     sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
                 if direct is not None:
                     stepping.append((s, coefficients))
@@ -158,20 +159,25 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 sent[s.index] = (tick, input_polynomial(s, tick).tolist())
             if released_ns is None:
                 released_ns = releases.release(tick)
-            # a request's names repeat with its stage and phase (after the first: the requests before them do)
-            shape = phase * n_stages + number if tick or number else None
+            if direct is None or tapped:
+                # a request's names repeat with its stage and phase (after the first: the requests before them do)
+                request = Exchange(sends, due_names, None if number else step_status, next_tick,
+                                   phase * n_stages + number if tick or number else None)
             if direct is None:
-                replies = yield Exchange(sends, due_names, None if number else step_status, next_tick, shape)
+                replies = yield request
                 for s in due:
                     readers[s.index].commit(replies[s.name], next_tick)
-            else:
-                taken.request(Exchange(sends, due_names, None if number else step_status, next_tick, shape))
-                for s, coefficients in stepping:
-                    computed[s.index] = direct.step(s, tick, coefficients)
+                continue
+            if tapped:
+                taken.request(request)
+            for s, coefficients in stepping:
+                computed[s.index] = direct.step(s, tick, coefficients)
+                if tapped:
                     taken.reply(s, sends, tick + s.ratio, (tick + s.ratio) * base, computed[s.index])
-                stepping.clear()
-                for s in due:
-                    readers[s.index].commit_values(computed[s.index], next_tick)
+            stepping.clear()
+            for s in due:
+                readers[s.index].commit_values(computed[s.index], next_tick)
+            if tapped:
                 taken.took(due)
         if next_tick >= p_window.end:
             p_window.advance(next_tick)
