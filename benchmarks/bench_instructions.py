@@ -30,6 +30,9 @@ import tempfile
 from pathlib import Path
 
 STEPS = (500, 2500)
+# the floor's runs lie further apart: its 2,000-step difference is 7.6 M instructions, where the noise of a run's
+# start (a few million instructions) moved its per-step count between 3,755 and 4,869; 40,000 steps dilute it
+FLOOR_STEPS = (500, 40_500)
 ONE_RUN = """
 import sys
 sys.path.insert(0, {benchmarks!r})
@@ -82,8 +85,9 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str
 
 
 def per_step(what: str, pythonpath: str = "", layout: str = "package", where: str = "") -> float:
-    low, high = (instructions(what, n, pythonpath, layout, where) for n in STEPS)
-    return (high - low) / (STEPS[1] - STEPS[0])
+    steps = FLOOR_STEPS if what == "floor" else STEPS
+    low, high = (instructions(what, n, pythonpath, layout, where) for n in steps)
+    return (high - low) / (steps[1] - steps[0])
 
 
 def fmu_pair(show) -> None:
