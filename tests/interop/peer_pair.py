@@ -277,12 +277,14 @@ def _initial_values(values: dict[str, float]) -> str:
                    for name, value in values.items())
 
 
-def osp_system(connections: str, sources: dict[str, str], description: str) -> str:
-    """An OspSystemStructure.xml of the pair: fixed step, BaseStepSize 1 ms, 0 to 10 s."""
-    simulators = "".join(
-        f'\n    <Simulator name="{model}" source="{sources[model]}" stepSize="{BASE_STEP!r}">'
+def osp_system(simulators: dict[str, tuple[str, dict[str, float]]], connections: str, description: str) -> str:
+    """An OspSystemStructure.xml of ``simulators`` (name -> (FMU file, start values)) joined by ``connections`` (the
+    elements of ``<Connections>``; "": none): fixed step, BaseStepSize 1 ms, 0 to 10 s."""
+    elements = "".join(
+        f'\n    <Simulator name="{name}" source="{source}" stepSize="{BASE_STEP!r}">'
         f"\n      <InitialValues>{_initial_values(start)}\n      </InitialValues>\n    </Simulator>"
-        for model, start in (("mass1", MASS1_START), ("mass2", MASS2_START)))
+        for name, (source, start) in simulators.items())
+    connections_element = f"\n  <Connections>{connections}\n  </Connections>" if connections else ""
     return f"""<?xml version="1.0" encoding="utf-8"?>
 <!-- {description} -->
 <OspSystemStructure xmlns="{OSP_NAMESPACE}" version="0.1">
@@ -290,10 +292,8 @@ def osp_system(connections: str, sources: dict[str, str], description: str) -> s
   <EndTime>{END_TIME!r}</EndTime>
   <BaseStepSize>{BASE_STEP!r}</BaseStepSize>
   <Algorithm>fixedStep</Algorithm>
-  <Simulators>{simulators}
-  </Simulators>
-  <Connections>{CONNECTIONS[connections]}
-  </Connections>
+  <Simulators>{elements}
+  </Simulators>{connections_element}
 </OspSystemStructure>
 """
 
@@ -313,15 +313,14 @@ def write_system(directory: Path, name: str, mass2: str = "mass2") -> Path:
     simulator mass2 runs (a variant of mass2 in a plain system)."""
     units, connections = SYSTEMS[name]
     directory.mkdir(parents=True, exist_ok=True)
-    sources = {}
     for model in ("mass1", "mass2"):
-        sources[model] = f"{model}.fmu"
-        build_fmu(mass2 if model == "mass2" else model, directory / sources[model], units)
+        build_fmu(mass2 if model == "mass2" else model, directory / f"{model}.fmu", units)
         if connections == "groups":
             (directory / f"{model_identifier(model)}_OspModelDescription.xml").write_text(
                 OSP_MODEL_DESCRIPTIONS[model])
     description = (f"paper 000 two_mass_damped as the peer pair: {'units declared' if units else 'no units'}, "
                    f"{connections} connections")
     path = directory / "OspSystemStructure.xml"
-    path.write_text(osp_system(connections, sources, description))
+    path.write_text(osp_system({"mass1": ("mass1.fmu", MASS1_START), "mass2": ("mass2.fmu", MASS2_START)},
+                               CONNECTIONS[connections], description))
     return path

@@ -20,43 +20,25 @@ from tests.interop.peer_pair import (
     MASS1_START,
     MASS2_START,
     MODELS,
-    OSP_NAMESPACE,
     PAIR,
     build_fmu,
+    osp_system,
     variable_connection,
 )
 
 SIGNAL_ONLY = variable_connection(*PAIR[0])
 
 
-def _initial_values(values: dict[str, float]) -> str:
-    return "".join(f'\n        <InitialValue variable="{name}"><Real value="{value!r}"/></InitialValue>'
-                   for name, value in values.items())
-
-
 def write_osp(directory: Path, simulators: dict[str, tuple[str, dict[str, float]]], connections: str,
               description: str) -> Path:
     """An OspSystemStructure.xml in ``directory`` of ``simulators`` (name -> (peer model, start values)), the
-    FMUs built beside it; fixed step, base step 1 ms, 0 to 10 s."""
+    FMUs built beside it (``peer_pair.osp_system``)."""
     directory.mkdir(parents=True, exist_ok=True)
-    elements = []
-    for name, (model, start) in simulators.items():
+    for model, _ in simulators.values():
         build_fmu(model, directory / f"{model}.fmu")
-        elements.append(f'\n    <Simulator name="{name}" source="{model}.fmu" stepSize="{BASE_STEP!r}">'
-                        f"\n      <InitialValues>{_initial_values(start)}\n      </InitialValues>\n    </Simulator>")
-    connections_element = f"\n  <Connections>{connections}\n  </Connections>" if connections else ""
     path = directory / "OspSystemStructure.xml"
-    path.write_text(f"""<?xml version="1.0" encoding="utf-8"?>
-<!-- {description} -->
-<OspSystemStructure xmlns="{OSP_NAMESPACE}" version="0.1">
-  <StartTime>0.0</StartTime>
-  <EndTime>{END_TIME!r}</EndTime>
-  <BaseStepSize>{BASE_STEP!r}</BaseStepSize>
-  <Algorithm>fixedStep</Algorithm>
-  <Simulators>{''.join(elements)}
-  </Simulators>{connections_element}
-</OspSystemStructure>
-""")
+    path.write_text(osp_system({name: (f"{model}.fmu", start) for name, (model, start) in simulators.items()},
+                               connections, description))
     return path
 
 
