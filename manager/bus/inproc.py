@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from zencosim.manager.bus.signals import InterruptWatch
-from zencosim.manager.bus.watchdog import model_watch
+from zencosim.manager.bus.watchdog import STEPPING, model_watch
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
 from zencosim.manager.scheme.replica import Replica, Tap
@@ -33,38 +33,33 @@ class DirectCalls:
     def __init__(self, plan: Plan, subsystems: dict[str, Subsystem]) -> None:
         self.subsystems = [subsystems[s.name] for s in plan.subsystems]
         self.base_step_ns = plan.base_step_ns
-        watch = model_watch()
-        self.watch = watch if watch.shared else None
-        # a watched run marks the calls into models that are not zencosim's own (watched_models)
-        self.watched = [watch.index(s.name) if s.name in watched_models(subsystems) else -1 for s in plan.subsystems]
+        self.watch = model_watch()
+        # in a watched run, the watch's number of each subsystem whose calls it marks (watched_models); else None
+        marked = watched_models(subsystems) if self.watch.shared else set()
+        self.marks = [self.watch.index(s.name) if s.name in marked else None for s in plan.subsystems]
 
     def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
-        return self._watched(s, 0, 0, self.subsystems[s.index].output_values, w0)
+        mark = self.marks[s.index]
+        try:
+            if mark is None:
+                return self.subsystems[s.index].output_values(w0)
+            with self.watch.marking(mark, STEPPING):
+                return self.subsystems[s.index].output_values(w0)
+        except (Exception, SystemExit, KeyboardInterrupt) as error:
+            raise self._failure(s, 0, error) from None
 
     def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
+        # initial's body over advance, written out: the stepping loop's path, with no further call in between
         t0_ns = tick * self.base_step_ns
         arguments = (t0_ns, t0_ns + s.ratio * self.base_step_ns, InputPolynomial(coefficients))
-        if self.watch is not None and self.watched[s.index] >= 0:
-            return self._watched(s, tick + s.ratio, t0_ns, self.subsystems[s.index].advance, *arguments)
-        try:  # the stepping loop's path: no further call in between
-            return self.subsystems[s.index].advance(*arguments)
+        mark = self.marks[s.index]
+        try:
+            if mark is None:
+                return self.subsystems[s.index].advance(*arguments)
+            with self.watch.marking(mark, STEPPING, t0_ns):
+                return self.subsystems[s.index].advance(*arguments)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
             raise self._failure(s, tick + s.ratio, error) from None
-
-    def _watched(self, s: SubsystemPlan, due: int, t_ns: int, function, *arguments) -> np.ndarray:
-        """``function(*arguments)`` of subsystem ``s``, whose outputs are due at step ``due``, from time ``t_ns``:
-        marked in a watched run."""
-        watch = self.watch
-        try:
-            if watch is None or self.watched[s.index] < 0:
-                return function(*arguments)
-            watch.calling(self.watched[s.index], t_ns)
-            try:
-                return function(*arguments)
-            finally:
-                watch.returned()
-        except (Exception, SystemExit, KeyboardInterrupt) as error:
-            raise self._failure(s, due, error) from None
 
     @staticmethod
     def _failure(s: SubsystemPlan, due: int, error: BaseException) -> BaseException:

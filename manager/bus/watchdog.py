@@ -32,7 +32,7 @@ import os
 import signal
 import sys
 import time
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from typing import Callable, Iterator
 
 from zencosim.manager.bus.children import exit_reason
@@ -55,45 +55,43 @@ class ModelWatch:
         self._page = mmap.mmap(-1, PAGE_BYTES) if shared else bytearray(PAGE_BYTES)
         self.slots = memoryview(self._page)[:NAMES_AT].cast("q")
         self.slots[SUBSYSTEM] = -1
+        self._order: dict[str, int] = {}
 
     def start(self, names: list[str], timeout_s: float) -> None:
         """The run's subsystems (in the order their marks refer to) and its ``manager.timeout``."""
+        self._order = {name: i for i, name in enumerate(names)}
         text = json.dumps(names).encode()[:PAGE_BYTES - NAMES_AT]
         self._page[NAMES_AT:NAMES_AT + len(text)] = text
         self.slots[NAMES_BYTES] = len(text)
         self.slots[TIMEOUT_NS] = int(timeout_s * 1e9)
 
     def names(self) -> list[str]:
+        """The names :meth:`start` wrote, as the other process reads them from the page."""
         try:
             return json.loads(bytes(self._page[NAMES_AT:NAMES_AT + self.slots[NAMES_BYTES]]) or b"[]")
         except ValueError:  # cut at the page's end: more subsystems than the page holds names for
             return []
 
+    def index(self, name: str) -> int:
+        """The number the marks give subsystem ``name`` (its place among the names given to :meth:`start`; -1, no
+        mark, for a name it was not given)."""
+        return self._order.get(name, -1)
+
     @contextmanager
-    def constructing(self, name: str) -> Iterator[None]:
-        """Marks the construction of subsystem ``name`` (one of the names given to :meth:`start`)."""
+    def marking(self, index: int, phase: int, t_ns: int = 0) -> Iterator[None]:
+        """Marks a call into subsystem number ``index``: its constructor (``CONSTRUCTING``) or its step from time
+        ``t_ns`` (``STEPPING``)."""
         slots = self.slots
-        slots[SUBSYSTEM], slots[PHASE] = self.index(name), CONSTRUCTING
+        slots[SUBSYSTEM], slots[PHASE], slots[T_NS] = index, phase, t_ns
         slots[CALLS] += 1
         try:
             yield
         finally:
             slots[SUBSYSTEM] = -1
 
-    def index(self, name: str) -> int:
-        """The number the marks give subsystem ``name`` (its place among the names given to :meth:`start`; -1, no
-        mark, for a name the page does not hold)."""
-        names = self.names()
-        return names.index(name) if name in names else -1
-
-    def calling(self, index: int, t_ns: int) -> None:
-        """Marks a call into the step of subsystem number ``index`` from time ``t_ns`` (until :meth:`returned`)."""
-        slots = self.slots
-        slots[SUBSYSTEM], slots[PHASE], slots[T_NS] = index, STEPPING, t_ns
-        slots[CALLS] += 1
-
-    def returned(self) -> None:
-        self.slots[SUBSYSTEM] = -1
+    def constructing(self, name: str) -> AbstractContextManager:
+        """Marks the construction of subsystem ``name`` (one of the names given to :meth:`start`)."""
+        return self.marking(self.index(name), CONSTRUCTING)
 
     def endpoints(self, endpoints: dict, marked: set[str]) -> dict:
         """The in-process bus's endpoints (``subsystems.process.endpoint``); those of ``marked`` mark their calls when
@@ -122,11 +120,8 @@ class _WatchedEndpoint:
         self.endpoint, self.index, self.watch, self.subsystem = endpoint, index, watch, endpoint.subsystem
 
     def handle(self, data: bytes) -> bytes:
-        self.watch.calling(self.index, self.subsystem.t_ns)
-        try:
+        with self.watch.marking(self.index, STEPPING, self.subsystem.t_ns):
             return self.endpoint.handle(data)
-        finally:
-            self.watch.returned()
 
 
 UNWATCHED = ModelWatch(shared=False)
