@@ -120,8 +120,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    tapped = direct is not None and tap is not None
-    taken = _Taken(tap if tapped else None)  # a direct run's messages, for its tap
+    taken = _Taken(tap) if direct is not None and tap is not None else None  # a direct run's messages, for its tap
     yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     period, stages = _schedule(plan, local, tracked)
     n_stages = len(plan.stages)
@@ -151,7 +150,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 sent[s.index] = (tick, coefficients.tolist())
                 for corrector in adjusters[s.index]:
                     coefficients = corrector.adjust(s.index, tick, coefficients)
-                if direct is None or tapped:
+                if direct is None or taken is not None:
                     sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
                 if direct is not None:
                     stepping.append((s, coefficients))
@@ -159,7 +158,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 sent[s.index] = (tick, input_polynomial(s, tick).tolist())
             if released_ns is None:
                 released_ns = releases.release(tick)
-            if direct is None or tapped:
+            if direct is None or taken is not None:
                 # a request's names repeat with its stage and phase (after the first: the requests before them do)
                 request = Exchange(sends, due_names, None if number else step_status, next_tick,
                                    phase * n_stages + number if tick or number else None)
@@ -168,16 +167,16 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 for s in due:
                     readers[s.index].commit(replies[s.name], next_tick)
                 continue
-            if tapped:
+            if taken is not None:
                 taken.request(request)
             for s, coefficients in stepping:
                 computed[s.index] = direct.step(s, tick, coefficients)
-                if tapped:
+                if taken is not None:
                     taken.reply(s, sends, tick + s.ratio, (tick + s.ratio) * base, computed[s.index])
             stepping.clear()
             for s in due:
                 readers[s.index].commit_values(computed[s.index], next_tick)
-            if tapped:
+            if taken is not None:
                 taken.took(due)
         if next_tick >= p_window.end:
             p_window.advance(next_tick)
@@ -202,10 +201,11 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     if step_status is not None:
         if direct is None:
             yield Exchange({}, (), step_status)
-        else:
+        elif taken is not None:
             taken.request(Exchange({}, (), step_status))
             taken.took(())
-    taken.request(None)
+    if taken is not None:
+        taken.request(None)
 
     return RunRecord(plan, [w.finish() for w in windows], p_window.finish(), e_window.finish(), *releases.finish(),
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
@@ -234,7 +234,7 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
-                     tracked: frozenset[int], direct: SubsystemCalls | None, taken: _Taken
+                     tracked: frozenset[int], direct: SubsystemCalls | None, taken: _Taken | None
                      ) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
@@ -250,17 +250,19 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
             w0 = np.zeros((1, len(s.inputs)))
             if step.ready:
                 w0[0, list(step.ready)] = input_polynomial(s, 0, stepping=False)[0, list(step.ready)]
-            if direct is None or taken.tap is not None:
+            if direct is None or taken is not None:
                 sends[s.name] = encode(Kind.INIT, 0, 0, w0, rows=1)
             if direct is not None:
                 computed[s.index] = direct.initial(s, w0[0])
         awaited = [step.subsystem for step in round_ if step.subsystem in tracked]
         if direct is not None:
-            taken.request(Exchange(sends, tuple(subs[i].name for i in awaited), None, 0))
             for i in awaited:
-                taken.reply(subs[i], sends, 0, 0, computed[i])
                 readers[i].commit_values(computed[i], 0)
-            taken.took([subs[i] for i in awaited])
+            if taken is not None:  # the request, then its replies, as the tap of a replica sees them
+                taken.request(Exchange(sends, tuple(subs[i].name for i in awaited), None, 0))
+                for i in awaited:
+                    taken.reply(subs[i], sends, 0, 0, computed[i])
+                taken.took([subs[i] for i in awaited])
             continue
         replies = yield Exchange(sends, tuple(subs[i].name for i in awaited), None, 0)
         for i in awaited:
@@ -268,27 +270,24 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
 
 
 class _Taken:
-    """What a replica driving a direct run would hand its tap: each request with the replies taken to make it (None
-    before the first), then the replies of the last with None. Without a tap, nothing is encoded or kept."""
+    """What a replica driving a direct run would hand ``tap``: each request with the replies taken to make it (None
+    before the first), then the replies of the last with None."""
 
-    def __init__(self, tap: Tap | None) -> None:
+    def __init__(self, tap: Tap) -> None:
         self.tap = tap
         self.replies: dict[int, bytes] = {}  # per subsystem: its reply to its last command
         self.last: dict[str, bytes] | None = None  # the replies the next request follows
 
     def request(self, request: Exchange | None) -> None:
-        if self.tap is not None:
-            self.tap.exchange(self.last, request)
+        self.tap.exchange(self.last, request)
 
     def reply(self, s: SubsystemPlan, sends: dict[str, bytes], step: int, time_ns: int, outputs: np.ndarray) -> None:
         """``s``'s reply to its command in ``sends``, as its endpoint encodes it (``subsystems.process.endpoint``)."""
-        if self.tap is not None:
-            self.replies[s.index] = encode(Kind.OUTPUT, step, time_ns, outputs, ref=command_ref(sends[s.name]))
+        self.replies[s.index] = encode(Kind.OUTPUT, step, time_ns, outputs, ref=command_ref(sends[s.name]))
 
     def took(self, due) -> None:
         """The scheme took the replies of ``due`` (subsystem plans, in the request's order)."""
-        if self.tap is not None:
-            self.last = {s.name: self.replies[s.index] for s in due}
+        self.last = {s.name: self.replies[s.index] for s in due}
 
 
 def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:
