@@ -67,25 +67,21 @@ def decode_messages(datas: list[bytes], schema: ChannelSchema | None) -> list[St
     for i, data in enumerate(datas):
         by_size.setdefault(len(data), []).append(i)
     for size, indices in by_size.items():
-        layout = None
-        if schema is not None and size and len(indices) > 1:
-            first = _generic(datas[indices[0]], schema)
-            if isinstance(first, StoredMessage) and first.values.size and not first.text:
-                layout = _Layout(schema, first.kind, first.rows, first.values.size)
-        if layout is None or layout.size != size:
-            for i in indices:
-                decoded[i] = _generic(datas[i], schema)
-            continue
-        block = np.frombuffer(b"".join(datas[i] for i in indices), dtype=np.uint8).reshape(len(indices), size)
-        if not (layout.matches(block[:1])[0] and same_message(layout.decode(block[:1])[0], first)):
-            # the layout does not read its own first message as the generic decoder does: decode them all so
-            for i in indices:
-                decoded[i] = _generic(datas[i], schema)
-            continue
-        matches = layout.matches(block)
-        for i, message in zip((i for i, ok in zip(indices, matches) if ok), layout.decode(block[matches])):
-            decoded[i] = message
-        for i in (i for i, ok in zip(indices, matches) if not ok):
+        indices = np.array(indices)
+        placed = np.zeros(len(indices), dtype=bool)  # the messages the layout decodes; the generic decoder the rest
+        first = _generic(datas[indices[0]], schema) if schema is not None and size and len(indices) > 1 else None
+        if isinstance(first, StoredMessage) and first.values.size and not first.text:
+            layout = _Layout(schema, first.kind, first.rows, first.values.size)
+            if layout.size == size:
+                block = np.frombuffer(b"".join(datas[i] for i in indices), dtype=np.uint8).reshape(len(indices), size)
+                placed = layout.matches(block)
+                # a layout is used only once it reads its own first message as the generic decoder does
+                if placed[0] and same_message(layout.decode(block[:1])[0], first):
+                    for i, message in zip(indices[placed], layout.decode(block[placed])):
+                        decoded[i] = message
+                else:
+                    placed[:] = False
+        for i in indices[~placed]:
             decoded[i] = _generic(datas[i], schema)
     return decoded
 
