@@ -148,7 +148,6 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
     history = [[identity[index] for index in samples] for samples in history_index]  # oldest first
 
     period = math.lcm(*(s.ratio for s in subs))
-    stage_of = {i: number for number, stage in enumerate(plan.stages) for i in stage}
     pending: dict[int, list[tuple[int, np.ndarray]]] = {}
     for tick in range(period):
         for stage in plan.stages:
@@ -160,7 +159,7 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
                 for feed in s.feeds:
                     ratio = subs[feed.source].ratio
                     # a source of an earlier stage (Gauss–Seidel) has its sample at the step's end already
-                    newest_sample = tick // ratio + (stage_of[feed.source] < stage_of[s.index])
+                    newest_sample = tick // ratio + plan.steps_before(feed.source, s.index)
                     newest = depth + newest_sample  # its position in the history
                     P = extrapolation_matrix(order + 1, ratio * base, (tick - newest_sample * ratio) * base)
                     samples = history[feed.source][newest - order:newest + 1]

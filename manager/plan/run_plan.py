@@ -94,6 +94,12 @@ class Plan:
         """The subsystems subsystem ``index`` exchanges values with: its sources and the ones it feeds."""
         return self.sources(index) | frozenset(s.index for s in self.subsystems if index in self.sources(s.index))
 
+    def steps_before(self, source: int, target: int) -> bool:
+        """Whether subsystem ``source`` steps in an earlier stage of a macro-step than ``target`` (Gauss–Seidel): its
+        sample at the step's end is committed when ``target``'s input polynomial is made."""
+        stage_of = {i: number for number, stage in enumerate(self.stages) for i in stage}
+        return stage_of[source] < stage_of[target]
+
     def tracked(self, local: frozenset[int]) -> frozenset[int]:
         """What a replica computing the commands of ``local`` subsystems follows: them and their sources."""
         return frozenset(local).union(*(self.sources(i) for i in local))

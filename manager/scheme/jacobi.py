@@ -94,11 +94,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     residuals = [math.nan] * (2 * n_bonds)  # the status's: δP of every bond evaluated at this step's end, then δE
     releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
-    stage_of = {i: number for number, stage in enumerate(plan.stages) for i in stage}
     # per feed: its source's newest sample is the one at the end of the step when the source steps in an earlier
     # stage (Gauss–Seidel, single-rate: the polynomial interpolates up to it), else the one at or before its start
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs), f.order,
-               int(stage_of[f.source] < stage_of[s.index])) for f in s.feeds if f.source in tracked] for s in subs]
+               int(plan.steps_before(f.source, s.index))) for f in s.feeds if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
