@@ -46,6 +46,17 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override a scalar of the scene, e.g. --set manager.macro_step=0.004 (repeatable)")
 
 
+def share(text: str) -> float:
+    """An argument that is a share in [0, 1] (of steps, of deadlines)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a share in [0, 1]")
+    return value
+
+
 def examples(*lines: str) -> dict:
     """``add_parser`` options that show ``lines`` as examples at the end of the command's help."""
     return {"epilog": "examples:\n" + "\n".join(f"  {line}" for line in lines),

@@ -6,7 +6,7 @@ import json
 
 from rich.table import Table
 
-from zencosim.cli.console import UsageError, add_scene_arguments, examples, out, say
+from zencosim.cli.console import UsageError, add_scene_arguments, examples, out, say, share
 from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.realtime_probe import DEFAULT_DURATION_S, DEFAULT_RATES_HZ, Budget, RateResult, probe
 from zencosim.manager.results.output_files import check_output_file
@@ -43,8 +43,8 @@ def _say_result(result: RateResult) -> None:
 
 
 def cmd_realtime_probe(args: argparse.Namespace) -> int:
-    if not 0 <= args.missed <= 1 or args.p99 <= 0:
-        raise UsageError("--missed is a share of the steps in [0, 1], --p99 a positive share of the macro-step")
+    if args.p99 <= 0:
+        raise UsageError("--p99 is a positive share of the macro-step")
     json_path = check_output_file(args.json, "report") if args.json else None
     budget = Budget(args.missed, args.p99)
     bus_options = {"zenoh_options": ZenohOptions(lowlatency=not args.no_lowlatency)} if args.bus == "zenoh" else {}
@@ -81,7 +81,7 @@ def add_parsers(commands) -> None:
                      help=f"the ladder of rates (default {','.join(f'{r:g}' for r in DEFAULT_RATES_HZ)})")
     sub.add_argument("--duration", type=float, default=DEFAULT_DURATION_S, metavar="SECONDS",
                      help=f"how long each rate runs (default {DEFAULT_DURATION_S:g} s)")
-    sub.add_argument("--missed", type=float, default=Budget.missed_share, metavar="SHARE",
+    sub.add_argument("--missed", type=share, default=Budget.missed_share, metavar="SHARE",
                      help=f"budget: at most this share of missed deadlines (default {Budget.missed_share:g})")
     sub.add_argument("--p99", type=float, default=Budget.p99_share_of_step, metavar="SHARE",
                      help=f"budget: p99 lateness at most this share of the step (default {Budget.p99_share_of_step:g})")

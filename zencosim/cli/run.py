@@ -9,10 +9,11 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, out, say, warn
+from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, out, say, share, warn
 from zencosim.cli.credentials import add_security_arguments, given_security_options, security_options
 from zencosim.extras import require
 from zencosim.manager.bus.zenoh_session import ZenohOptions
+from zencosim.manager.realtime_probe import Budget
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.results.tables import check_table_path, record_tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
@@ -193,16 +194,6 @@ def _strict_failures(summary: dict, max_missed: float) -> list[str]:
     return failed
 
 
-def _share(text: str) -> float:
-    try:
-        share = float(text)
-    except ValueError:
-        share = -1.0
-    if not 0.0 <= share <= 1.0:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a share of the steps in [0, 1]")
-    return share
-
-
 def add_parsers(commands) -> None:
     run = commands.add_parser(
         "run", help="run a scene",
@@ -227,8 +218,9 @@ def add_parsers(commands) -> None:
     run.add_argument("--strict", action="store_true",
                      help=f"exit with status {DIVERGED}, as for a diverged run, when the run's verdict is unstable or a "
                           "real-time run missed more than --max-missed of its deadlines (default: only report them)")
-    run.add_argument("--max-missed", type=_share, default=0.01, metavar="SHARE",
-                     help="with --strict and --realtime: the share of missed deadlines a run may have (default 0.01)")
+    run.add_argument("--max-missed", type=share, default=Budget.missed_share, metavar="SHARE",
+                     help="with --strict and --realtime: the share of missed deadlines a run may have (default "
+                          f"{Budget.missed_share:g}, realtime-probe's budget)")
     run.add_argument("--listen", metavar="ENDPOINT", help="Zenoh endpoint of the manager (default: a free port on 127.0.0.1)")
     run.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                      help="a Zenoh router (zencosim router) to reach subsystems started by hand through (repeatable)")
