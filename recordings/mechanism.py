@@ -9,6 +9,13 @@ coupling is a line between the anchors of its two points, and a force–displace
 is an arrow at its motion side's point (the force the coupling exerts there: the force side's output
 ``f`` as the motion side receives it), scaled so that the largest force seen so far is ``ARROW`` long.
 
+Bodies on a line are drawn at a *lane scale* (``lane_scale``): their lanes, boxes, springs' teeth and force
+arrows are that many times their sketched size, so that they stay visible beside the distance they travel
+(two_mass_damped's masses swing over about 45 m: at the sketch's 1 m lanes and 0.4 m boxes they were specks
+with their labels on top of each other). The scale follows the x span that the run's bodies on a line have
+covered in every step up to the frame, so it only grows, in a few steps (1, 2, 5, 10, …): x stays as the
+model says.
+
 Both the replay and the live view feed the commands step by step (each subsystem's in its order) and
 the recorded outputs of the couplings' force sides; a subsystem whose
 model cannot be built here (an FMU file that is missing) or has no ``sketch`` is not drawn. Every
@@ -31,7 +38,8 @@ from zencosim.manager.scene.load import Scene
 from zencosim.manager.wire.protocol import HEADER, Kind
 from zencosim.subsystems.sketch import LANE, Sketch
 
-ARROW = 0.5 * LANE  # [m] length of the largest coupling-force arrow
+ARROW = 0.5 * LANE  # [m] length of the largest coupling-force arrow (times the lane scale on a line)
+SPAN_LANES = 4.0  # bodies on a line: their lanes are at least 1 / SPAN_LANES of their x span apart
 LIVE_FRAME_NS = 10_000_000  # [ns] of simulated time between two frames of the live view (100 per simulated second)
 
 
@@ -58,18 +66,19 @@ class Mechanism:
         drawable = [s.name for s in plan.subsystems if hasattr(subsystems[s.name].model, "sketch")]
         self._endpoints = endpoints(plan, subsystems, drawable)
         self._subsystems = subsystems
-        self._offsets: dict[str, np.ndarray] = {}
+        self._lanes: dict[str, float] = {}  # a subsystem on a line → the y of its first lane at scale 1 [m]
         lane = 0.0
         for name in drawable:  # each subsystem on a line below the ones before it
             first = subsystems[name].model.sketch(subsystems[name].z, subsystems[name].w)
-            self._offsets[name] = np.array([0.0, -lane if first.on_line else 0.0])
-            lane += max(len(first.boxes), 1) * LANE if first.on_line else 0.0
+            if first.on_line:
+                self._lanes[name] = -lane
+                lane += max(len(first.boxes), 1) * LANE
         self.drawn = tuple(drawable)
         bonds = {bond.name: bond for bond in plan.bonds}
         self._couplings = []  # (name, side a, side b, (force side, its force outputs) or None)
         for name, coupling in scene.couplings.items():
             (sub_a, point_a), (sub_b, point_b) = coupling.sides().values()  # force side first
-            if sub_b in self._offsets:
+            if sub_b in drawable:
                 bond = bonds.get(name)
                 force = None if bond is None else (plan.subsystems[bond.force_side].name, bond.force_output)
                 self._couplings.append((name, (sub_a, point_a), (sub_b, point_b), force))
@@ -81,6 +90,8 @@ class Mechanism:
         self._latest: dict[str, int] = {}  # the last step each drawn subsystem reported
         self._outputs: dict[str, deque[tuple[int, np.ndarray]]] = {name: deque() for name in self._force_outputs}
         self._largest_force = 0.0  # of every step up to the last frame completed [N]
+        self._spans: dict[str, deque[tuple[int, float, float]]] = {name: deque() for name in self._lanes}
+        self._line_span = (math.inf, -math.inf)  # x min, x max of the bodies on a line up to the last frame [m]
 
     def command(self, name: str, wire: bytes) -> list[Frame]:
         """Execute a command of subsystem ``name`` (ignored when it is not drawn); return the frames that this
@@ -93,11 +104,15 @@ class Mechanism:
         _, kind, _, _, step, time_ns, _ = HEADER.unpack_from(reply)
         if kind != Kind.OUTPUT:
             return []
-        if step % self.every == 0:
+        drawn, on_line = step % self.every == 0, name in self._spans
+        if drawn or on_line:  # a body on a line: every step, for the lane scale
             subsystem = self._subsystems[name]
             sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
-            _translate(sketch, self._offsets[name])
-            self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
+            if on_line:
+                xs = [c[0] for c, _ in sketch.boxes.values()] + [x for p in sketch.paths.values() for x in p[:, 0]]
+                self._spans[name].append((step, min(xs), max(xs)))
+            if drawn:
+                self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
         self._latest[name] = step
         if len(self._latest) < len(self._endpoints):
             return []
@@ -120,6 +135,10 @@ class Mechanism:
         motion side is drawn and the force side's output is known."""
         frame = self._pending.pop(step)
         forces = self._forces_until(step)
+        scale = self._lane_scale_until(step)
+        for name, sketch in frame.sketches.items():
+            if name in self._lanes:
+                _place_on_lane(sketch, self._lanes[name], scale)
         for name, (sub_a, point_a), (sub_b, point_b), force in self._couplings:
             if sub_b not in frame.sketches:
                 continue
@@ -132,8 +151,8 @@ class Mechanism:
             if outputs is not None:
                 f = outputs[list(force[1])]
                 vector = f[0] * np.array(b.direction) if f.size == 1 else f[:2]
-                scale = ARROW / self._largest_force if self._largest_force > 0 else 0.0
-                arrow = (np.array(b.position), vector * scale)
+                length = ARROW * (scale if sub_b in self._lanes else 1.0)
+                arrow = (np.array(b.position), vector * (length / self._largest_force if self._largest_force > 0 else 0.0))
             frame.couplings[name] = (line, arrow)
         return frame
 
@@ -152,11 +171,31 @@ class Mechanism:
         return at
 
 
-def _translate(sketch: Sketch, offset: np.ndarray) -> None:
-    if not offset.any():
-        return
-    dx, dy = float(offset[0]), float(offset[1])
-    sketch.boxes = {k: ((c[0] + dx, c[1] + dy), h) for k, (c, h) in sketch.boxes.items()}
-    sketch.paths = {k: p + offset for k, p in sketch.paths.items()}
+    def _lane_scale_until(self, step: int) -> float:
+        """Take the x spans of the bodies on a line up to ``step`` into the span so far; its lane scale."""
+        low, high = self._line_span
+        for queue in self._spans.values():
+            while queue and queue[0][0] <= step:
+                _, x_min, x_max = queue.popleft()
+                low, high = min(low, x_min), max(high, x_max)
+        self._line_span = (low, high)
+        return lane_scale(high - low)
+
+
+def lane_scale(span: float) -> float:
+    """The smallest of 1, 2, 5, 10, 20, … that draws lanes at least ``span`` / ``SPAN_LANES`` apart."""
+    needed = span / (SPAN_LANES * LANE)
+    if not 1.0 < needed < math.inf:  # NaN too: bodies that left the finite numbers are drawn at their sketch's size
+        return 1.0
+    decade = 10.0 ** math.floor(math.log10(needed))
+    return next(m * decade for m in (1.0, 2.0, 5.0, 10.0) if m * decade >= needed)
+
+
+def _place_on_lane(sketch: Sketch, lane_y: float, scale: float) -> None:
+    """Move a sketch of bodies on a line to its lane (``lane_y`` at scale 1), its y and sizes times ``scale``."""
+    dy = lane_y * scale
+    sketch.boxes = {k: ((c[0], c[1] * scale + dy), (h[0] * scale, h[1] * scale)) for k, (c, h) in sketch.boxes.items()}
+    stretch = np.array([1.0, scale])
+    sketch.paths = {k: p * stretch + (0.0, dy) for k, p in sketch.paths.items()}
     for point, anchor in sketch.anchors.items():
-        sketch.anchor(point, (anchor.position[0] + dx, anchor.position[1] + dy), anchor.direction)
+        sketch.anchor(point, (anchor.position[0], anchor.position[1] * scale + dy), anchor.direction)

@@ -6,6 +6,7 @@ The replay runs as its own process (``zencosim replay``), as a user runs it.
 """
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -20,7 +21,9 @@ import pytest
 import zencosim
 from tests.conftest import REPO
 from zencosim.manager.wire.protocol import Kind
+from zencosim.recordings.mechanism import SPAN_LANES, lane_scale
 from zencosim.recordings.reader import read_recording
+from zencosim.subsystems.sketch import BOX, LANE
 
 pytestmark = pytest.mark.multiprocess
 
@@ -123,16 +126,29 @@ def test_the_mechanism_moves_as_the_recorded_outputs_say(replayed):
     bodies = bodies.sort_by("sim_time")
     assert bodies["sim_time"].cast(pa.int64()).to_pylist() == times.tolist()
     centers = np.array([row[0] for row in bodies["Boxes2D:centers"].to_pylist()])
+    half_sizes = np.array([row[0] for row in bodies["Boxes2D:half_sizes"].to_pylist()])
     # m2's box is where the re-executed S2 says, which is what S2 reported (x2), to the bit of Rerun's float32
-    # positions; S2 is the second lane, 1 m below the first (y = -1 m, drawn as +1: Rerun's y points down)
+    # positions; S2 is the second lane, one lane below the first (y = -LANE × the lane scale, drawn as + because
+    # Rerun's y points down), its box the sketch's times the same scale: 1, 2, 5, … and never shrinking
     assert centers[:, 0].astype(np.float32).tobytes() == outputs[:, 0].astype(np.float32).tobytes()
-    assert set(centers[:, 1].tolist()) == {1.0}
+    scales = centers[:, 1] / LANE
+    assert set(scales.tolist()) <= {1.0, 2.0, 5.0, 10.0} and np.all(np.diff(scales) >= 0)
+    assert np.allclose(half_sizes, BOX * scales[:, None], rtol=1e-6)  # float32
+    # the lanes are at least a quarter (1 / SPAN_LANES) of the x span covered so far apart: m2's own span is a part
+    x2_span = np.maximum.accumulate(outputs[:, 0]) - np.minimum.accumulate(outputs[:, 0])
+    assert np.all(scales * LANE >= x2_span / SPAN_LANES) and scales[-1] > 1.0
     # S1's fc is the coupling force on m2, which m2 receives unchanged: the arrow points along it
     _, _, s1 = recording.channels["S1/y"].table(Kind.OUTPUT)
     arrows = data["/mechanism/forces/c"].filter(pc.is_valid(data["/mechanism/forces/c"]["sim_time"]))
     vectors = np.array([row[0] for row in arrows.sort_by("sim_time")["Arrows2D:vectors"].to_pylist()])
     assert np.all(np.sign(vectors[:, 0]) == np.sign(s1[:, 0])) and np.all(vectors[:, 1] == 0.0)
     assert _values(data["/events"], "TextLog:text") == [["run completed"]]
+
+
+@pytest.mark.parametrize(("span", "scale"), [(0.0, 1.0), (4.0, 1.0), (4.001, 2.0), (18.0, 5.0), (20.0, 5.0),
+                                             (20.5, 10.0), (2e3, 500.0), (math.nan, 1.0), (math.inf, 1.0)])
+def test_the_lane_scale_is_the_least_of_1_2_5_10_that_spaces_the_lanes_a_quarter_of_the_span(span, scale):
+    assert lane_scale(span) == scale
 
 
 def test_the_replay_passes_the_rerun_tools_own_check(replayed):
