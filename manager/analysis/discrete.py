@@ -148,6 +148,7 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
     history = [[identity[index] for index in samples] for samples in history_index]  # oldest first
 
     period = math.lcm(*(s.ratio for s in subs))
+    sequential = len(plan.stages) > 1  # Gauss–Seidel: a stage's outputs are taken before the next stage starts
     pending: dict[int, list[tuple[int, np.ndarray]]] = {}
     for tick in range(period):
         for stage in plan.stages:
@@ -158,8 +159,8 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
                 c = np.zeros((order + 1, len(s.inputs), offset))
                 for feed in s.feeds:
                     ratio = subs[feed.source].ratio
-                    # a source of an earlier stage (Gauss–Seidel) has its sample at the step's end already
-                    newest_sample = tick // ratio + plan.steps_before(feed.source, s.index)
+                    # Gauss–Seidel: a source's sample at the end of a step it has taken already (Plan.lead)
+                    newest_sample = (tick + plan.lead(feed.source, s.index)) // ratio
                     newest = depth + newest_sample  # its position in the history
                     P = extrapolation_matrix(order + 1, ratio * base, (tick - newest_sample * ratio) * base)
                     samples = history[feed.source][newest - order:newest + 1]
@@ -169,7 +170,11 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
                 m = maps[s.index]
                 z[s.index] = m.Phi @ z[s.index] + np.einsum("qab,qbx->ax", m.Gamma, c)
                 w_end = np.einsum("q,qbx->bx", m.span ** np.arange(order + 1), c)
-                pending.setdefault(tick + s.ratio, []).append((s.index, m.C_y @ z[s.index] + m.D_y @ w_end))
+                y_end = m.C_y @ z[s.index] + m.D_y @ w_end
+                if sequential:
+                    history[s.index].append(y_end)
+                else:
+                    pending.setdefault(tick + s.ratio, []).append((s.index, y_end))
             for index, y in pending.pop(tick + 1, []):
                 history[index].append(y)
     Psi = np.vstack(z + [sample for samples in history for sample in samples[-(depth + 1):]])

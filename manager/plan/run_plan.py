@@ -94,11 +94,17 @@ class Plan:
         """The subsystems subsystem ``index`` exchanges values with: its sources and the ones it feeds."""
         return self.sources(index) | frozenset(s.index for s in self.subsystems if index in self.sources(s.index))
 
-    def steps_before(self, source: int, target: int) -> bool:
-        """Whether subsystem ``source`` steps in an earlier stage of a macro-step than ``target`` (Gauss–Seidel): its
-        sample at the step's end is committed when ``target``'s input polynomial is made."""
+    def lead(self, source: int, target: int) -> int:
+        """Base steps added to a tick before dividing it by ``source``'s ratio, to number ``source``'s newest sample
+        when ``target``'s input polynomial is made at that tick: with Jacobi 0 (the sample at or before the tick);
+        with Gauss–Seidel, for a source of an earlier stage its ratio (the end of the step it has just taken), and
+        of a later stage its ratio − 1 (the end of its step under way, which it took in an earlier macro-step;
+        0 single-rate)."""
         stage_of = {i: number for number, stage in enumerate(self.stages) for i in stage}
-        return stage_of[source] < stage_of[target]
+        if len(self.stages) == 1 or stage_of[source] == stage_of[target]:
+            return 0
+        ratio = self.subsystems[source].ratio
+        return ratio if stage_of[source] < stage_of[target] else ratio - 1
 
     def tracked(self, local: frozenset[int]) -> frozenset[int]:
         """What a replica computing the commands of ``local`` subsystems follows: them and their sources."""

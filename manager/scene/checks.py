@@ -70,12 +70,8 @@ def check_scheme(manager: ManagerSettings, outputs: OutputSettings | None, coupl
 
 
 def _check_gauss_seidel(manager: ManagerSettings, subsystems: dict[str, SubsystemScene], problems: Problems) -> None:
-    """The Gauss–Seidel scheme here: single-rate, without energy correction (derived for Jacobi; the compensator:
+    """The Gauss–Seidel scheme here: without energy correction (derived for Jacobi; the compensator:
     ``check_compensation``), ``manager.order`` naming every subsystem once when given."""
-    for sub in subsystems.values():
-        if sub.settings.comm_ratio != 1:
-            problems.add(f"subsystems.{sub.name}.comm_ratio", "expected 1: the Gauss–Seidel scheme is single-rate "
-                         "here (multi-rate runs use manager.scheme = 'jacobi')")
     if manager.corrects:
         problems.add("manager.correction", "energy correction (paper 002) is derived for the Jacobi scheme; expected "
                      "it disabled with manager.scheme = 'gauss-seidel'")

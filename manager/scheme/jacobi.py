@@ -94,10 +94,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     residuals = [math.nan] * (2 * n_bonds)  # the status's: δP of every bond evaluated at this step's end, then δE
     releases = Releases(n_ticks, pacer, spill)
     sent: list[tuple[int, list[list[float]]] | None] = [None] * len(subs)  # (start tick, coefficient rows)
-    # per feed: its source's newest sample is the one at the end of the step when the source steps in an earlier
-    # stage (Gauss–Seidel, single-rate: the polynomial interpolates up to it), else the one at or before its start
+    # per feed: its source's newest sample is (tick + lead) // ratio: with Gauss–Seidel the end of a step the source
+    # has taken already (the polynomial interpolates up to it), else the one at or before the step's start
     feeds = [[(f.source, subs[f.source].ratio, _index(f.outputs), _index(f.inputs), f.order,
-               int(plan.steps_before(f.source, s.index))) for f in s.feeds if f.source in tracked] for s in subs]
+               plan.lead(f.source, s.index)) for f in s.feeds if f.source in tracked] for s in subs]
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
@@ -108,8 +108,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         source's first sample)."""
         order = s.order
         coefficients = np.zeros((order + 1, len(s.inputs)))
-        for source, ratio, outputs, inputs, feed_order, fresh in feeds[s.index]:
-            newest = tick // ratio + (fresh and stepping)
+        for source, ratio, outputs, inputs, feed_order, lead in feeds[s.index]:
+            newest = (tick + lead) // ratio if stepping else 0
             window = windows[source]
             if feed_order == 0 or newest == 0:  # one sample: the constant lagrange_coefficients would give
                 coefficients[0, inputs] = window.array[newest - window.offset, outputs]
@@ -136,7 +136,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
         phase = tick % period
         next_tick = tick + 1
         released_ns = None
-        for number, (starting, partners_starting, due, due_names) in enumerate(stages[phase][0]):
+        for number, (starting, partners_starting, due, due_names, due_span) in enumerate(stages[phase][0]):
             sends = {}
             for s in starting:
                 segments = copied[s.index]
@@ -157,14 +157,17 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 sent[s.index] = (tick, input_polynomial(s, tick).tolist())
             if released_ns is None:
                 released_ns = releases.release(tick)
+            elif not (starting or partners_starting or due):  # its subsystem is amid a longer step (Gauss–Seidel)
+                continue
+            due_step = tick + due_span  # the step of the replies this stage takes
             if direct is None or taken is not None:
                 # a request's names repeat with its stage and phase (after the first: the requests before them do)
-                request = Exchange(sends, due_names, None if number else step_status, next_tick,
+                request = Exchange(sends, due_names, None if number else step_status, due_step,
                                    phase * n_stages + number if tick or number else None)
             if direct is None:
                 replies = yield request
                 for s in due:
-                    readers[s.index].commit(replies[s.name], next_tick)
+                    readers[s.index].commit(replies[s.name], due_step)
                 continue
             if taken is not None:
                 taken.request(request)
@@ -174,7 +177,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                     taken.reply(s, sends, tick + s.ratio, (tick + s.ratio) * base, computed[s.index])
             stepping.clear()
             for s in due:
-                readers[s.index].commit_values(computed[s.index], next_tick)
+                readers[s.index].commit_values(computed[s.index], due_step)
             if taken is not None:
                 taken.took(due)
         if next_tick >= p_window.end:
@@ -293,9 +296,16 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
     """What happens at each phase of the schedule, which repeats every lcm of the ratios: ``(period, phases)``, each
     phase ``(stages, bonds)``: per stage of the plan (``Plan.stages``) the local subsystems starting a step, the
     non-local sides of their bonds starting one (whose input polynomial the residual power needs: the columns
-    this replica can compute are those it needs), the tracked subsystems due at its end and their names; then the
-    bonds of local subsystems evaluated at the phase's end."""
+    this replica can compute are those it needs), the tracked subsystems whose replies the stage takes, their names,
+    and how many base steps after the phase's start those replies' step is; then the bonds of local subsystems
+    evaluated at the phase's end.
+
+    Jacobi (one stage) takes a subsystem's reply at the end of its step's last phase (1 base step on); Gauss–Seidel
+    takes it in the stage where the step starts (its ratio on), so that the later stages' input polynomials reach
+    its sample at the step's end: a slower subsystem stepping first gives the faster ones its outputs to
+    interpolate through its whole step, and a faster one stepping first gives the slower one its newest sample."""
     subs = plan.subsystems
+    sequential = len(plan.stages) > 1
     period = math.lcm(*(s.ratio for s in subs))
     partners = {side for bond in plan.bonds if {bond.force_side, bond.motion_side} & local
                 for side in (bond.force_side, bond.motion_side)} - local
@@ -304,10 +314,15 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
         stages = []
         for stage in plan.stages:
             members = [subs[i] for i in stage]
-            due = tuple(s for s in members if (phase + 1) % s.ratio == 0 and s.index in tracked)
+            if sequential:  # one subsystem per stage: its reply is taken where its step starts
+                due = tuple(s for s in members if phase % s.ratio == 0 and s.index in tracked)
+                span = members[0].ratio
+            else:
+                due = tuple(s for s in members if (phase + 1) % s.ratio == 0 and s.index in tracked)
+                span = 1
             stages.append((tuple(s for s in members if phase % s.ratio == 0 and s.index in local),
                            tuple(s for s in members if phase % s.ratio == 0 and s.index in partners),
-                           due, tuple(s.name for s in due)))
+                           due, tuple(s.name for s in due), span))
         bonds = tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
                       if (phase + 1) % subs[bond.force_side].ratio == 0
                       and (phase + 1) % subs[bond.motion_side].ratio == 0

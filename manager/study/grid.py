@@ -94,7 +94,7 @@ def default_axes(scene: Scene) -> list[Axis]:
     """The grid a study of ``scene`` runs when the user gives none (docs/study.md): the scene's macro-step
     times 0.5, 1, 2 and 4; extrapolation orders 0, 1, 2; for the explicit scheme energy correction off and
     on, paper 000's compensator where the scene's structure admits one, and Jacobi and Gauss–Seidel coupling
-    for a single-rate scene (Gauss–Seidel's points with correction or the compensator are skipped: refused);
+    (Gauss–Seidel's points with correction or the compensator are skipped: refused);
     for the implicit scheme the three coupling methods of paper 003."""
     h = scene.manager.macro_step
     axes = [Axis(MACRO_STEP, tuple(_whole_ns(h * f) for f in DEFAULT_STEP_FACTORS)),
@@ -105,8 +105,7 @@ def default_axes(scene: Scene) -> list[Axis]:
     check_compensation(replace(scene.manager, correction=None), scene.couplings, scene.subsystems, problems)
     if not problems:
         axes.append(Axis("manager.compensation", ("none", "eigenstructure")))
-    if all(s.settings.comm_ratio == 1 for s in scene.subsystems.values()):
-        axes.append(Axis("manager.scheme", ("jacobi", "gauss-seidel")))
+    axes.append(Axis("manager.scheme", ("jacobi", "gauss-seidel")))
     return axes + [Axis("manager.correction.enabled", (False, True))]
 
 

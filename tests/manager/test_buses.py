@@ -24,8 +24,13 @@ pytestmark = pytest.mark.multiprocess
     ("two_mass_damped", ()), ("four_mass", ()),
     # Gauss–Seidel: each subsystem process takes the replies of the stages before its own in the same step
     ("four_mass", ("manager.scheme=gauss-seidel", "manager.extrapolation=1")),
-    ("multiple_oscillator_n3", ("manager.scheme=gauss-seidel", 'manager.order=["M3", "M1", "M2"]'))],
-    ids=["two_mass_damped", "four_mass", "four_mass-gauss-seidel", "multiple_oscillator_n3-gauss-seidel"])
+    ("multiple_oscillator_n3", ("manager.scheme=gauss-seidel", 'manager.order=["M3", "M1", "M2"]')),
+    # multi-rate: the slow M1 steps first and its process answers once per ten of M2's steps
+    ("double_oscillator", ("manager.scheme=gauss-seidel", "manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10",
+                           "subsystems.M2.micro_step=0.0001", "manager.duration=0.2", 'manager.order=["M1", "M2"]',
+                           "manager.extrapolation=1"))],
+    ids=["two_mass_damped", "four_mass", "four_mass-gauss-seidel", "multiple_oscillator_n3-gauss-seidel",
+         "double_oscillator-multi-rate-gauss-seidel"])
 def test_digest_is_identical_in_process_and_over_zenoh(scene, overrides):
     inproc = record_of(scene, *overrides)
     zenoh = record_of(scene, *overrides, bus="zenoh")

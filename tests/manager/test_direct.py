@@ -35,6 +35,9 @@ VARIANTS = {  # the schemes' branches: extrapolation orders, multi-rate, energy 
     "four_mass_compensated": ("four_mass", ["manager.compensation=eigenstructure"]),
     "four_mass_gauss_seidel_soh": ("four_mass", ["manager.scheme=gauss-seidel", "manager.extrapolation=2"]),
     "mass_chain_gauss_seidel_order": ("mass_chain", ["manager.scheme=gauss-seidel"]),
+    "double_oscillator_multi_rate_gauss_seidel": ("double_oscillator", [
+        "manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001",
+        "manager.scheme=gauss-seidel", 'manager.order=["M1", "M2"]', "manager.extrapolation=1"]),
     "python_model": (str(EXAMPLES / "two_mass_damped_python.toml"), []),
     "dc_motor": (str(EXAMPLES / "dc_motor_drive.toml"), []),
 }
@@ -101,8 +104,10 @@ def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypa
 
 @pytest.mark.parametrize("name, overrides", [VARIANTS["two_mass_damped_soh"], VARIANTS["double_oscillator_multi_rate_foh"],
                                              VARIANTS["double_oscillator_corrected"],
-                                             VARIANTS["four_mass_gauss_seidel_soh"], ("hydraulic_crane", [])],
-                         ids=["soh", "multi-rate", "corrected", "gauss-seidel", "hydraulic_crane"])
+                                             VARIANTS["four_mass_gauss_seidel_soh"],
+                                             VARIANTS["double_oscillator_multi_rate_gauss_seidel"], ("hydraulic_crane", [])],
+                         ids=["soh", "multi-rate", "corrected", "gauss-seidel", "multi-rate-gauss-seidel",
+                              "hydraulic_crane"])
 def test_a_tap_sees_the_same_messages_in_the_same_order_on_both_paths(name, overrides):
     """A recorded run takes the direct path too: the scheme encodes the commands and replies and hands them to the
     tap as a replica would — every message, byte for byte and in order, the status's residuals included (its wall

@@ -37,6 +37,12 @@ CONFIGURATIONS = {
     "two_mass_undamped_gauss_seidel_rk4": ("two_mass_undamped", [GAUSS_SEIDEL, *RK4]),
     "four_mass_gauss_seidel_foh": ("four_mass", [GAUSS_SEIDEL, "manager.extrapolation=1"]),
     "multiple_oscillator_n5_gauss_seidel": ("multiple_oscillator_n5", [GAUSS_SEIDEL]),
+    # multi-rate Gauss–Seidel (M1 ten times slower): the slow side first, its outputs interpolated through its whole
+    # step; the fast side first, the slow one extrapolating its newest sample; both with a second-order polynomial
+    "double_oscillator_multi_rate_gauss_seidel_slow_first": ("double_oscillator", [
+        *MULTI_RATE, GAUSS_SEIDEL, 'manager.order=["M1", "M2"]', "manager.extrapolation=2"]),
+    "double_oscillator_multi_rate_gauss_seidel_fast_first": ("double_oscillator", [
+        *MULTI_RATE, GAUSS_SEIDEL, 'manager.order=["M2", "M1"]', "manager.extrapolation=2"]),
     "two_mass_undamped_compensated": ("two_mass_undamped", ["manager.compensation=eigenstructure"]),
     "four_mass_compensated": ("four_mass", ["manager.compensation=eigenstructure"]),
 }

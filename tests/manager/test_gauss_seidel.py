@@ -28,7 +28,6 @@ def test_by_default_a_force_side_steps_after_the_motion_side_it_passes_through()
 
 
 @pytest.mark.parametrize("overrides, key, reason", [
-    (["subsystems.M1.comm_ratio=2"], "subsystems.M1.comm_ratio", "the Gauss–Seidel scheme is single-rate here"),
     (["manager.correction.enabled=true"], "manager.correction", "derived for the Jacobi scheme"),
     (['manager.order=["M1", "M9"]'], "manager.order", "no such subsystem: M9"),
     (['manager.order=["M1", "M1", "M2"]'], "manager.order", "named twice: M1"),
@@ -57,6 +56,22 @@ def test_it_follows_the_analytic_solution_ten_times_closer_than_jacobi_on_paper_
     sequential = zencosim.run(zencosim.load_scene("two_mass_damped", [GAUSS_SEIDEL])).summary
     assert jacobi["stable"] and sequential["stable"]
     assert sequential["signals"]["x2"]["nrms"] < 0.15 * jacobi["signals"]["x2"]["nrms"]
+
+
+@pytest.mark.parametrize("order", [["M1", "M2"], ["M2", "M1"]], ids=["slow-first", "fast-first"])
+def test_multi_rate_it_follows_the_analytic_solution_closer_than_jacobi(order):
+    """double_oscillator with M1 communicating every 1 ms and M2 every 0.1 ms, SOH, 2 s, against the exact solution.
+    Jacobi's NRMS: x2 3.28e-5, f 9.87e-5. Slow side first (M2 interpolates M1's samples through M1's whole step):
+    2.74e-5 and 9.84e-5; fast side first (M1 extrapolates M2's sample at its step's start + 0.1 ms): 1.1e-5 and
+    1.4e-5. Both stay stable; the bound, 0.9 × Jacobi's x2, holds for both orders with a margin of 5 % or more."""
+    multi_rate = ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10", "subsystems.M2.micro_step=0.0001",
+                  "manager.extrapolation=2", "manager.duration=2.0"]
+    jacobi = zencosim.run(zencosim.load_scene("double_oscillator", multi_rate)).summary
+    sequential = zencosim.run(zencosim.load_scene("double_oscillator", [
+        *multi_rate, GAUSS_SEIDEL, f"manager.order={order!r}".replace("'", '"')])).summary
+    assert jacobi["stable"] and sequential["stable"]
+    assert sequential["signals"]["x2"]["nrms"] < 0.9 * jacobi["signals"]["x2"]["nrms"]
+    assert sequential["signals"]["f"]["nrms"] <= jacobi["signals"]["f"]["nrms"]
 
 
 def test_analyze_says_which_scheme_its_discrete_column_is(capsys):
