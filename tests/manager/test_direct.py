@@ -21,6 +21,9 @@ from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
+from zencosim.recordings.layout import channel_specs
+from zencosim.recordings.recorder import Recorder
+from zencosim.recordings.recorder_process import split_batch
 from zencosim.scenes import __path__ as bundled
 
 EXAMPLES = Path(zencosim.examples.__file__).parent / "scenes"
@@ -128,3 +131,45 @@ def test_a_tap_sees_the_same_messages_in_the_same_order_on_both_paths(name, over
         run_in_process(scheme, plan, subsystems, tap)
         seen.append(messages)
     assert len(seen[1]) > 100 and seen[0] == seen[1]
+
+
+class _FramesRecorder(Recorder):
+    """The recorder's tap with its frames kept here (no recorder process)."""
+
+    def __init__(self, plan, status: StatusReport) -> None:
+        super().__init__(None)
+        self._declare(channel_specs(plan, status), False, status)
+        self.frames: list[bytes] = []
+
+    def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
+        self.frames.append(payload)
+
+
+@pytest.mark.parametrize("name, overrides, duration", [("two_mass_damped", [], 1.2),
+                                                       (*VARIANTS["double_oscillator_multi_rate_foh"], 0.12),
+                                                       (*VARIANTS["double_oscillator_multi_rate_gauss_seidel"], 0.12),
+                                                       ("hydraulic_crane", [], 0.5)],
+                         ids=["two_mass_damped", "multi-rate", "multi-rate-gauss-seidel", "hydraulic_crane"])
+def test_the_recorder_takes_the_same_batches_on_both_paths(name, overrides, duration):
+    """The recorder itself (its frames kept, no process), over several batches: every batch of a recorded direct run
+    holds the messages, in the order, with the channel indices and cut at the steps, that the batches of the message
+    path hold — the statuses included, but for the wall times in them (each run's own)."""
+    batches = []
+    for direct in (False, True):
+        scene = load_scene(name, [*overrides, f"manager.duration={duration}"])
+        plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = _FramesRecorder(plan, status)
+        scheme = make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems) if direct else None,
+                             tap=recorder)
+        run_in_process(scheme, plan, subsystems, recorder)
+        recorder.flush(last=True)
+        residuals_end = HEADER.size + 8 * 2 * len(plan.bonds)  # a status's header, δP and δE of every bond
+        found = []
+        for frame in recorder.frames:
+            channels, sizes, _, blob = split_batch(frame, recorder._status)
+            ends = np.cumsum(sizes).tolist()
+            found.append([(index, blob[end - size:end][:residuals_end] if index == recorder._status
+                           else blob[end - size:end]) for index, size, end in zip(channels.tolist(), sizes.tolist(), ends)])
+        batches.append(found)
+    assert sum(map(len, batches[1])) > 1000 and batches[0] == batches[1]
