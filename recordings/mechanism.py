@@ -11,7 +11,7 @@ is an arrow at its motion side's point (the force the coupling exerts there: the
 
 Bodies on a line are drawn at a *lane scale* (``lane_scale``): their lanes, boxes, springs' teeth and force
 arrows are that many times their sketched size, so that they stay visible beside the distance they travel
-(two_mass_damped's masses swing over about 45 m: at the sketch's 1 m lanes and 0.4 m boxes they were specks
+(two_mass_damped's masses swing over about 18 m: at the sketch's 1 m lanes and 0.4 m boxes they were specks
 with their labels on top of each other). The scale follows the x span that the run's bodies on a line have
 covered in every step up to the frame, so it only grows, in a few steps (1, 2, 5, 10, …): x stays as the
 model says.
@@ -108,8 +108,8 @@ class Mechanism:
         if drawn or on_line:  # a body on a line: every step, for the lane scale
             subsystem = self._subsystems[name]
             sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
-            if on_line:
-                xs = [c[0] for c, _ in sketch.boxes.values()] + [x for p in sketch.paths.values() for x in p[:, 0]]
+            xs = [c[0] for c, _ in sketch.boxes.values()] + [x for p in sketch.paths.values() for x in p[:, 0]]
+            if on_line and xs:
                 self._spans[name].append((step, min(xs), max(xs)))
             if drawn:
                 self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
