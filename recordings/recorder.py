@@ -8,6 +8,8 @@ of the manager's replica (in process, or following a Zenoh run), hands it every 
 the tap only appends the messages and their channels to two lists, and every ``BATCH_MESSAGES``
 messages (every ``HANDOVER_S`` of a real-time run) they go down the pipe as one frame, to every observer, so
 validation, encoding and compression (and the live view) run in the other processes, on the other core.
+An in-process run that is not paced hands ``take_steps`` blocks of arrays instead (``manager.scheme.tapped``),
+each sent as one STEPS frame from which those processes build the messages (``recordings.steps_frame``).
 A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
 handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
 A recorder that cannot write (a full disk) says why on its standard output before it exits, and the line
@@ -41,10 +43,12 @@ from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import Exchange
+from zencosim.manager.scheme.tapped import StepsBlock
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings import RecorderFailed, RecorderLost, RecordingError
 from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
-from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME
+from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME, STEPS
+from zencosim.recordings.steps_frame import steps_frame
 
 STALL_S = 10.0  # an observer that makes no progress for this long fails (the scene's manager.timeout, once known)
 PROGRESS_LOOK_S = 0.5  # while it is waited for, its CPU time and state are looked at this often [s]
@@ -312,7 +316,28 @@ class Recorder:
         self._tapped = np.zeros(len(specs), dtype=np.int64)
         self._status = status_index(specs)
         index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
+        self._index = index
         self.exchange = self._tap(index, max(1, round(HANDOVER_S * 1e9 / status.base_step_ns)) if realtime else None)
+        if not realtime:  # a real-time run's tap hands a batch over every HANDOVER_S: exchange by exchange
+            self.take_steps = self._take_steps
+
+    def _take_steps(self, block: StepsBlock) -> None:
+        """The tap of a direct (in-process) run, a block of exchanges as arrays at a time (``manager.scheme.tapped``):
+        sent as one STEPS frame (``recordings.steps_frame``), after what ``exchange`` holds (the initialisation's
+        requests); counted and cleared with SIGINT and SIGTERM deferred, as ``flush`` does."""
+        self.flush()
+        with self._signals.held() if self._signals is not None else contextlib.nullcontext():
+            statuses = self._report.take(block.statuses)
+            step = block.last_status if block.last_status is not None else self._step
+            if self._observers and all(observer.gone for observer in self._observers):  # --record-lost continue
+                return
+            self._write_frame(STEPS, steps_frame(block, statuses), None if block.last else step - self._step)
+            index, tapped = self._index, self._tapped
+            for name, s in zip(block.names, block.subsystems):
+                tapped[index[name, "y"]] += len(s.steps)
+                tapped[index[name, "commands"]] += len(s.ticks)
+            tapped[self._status] += block.statuses
+            self._step = step
 
     def _tap(self, index: dict[tuple[str, str], int], every: int | None
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:

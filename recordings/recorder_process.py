@@ -12,8 +12,9 @@ the log time of it and of the messages after it), the m statuses, all of one siz
 the status log: ``manager.wire.status``), and then the list of the n - m other messages as ``marshal`` writes
 it — one C call for the tap, a fifth of the time of joining the messages and listing their sizes (the two
 processes run the same Python, whose marshal format this is); :func:`split_batch` gives them in the run's
-order. The same input serves both buses: on the Zenoh bus the manager's replica, which follows the run, is
-the one tapped.
+order. ``STEPS`` frames hold a block of a direct (in-process) run's exchanges as arrays, from which
+:func:`frame_messages` builds the same messages (``recordings.steps_frame``). The same input serves both buses: on
+the Zenoh bus the manager's replica, which follows the run, is the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
 (also sent by the kernel when the manager dies) and an end of input without END finish the file with
@@ -37,10 +38,11 @@ from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
 from zencosim.recordings.layout import ChannelSpec, status_index
+from zencosim.recordings.steps_frame import steps_messages
 from zencosim.recordings.writer import RecordingWriter
 
 FRAME = struct.Struct("<HIq")
-CONTROL, BATCH = 0xFFFF, 0xFFFE
+CONTROL, BATCH, STEPS = 0xFFFF, 0xFFFE, 0xFFFD
 BATCH_HEAD = struct.Struct("<III")
 IDLE_S = 0.1  # the pipe reader lets the writer flush after this long without input
 NO_END = "the manager ended without closing the recording"
@@ -121,15 +123,27 @@ def split_batch(batch: bytes, status: int) -> Batch:
     return Batch(channels, np.fromiter(map(len, ordered), dtype=np.int64, count=n), stamps, b"".join(ordered))
 
 
+def channel_index(specs: list[ChannelSpec]) -> dict[tuple[str, str], int]:
+    """The index of each channel by (source, channel): ``("S1", "y")``, ``("manager", "status")``."""
+    return {tuple(spec.topic.split("/")): i for i, spec in enumerate(specs)}
+
+
+def frame_messages(kind: int, data: bytes, index: dict[tuple[str, str], int], status: int) -> Batch:
+    """The messages of a BATCH or STEPS frame in the run's order; ValueError for one that does not hold them."""
+    if kind == STEPS:
+        return Batch(*steps_messages(data, index, status))
+    return split_batch(data, status)
+
+
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:
     """Record the wire messages of a run until END; return (outcome, published)."""
-    status = status_index(writer.channels)
+    status, index = status_index(writer.channels), channel_index(writer.channels)
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             end = json.loads(data)
             return end["outcome"], end["published"]
-        writer.write(*split_batch(data, status))
+        writer.write(*frame_messages(kind, data, index, status))
     return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 

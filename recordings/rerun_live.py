@@ -3,7 +3,7 @@
     python -m zencosim.recordings.rerun_live     (started by recordings.recorder.Recorder, never by hand)
 
 Its standard input carries the frames of ``recordings.recorder_process`` (START with ``target``:
-``spawn``, ``connect=ADDR`` or ``serve``; BATCH frames; END). The tap that feeds it is the recorder's
+``spawn``, ``connect=ADDR`` or ``serve``; BATCH and STEPS frames; END). The tap that feeds it is the recorder's
 (the in-process replica, or the manager's replica following a Zenoh run), so the view costs the
 stepping loop nothing more than a recording does: the decoding and logging run here, on the other
 core. Each channel's messages go to ``recordings.rerun_view.RunView`` in order, as the replay feeds
@@ -34,7 +34,15 @@ from zencosim.recordings import RecordingError
 from zencosim.recordings.encoding import wire_headers
 from zencosim.recordings.layout import SCENE_ATTACHMENT, ChannelSpec, status_index
 from zencosim.recordings.mechanism import LIVE_FRAME_NS
-from zencosim.recordings.recorder_process import CONTROL, NO_END, FrameReader, announce, observe, split_batch
+from zencosim.recordings.recorder_process import (
+    CONTROL,
+    NO_END,
+    FrameReader,
+    announce,
+    channel_index,
+    frame_messages,
+    observe,
+)
 from zencosim.recordings.rerun_sinks import serve_web, spawn_viewer, viewer_url
 from zencosim.recordings.rerun_view import APPLICATION, PLOTTED, RunView, blueprint
 
@@ -95,13 +103,13 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
     batch holds whole steps (a step's replies, its status, the next commands): one whose first status is not
     the step after the last one seen follows batches the manager skipped (this view fell behind,
     ``recordings.recorder``), which the view says on its timeline."""
-    status = status_index(specs)
+    status, index = status_index(specs), channel_index(specs)
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             return json.loads(data)["outcome"], last_step
-        channels, sizes, _, messages = split_batch(data, status)
+        channels, sizes, _, messages = frame_messages(kind, data, index, status)
         raw = np.frombuffer(messages, dtype=np.uint8)
         starts, heads, valid = wire_headers(sizes, raw)
         statuses = np.flatnonzero(valid & (channels == status))

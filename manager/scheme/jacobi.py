@@ -41,8 +41,9 @@ from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficient
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.residual import residual_power
+from zencosim.manager.scheme.tapped import Taken, TakenSteps
 from zencosim.manager.scheme.window import RowWindow, Spill
-from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, command_ref, encode
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
 from zencosim.manager.wire.status import StatusReport
 
 
@@ -119,7 +120,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    taken = _Taken(tap) if direct is not None and tap is not None else None  # a direct run's messages, for its tap
+    taken = None  # a direct run's messages, for its tap: as arrays a block at a time where the tap takes them and no
+    if direct is not None and tap is not None:  # pacer waits for each step (manager.scheme.tapped)
+        taken = (TakenSteps if pacer is None and hasattr(tap, "take_steps") else Taken)(tap, plan)
     yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     period, stages = _schedule(plan, local, tracked)
     n_stages = len(plan.stages)
@@ -132,82 +135,79 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     stepping: list[tuple[SubsystemPlan, np.ndarray]] = []  # direct: the steps to call once released
     computed: list[np.ndarray | None] = [None] * len(subs)  # direct: the outputs each subsystem's step computed
 
-    for tick in range(n_ticks):
-        phase = tick % period
-        next_tick = tick + 1
-        released_ns = None
-        for number, (starting, partners_starting, due, due_names, due_span) in enumerate(stages[phase][0]):
-            sends = {}
-            for s in starting:
-                segments = copied[s.index]
-                if segments is not None:  # ZOH: the sources' newest values, as they arrived
-                    payload = b"".join([reader.newest_bytes[start:end] for reader, start, end in segments])
-                    sends[s.name] = command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
-                    sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
+    try:
+        for tick in range(n_ticks):
+            phase = tick % period
+            next_tick = tick + 1
+            released_ns = None
+            for number, (starting, partners_starting, due, due_names, due_span) in enumerate(stages[phase][0]):
+                sends = {}
+                for s in starting:
+                    segments = copied[s.index]
+                    if segments is not None:  # ZOH: the sources' newest values, as they arrived
+                        payload = b"".join([reader.newest_bytes[start:end] for reader, start, end in segments])
+                        sends[s.name] = command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
+                        sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
+                        continue
+                    coefficients = input_polynomial(s, tick)
+                    sent[s.index] = (tick, coefficients.tolist())
+                    for corrector in adjusters[s.index]:
+                        coefficients = corrector.adjust(s.index, tick, coefficients)
+                    if direct is None:
+                        sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
+                    else:
+                        stepping.append((s, coefficients))
+                for s in partners_starting:  # the other side of a local bond: its polynomial, for the residual
+                    sent[s.index] = (tick, input_polynomial(s, tick).tolist())
+                if released_ns is None:
+                    released_ns = releases.release(tick)
+                elif not (starting or partners_starting or due):  # its subsystem is amid a longer step (Gauss–Seidel)
                     continue
-                coefficients = input_polynomial(s, tick)
-                sent[s.index] = (tick, coefficients.tolist())
-                for corrector in adjusters[s.index]:
-                    coefficients = corrector.adjust(s.index, tick, coefficients)
-                if direct is None or taken is not None:
-                    sends[s.name] = encode(Kind.STEP, tick, tick * base, coefficients, s.order + 1)
-                if direct is not None:
-                    stepping.append((s, coefficients))
-            for s in partners_starting:  # the other side of a local bond: its polynomial, for the residual
-                sent[s.index] = (tick, input_polynomial(s, tick).tolist())
-            if released_ns is None:
-                released_ns = releases.release(tick)
-            elif not (starting or partners_starting or due):  # its subsystem is amid a longer step (Gauss–Seidel)
-                continue
-            due_step = tick + due_span  # the step of the replies this stage takes
-            if direct is None or taken is not None:
+                due_step = tick + due_span  # the step of the replies this stage takes
                 # a request's names repeat with its stage and phase (after the first: the requests before them do)
-                request = Exchange(sends, due_names, None if number else step_status, due_step,
-                                   phase * n_stages + number if tick or number else None)
-            if direct is None:
-                replies = yield request
-                for s in due:
-                    readers[s.index].commit(replies[s.name], due_step)
-                continue
-            if taken is not None:
-                taken.request(request)
-            for s, coefficients in stepping:
-                computed[s.index] = direct.step(s, tick, coefficients)
+                shape = phase * n_stages + number if tick or number else None
+                if direct is None:
+                    replies = yield Exchange(sends, due_names, None if number else step_status, due_step, shape)
+                    for s in due:
+                        readers[s.index].commit(replies[s.name], due_step)
+                    continue
                 if taken is not None:
-                    taken.reply(s, sends, tick + s.ratio, (tick + s.ratio) * base, computed[s.index])
-            stepping.clear()
-            for s in due:
-                readers[s.index].commit_values(computed[s.index], due_step)
-            if taken is not None:
-                taken.took(due)
-        if next_tick >= p_window.end:
-            p_window.advance(next_tick)
-            e_window.advance(next_tick)
-        row = next_tick - p_window.offset
-        if some_bonds_idle[phase]:
-            residuals = [math.nan] * (2 * n_bonds)
-        for b, bond, components in stages[phase][1]:
-            delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
-            p_res[row, b] = residuals[b] = delta_p
-            e_res[row, b] = last_bond_energy[b] = residuals[n_bonds + b] = (
-                last_bond_energy[b] + delta_p * (next_tick - last_bond_tick[b]) * step_s)
-            last_bond_tick[b] = next_tick
-        for corrector in correctors:
-            corrector.observe(next_tick, windows, e_window)
-        if status is not None:  # logged, encoded when a tap takes it (manager.wire.status)
-            log_residuals(residuals)
-            log_times((next_tick, released_ns, time.perf_counter_ns(), 0 if pacer is None else pacer.last_lateness_ns))
-            step_status = next_tick
-        if progress is not None and next_tick % PROGRESS_EVERY == 0:
-            progress(next_tick)
-    if step_status is not None:
-        if direct is None:
-            yield Exchange({}, (), step_status)
-        elif taken is not None:
-            taken.request(Exchange({}, (), step_status))
-            taken.took(())
+                    taken.request(stepping, due_names, None if number else step_status, due_step, shape, due, tick)
+                for s, coefficients in stepping:
+                    computed[s.index] = direct.step(s, tick, coefficients)
+                    if taken is not None:
+                        taken.reply(s, tick + s.ratio, computed[s.index])
+                stepping.clear()
+                for s in due:
+                    readers[s.index].commit_values(computed[s.index], due_step)
+            if next_tick >= p_window.end:
+                p_window.advance(next_tick)
+                e_window.advance(next_tick)
+            row = next_tick - p_window.offset
+            if some_bonds_idle[phase]:
+                residuals = [math.nan] * (2 * n_bonds)
+            for b, bond, components in stages[phase][1]:
+                delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
+                p_res[row, b] = residuals[b] = delta_p
+                e_res[row, b] = last_bond_energy[b] = residuals[n_bonds + b] = (
+                    last_bond_energy[b] + delta_p * (next_tick - last_bond_tick[b]) * step_s)
+                last_bond_tick[b] = next_tick
+            for corrector in correctors:
+                corrector.observe(next_tick, windows, e_window)
+            if status is not None:  # logged, encoded when a tap takes it (manager.wire.status)
+                log_residuals(residuals)
+                log_times((next_tick, released_ns, time.perf_counter_ns(), 0 if pacer is None else pacer.last_lateness_ns))
+                step_status = next_tick
+            if progress is not None and next_tick % PROGRESS_EVERY == 0:
+                progress(next_tick)
+    except BaseException:
+        if taken is not None:  # what the tap of a replica had seen when the run ended here
+            taken.failed()
+        raise
+    if direct is None and step_status is not None:
+        yield Exchange({}, (), step_status)
     if taken is not None:
-        taken.request(None)
+        taken.end(step_status)
 
     return RunRecord(plan, [w.finish() for w in windows], p_window.finish(), e_window.finish(), *releases.finish(),
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
@@ -236,7 +236,7 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
-                     tracked: frozenset[int], direct: SubsystemCalls | None, taken: _Taken | None
+                     tracked: frozenset[int], direct: SubsystemCalls | None, taken: Taken | TakenSteps | None
                      ) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
     each request carries the inputs whose sources are final, 0 for the others; a subsystem's row at t_0 is
@@ -261,35 +261,12 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
             for i in awaited:
                 readers[i].commit_values(computed[i], 0)
             if taken is not None:  # the request, then its replies, as the tap of a replica sees them
-                taken.request(Exchange(sends, tuple(subs[i].name for i in awaited), None, 0))
-                for i in awaited:
-                    taken.reply(subs[i], sends, 0, 0, computed[i])
-                taken.took([subs[i] for i in awaited])
+                taken.initial(Exchange(sends, tuple(subs[i].name for i in awaited), None, 0),
+                              {subs[i]: computed[i] for i in awaited})
             continue
         replies = yield Exchange(sends, tuple(subs[i].name for i in awaited), None, 0)
         for i in awaited:
             readers[i].commit(replies[subs[i].name], 0)
-
-
-class _Taken:
-    """What a replica driving a direct run would hand ``tap``: each request with the replies taken to make it (None
-    before the first), then the replies of the last with None."""
-
-    def __init__(self, tap: Tap) -> None:
-        self.tap = tap
-        self.replies: dict[int, bytes] = {}  # per subsystem: its reply to its last command
-        self.last: dict[str, bytes] | None = None  # the replies the next request follows
-
-    def request(self, request: Exchange | None) -> None:
-        self.tap.exchange(self.last, request)
-
-    def reply(self, s: SubsystemPlan, sends: dict[str, bytes], step: int, time_ns: int, outputs: np.ndarray) -> None:
-        """``s``'s reply to its command in ``sends``, as its endpoint encodes it (``subsystems.process.endpoint``)."""
-        self.replies[s.index] = encode(Kind.OUTPUT, step, time_ns, outputs, ref=command_ref(sends[s.name]))
-
-    def took(self, due) -> None:
-        """The scheme took the replies of ``due`` (subsystem plans, in the request's order)."""
-        self.last = {s.name: self.replies[s.index] for s in due}
 
 
 def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:

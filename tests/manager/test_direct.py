@@ -23,7 +23,8 @@ from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import Recorder
-from zencosim.recordings.recorder_process import split_batch
+from zencosim.recordings.recorder_process import BATCH, frame_messages
+from zencosim.recordings.recorder_process import STEPS as STEPS_FRAME
 from zencosim.scenes import __path__ as bundled
 
 EXAMPLES = Path(zencosim.examples.__file__).parent / "scenes"
@@ -80,7 +81,8 @@ def test_the_direct_path_computes_every_value_of_the_message_path(name, override
 
 
 def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypatch):
-    """A model raising in its step: the same one line on both paths (the subsystem, the step, the exception)."""
+    """A model raising in its step: the same one line on both paths (the subsystem, the step, the exception), and a
+    recording of each holds the same messages, up to the failing step's commands."""
     (tmp_path / "failing_model.py").write_text(
         "from zencosim.examples.oscillator import Oscillator\n"
         "class Failing(Oscillator):\n"
@@ -94,14 +96,21 @@ def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypa
     scene_file = tmp_path / "failing.toml"
     scene_file.write_text(head + "[subsystems.S2]" + tail.replace("zencosim.examples.oscillator:Oscillator",
                                                                   "failing_model:Failing", 1))
-    said = []
+    said, recorded = [], []
     for direct in (False, True):
         scene = load_scene(str(scene_file), ["manager.duration=0.2"])
         plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = _FramesRecorder(plan, status)  # what the recording holds: every message up to the failure
         with pytest.raises(SubsystemFailure) as failure:
-            run_in_process(make_scheme(scene, plan, direct=DirectCalls(plan, subsystems) if direct else None), plan, subsystems)
+            run_in_process(make_scheme(scene, plan, status=status,
+                                       direct=DirectCalls(plan, subsystems) if direct else None, tap=recorder),
+                           plan, subsystems, recorder)
+        recorder.flush(last=True)
         said.append(str(failure.value))
+        recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
     assert said[0] == said[1] and said[1].startswith("subsystem S2: failed at step ")
+    assert len(recorded[1]) > 200 and recorded[0] == recorded[1]
     assert said[1].endswith(": ValueError: table lookup out of range"), said
 
 
@@ -139,22 +148,35 @@ class _FramesRecorder(Recorder):
     def __init__(self, plan, status: StatusReport) -> None:
         super().__init__(None)
         self._declare(channel_specs(plan, status), False, status)
-        self.frames: list[bytes] = []
+        self.frames: list[tuple[int, bytes]] = []
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
-        self.frames.append(payload)
+        self.frames.append((kind, payload))
+
+    def messages(self, residuals_end: int) -> list[tuple[int, bytes]]:
+        """Every message of the frames, (channel index, bytes), a status's only up to ``residuals_end``."""
+        found = []
+        for kind, frame in self.frames:
+            channels, sizes, _, blob = frame_messages(kind, frame, self._index, self._status)
+            ends = np.cumsum(sizes).tolist()
+            found += [(i, blob[end - size:end][:residuals_end] if i == self._status else blob[end - size:end])
+                      for i, size, end in zip(channels.tolist(), sizes.tolist(), ends)]
+        return found
 
 
 @pytest.mark.parametrize("name, overrides, duration", [("two_mass_damped", [], 1.2),
                                                        (*VARIANTS["double_oscillator_multi_rate_foh"], 0.12),
                                                        (*VARIANTS["double_oscillator_multi_rate_gauss_seidel"], 0.12),
+                                                       (*VARIANTS["mass_chain_gauss_seidel_order"], 0.3),
                                                        ("hydraulic_crane", [], 0.5)],
-                         ids=["two_mass_damped", "multi-rate", "multi-rate-gauss-seidel", "hydraulic_crane"])
-def test_the_recorder_takes_the_same_batches_on_both_paths(name, overrides, duration):
-    """The recorder itself (its frames kept, no process), over several batches: every batch of a recorded direct run
-    holds the messages, in the order, with the channel indices and cut at the steps, that the batches of the message
-    path hold — the statuses included, but for the wall times in them (each run's own)."""
-    batches = []
+                         ids=["two_mass_damped", "multi-rate", "multi-rate-gauss-seidel", "gauss-seidel-chain",
+                              "hydraulic_crane"])
+def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arrays(name, overrides, duration):
+    """A recorded direct run hands the recorder blocks of arrays (manager.scheme.tapped.TakenSteps, STEPS frames);
+    the messages the recorder process builds from them (recordings.steps_frame) are those a replica's tap hands it
+    exchange by exchange on the message path: every message, byte for byte, in order and with its channel index —
+    the statuses included, but for the wall times in them (each run's own)."""
+    seen = []
     for direct in (False, True):
         scene = load_scene(name, [*overrides, f"manager.duration={duration}"])
         plan, subsystems = plan_scene(scene)
@@ -164,12 +186,10 @@ def test_the_recorder_takes_the_same_batches_on_both_paths(name, overrides, dura
                              tap=recorder)
         run_in_process(scheme, plan, subsystems, recorder)
         recorder.flush(last=True)
-        residuals_end = HEADER.size + 8 * 2 * len(plan.bonds)  # a status's header, δP and δE of every bond
-        found = []
-        for frame in recorder.frames:
-            channels, sizes, _, blob = split_batch(frame, recorder._status)
-            ends = np.cumsum(sizes).tolist()
-            found.append([(index, blob[end - size:end][:residuals_end] if index == recorder._status
-                           else blob[end - size:end]) for index, size, end in zip(channels.tolist(), sizes.tolist(), ends)])
-        batches.append(found)
-    assert sum(map(len, batches[1])) > 1000 and batches[0] == batches[1]
+        kinds = {kind for kind, _ in recorder.frames}
+        assert kinds == ({BATCH, STEPS_FRAME} if direct else {BATCH}), kinds  # the initialisation, then blocks
+        seen.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))  # a status: header, δP, δE
+        if direct:
+            assert recorder.published == {topic: sum(1 for i, _ in seen[1] if recorder._topics[i] == topic)
+                                          for topic in recorder._topics}
+    assert len(seen[1]) > 500 and seen[0] == seen[1]
