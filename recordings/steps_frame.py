@@ -12,7 +12,7 @@ carries that command's CRC-32 as its reference, which is computed here.
 Layout (little endian): ``STEPS_HEAD`` (bytes of the JSON that follows, statuses m, bytes of the statuses,
 exchanges e), the JSON (subsystem names, base step [ns], the layouts of the exchanges, per subsystem how many
 commands of how many rows and values and how many replies of how many outputs), m wall-clock times (i64), the m
-statuses (all of one size, from the status log: ``manager.wire.status``), e layout numbers (u16), then per
+statuses (all of one size, from the status log: ``manager.wire.status``), e layout numbers (u32), then per
 subsystem its commands' ticks (i64) and values (f64), its replies' steps (i64) and outputs (f64).
 """
 from __future__ import annotations
@@ -37,7 +37,7 @@ def steps_frame(block: StepsBlock, statuses: Statuses) -> bytes:
                             for s in block.subsystems]}
     text = json.dumps(about).encode()
     parts = [STEPS_HEAD.pack(len(text), len(statuses.steps), len(statuses.messages), len(block.order)), text,
-             statuses.stamps.astype("<i8").tobytes(), statuses.messages, block.order.astype("<u2").tobytes()]
+             statuses.stamps.astype("<i8").tobytes(), statuses.messages, block.order.astype("<u4").tobytes()]
     for s in block.subsystems:
         parts += [s.ticks.astype("<i8").tobytes(), s.polynomials.astype("<f8").tobytes(), s.steps.astype("<i8").tobytes(),
                   s.outputs.astype("<f8").tobytes()]
@@ -59,8 +59,8 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
         at += 8 * m
         statuses = frame[at:at + statuses_bytes]
         at += statuses_bytes
-        order = np.frombuffer(frame, dtype="<u2", count=e, offset=at).tolist()
-        at += 2 * e
+        order = np.frombuffer(frame, dtype="<u4", count=e, offset=at).tolist()
+        at += 4 * e
         base = int(about["base_step_ns"])
         commands, replies = [], []
         for commanded, rows, width, answered, n_outputs in about["subsystems"]:

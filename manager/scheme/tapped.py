@@ -101,7 +101,7 @@ class StepsBlock:
     names: tuple[str, ...]
     base_step_ns: int  # a message's time is its step times this
     layouts: list[tuple[tuple[int, ...], bool, tuple[int, ...]]]
-    order: np.ndarray  # uint16
+    order: np.ndarray  # uint32
     subsystems: list[SubsystemSteps]
     statuses: int  # exchanges that report a status
     last_status: int | None  # the step the last of them reports
@@ -203,7 +203,7 @@ class TakenSteps:
                 np.concatenate(polynomials).reshape(len(ticks), width) if ticks else np.zeros((0, width)), s.order + 1,
                 np.array(self.steps[i][:k], dtype=np.int64),
                 np.concatenate(self.outputs[i][:k]).reshape(k, len(s.outputs)) if k else np.zeros((0, len(s.outputs)))))
-        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, np.array(self.order, dtype=np.uint16),
+        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, np.array(self.order, dtype=np.uint32),
                            subsystems, len(self.statuses), self.statuses[-1] if self.statuses else None, last)
         for kept in (self.ticks, self.polynomials, self.steps, self.outputs):
             for each in kept:

@@ -25,6 +25,7 @@ from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import Recorder
 from zencosim.recordings.recorder_process import BATCH, frame_messages
 from zencosim.recordings.recorder_process import STEPS as STEPS_FRAME
+from zencosim.recordings.steps_frame import STEPS_HEAD
 from zencosim.scenes import __path__ as bundled
 
 EXAMPLES = Path(zencosim.examples.__file__).parent / "scenes"
@@ -193,3 +194,22 @@ def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arra
             assert recorder.published == {topic: sum(1 for i, _ in seen[1] if recorder._topics[i] == topic)
                                           for topic in recorder._topics}
     assert len(seen[1]) > 500 and seen[0] == seen[1]
+
+
+def test_a_steps_frame_that_does_not_hold_what_its_head_says_is_refused():
+    """Cut short, lengthened, or with a layout number past its layouts: a ValueError naming the frame, as a BATCH
+    frame's (recorder_process.split_batch), never wrong messages."""
+    scene = load_scene("two_mass_damped", ["manager.duration=0.2"])  # one block
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, False)
+    recorder = _FramesRecorder(plan, status)
+    run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems), tap=recorder),
+                   plan, subsystems, recorder)
+    (frame,) = [data for kind, data in recorder.frames if kind == STEPS_FRAME]
+    frame_messages(STEPS_FRAME, frame, recorder._index, recorder._status)  # whole: read
+    text_bytes, m, statuses_bytes, _ = STEPS_HEAD.unpack_from(frame)
+    order_at = STEPS_HEAD.size + text_bytes + 8 * m + statuses_bytes
+    wrong_layout = frame[:order_at] + (10**6).to_bytes(4, "little") + frame[order_at + 4:]
+    for damaged in (frame[:-8], frame + b"\0" * 8, frame[:STEPS_HEAD.size + 3], wrong_layout):
+        with pytest.raises(ValueError, match="a STEPS frame that does not hold what its head says"):
+            frame_messages(STEPS_FRAME, damaged, recorder._index, recorder._status)
