@@ -103,13 +103,13 @@ def follow(frames: FrameReader, view: RunView, specs: list[ChannelSpec], macro_s
     batch holds whole steps (a step's replies, its status, the next commands): one whose first status is not
     the step after the last one seen follows batches the manager skipped (this view fell behind,
     ``recordings.recorder``), which the view says on its timeline."""
-    status, index = status_index(specs), channel_index(specs)
+    status, channel_of = status_index(specs), channel_index(specs)
     last_step, sent = 0, time.monotonic()
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             return json.loads(data)["outcome"], last_step
-        channels, sizes, _, messages = frame_messages(kind, data, index, status)
+        channels, sizes, _, messages = frame_messages(kind, data, channel_of, status)
         raw = np.frombuffer(messages, dtype=np.uint8)
         starts, heads, valid = wire_headers(sizes, raw)
         statuses = np.flatnonzero(valid & (channels == status))

@@ -62,10 +62,11 @@ def _sink(rrd: Path):
             sink.wait()
 
 
-def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, tmp_path):
+@pytest.mark.parametrize("bus", ["zenoh", "inproc"])  # in process, the view builds the messages from STEPS frames
+def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, tmp_path, bus):
     live, replayed, mcap = tmp_path / "live.rrd", tmp_path / "replay.rrd", tmp_path / "run.mcap"
     with _sink(live) as address:
-        run = processes("run", "two_mass_damped", "--bus", "zenoh", "--set", "manager.duration=1.0", "--quiet",
+        run = processes("run", "two_mass_damped", "--bus", bus, "--set", "manager.duration=1.0", "--quiet",
                         "--record", str(mcap), "--rerun", f"connect={address}")
         _, stderr = run.communicate(timeout=120)
         assert run.returncode == 0, stderr
