@@ -19,7 +19,7 @@ import pytest
 from tests.conftest import wait_for
 from tests.recordings.test_rerun_view import RERUN, _columns
 from zencosim.manager.assembly import make_scheme, plan_scene
-from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.bus.zenoh_session import free_tcp_port
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.wire.status import StatusReport
@@ -110,7 +110,9 @@ def test_a_live_view_that_falls_behind_is_skipped_not_waited_for(tmp_path):
             view = recorder.pids[1]
             os.kill(view, signal.SIGSTOP)
             try:
-                run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, recorder)
+                # as zencosim run makes it: the scheme calls the subsystems and hands the recorder STEPS frames
+                run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems),
+                                           tap=recorder), plan, subsystems, recorder)
             finally:
                 os.kill(view, signal.SIGCONT)
             end = recorder.finish("completed")
