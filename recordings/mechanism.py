@@ -152,7 +152,8 @@ class Mechanism:
                 f = outputs[list(force[1])]
                 vector = f[0] * np.array(b.direction) if f.size == 1 else f[:2]
                 length = ARROW * (scale if sub_b in self._lanes else 1.0)
-                arrow = (np.array(b.position), vector * (length / self._largest_force if self._largest_force > 0 else 0.0))
+                per_newton = length / self._largest_force if self._largest_force > 0 else 0.0
+                arrow = (np.array(b.position), vector * per_newton)
             frame.couplings[name] = (line, arrow)
         return frame
 

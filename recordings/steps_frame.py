@@ -39,8 +39,8 @@ def steps_frame(block: StepsBlock, statuses: Statuses) -> bytes:
     parts = [STEPS_HEAD.pack(len(text), len(statuses.steps), len(statuses.messages), len(block.order)), text,
              statuses.stamps.astype("<i8").tobytes(), statuses.messages, block.order.astype("<u4").tobytes()]
     for s in block.subsystems:
-        parts += [s.ticks.astype("<i8").tobytes(), s.polynomials.astype("<f8").tobytes(), s.steps.astype("<i8").tobytes(),
-                  s.outputs.astype("<f8").tobytes()]
+        parts += [s.ticks.astype("<i8").tobytes(), s.polynomials.astype("<f8").tobytes(),
+                  s.steps.astype("<i8").tobytes(), s.outputs.astype("<f8").tobytes()]
     return b"".join(parts)
 
 
@@ -82,8 +82,9 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
         size = statuses_bytes // m if m else 0
         each_status = iter([statuses[start:start + size] for start in range(0, statuses_bytes, size or 1)])
         names = about["names"]
-        layouts = [([index[names[i], "y"] for i in replying], status_follows, [index[names[i], "commands"] for i in commanded],
-                    replying, commanded) for replying, status_follows, commanded in about["layouts"]]
+        layouts = [([index[names[i], "y"] for i in replying], status_follows,
+                    [index[names[i], "commands"] for i in commanded], replying, commanded)
+                   for replying, status_follows, commanded in about["layouts"]]
         channels, ordered = [], []
         for number in order:
             reply_channels, status_follows, command_channels, replying, commanded = layouts[number]

@@ -146,7 +146,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                     segments = copied[s.index]
                     if segments is not None:  # ZOH: the sources' newest values, as they arrived
                         payload = b"".join([reader.newest_bytes[start:end] for reader, start, end in segments])
-                        sends[s.name] = command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
+                        command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
+                        sends[s.name] = command
                         sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
                         continue
                     coefficients = input_polynomial(s, tick)
@@ -196,7 +197,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                 corrector.observe(next_tick, windows, e_window)
             if status is not None:  # logged, encoded when a tap takes it (manager.wire.status)
                 log_residuals(residuals)
-                log_times((next_tick, released_ns, time.perf_counter_ns(), 0 if pacer is None else pacer.last_lateness_ns))
+                log_times((next_tick, released_ns, time.perf_counter_ns(),
+                           0 if pacer is None else pacer.last_lateness_ns))
                 step_status = next_tick
             if progress is not None and next_tick % PROGRESS_EVERY == 0:
                 progress(next_tick)

@@ -121,7 +121,7 @@ class TakenSteps:
         n = len(plan.subsystems)
         self.names = tuple(s.name for s in plan.subsystems)
         self.layout_of: dict[tuple, int] = {}  # layout → its number in every block
-        self.layout_of_shape: dict[int, int] = {}  # a request's shape → the number of its layout (not a block's first)
+        self.layout_of_shape: dict[int, int] = {}  # a request's shape → its layout's number (not a block's first)
         self.order: list[int] = []  # the block's exchanges, by layout
         self.statuses: list[int] = []  # the steps the block's exchanges report
         # per subsystem: the block's commands (ticks, polynomials) and replies (steps, outputs)

@@ -118,7 +118,8 @@ def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypa
 @pytest.mark.parametrize("name, overrides", [VARIANTS["two_mass_damped_soh"], VARIANTS["double_oscillator_multi_rate_foh"],
                                              VARIANTS["double_oscillator_corrected"],
                                              VARIANTS["four_mass_gauss_seidel_soh"],
-                                             VARIANTS["double_oscillator_multi_rate_gauss_seidel"], ("hydraulic_crane", [])],
+                                             VARIANTS["double_oscillator_multi_rate_gauss_seidel"],
+                                             ("hydraulic_crane", [])],
                          ids=["soh", "multi-rate", "corrected", "gauss-seidel", "multi-rate-gauss-seidel",
                               "hydraulic_crane"])
 def test_a_tap_sees_the_same_messages_in_the_same_order_on_both_paths(name, overrides):
