@@ -41,7 +41,7 @@ from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficient
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.residual import residual_power
-from zencosim.manager.scheme.tapped import Taken, TakenSteps
+from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
 from zencosim.manager.wire.status import StatusReport
@@ -120,9 +120,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    taken = None  # a direct run's messages, for its tap: as arrays a block at a time where the tap takes them and no
-    if direct is not None and tap is not None:  # pacer waits for each step (manager.scheme.tapped)
-        taken = (TakenSteps if pacer is None and hasattr(tap, "take_steps") else Taken)(tap, plan)
+    # a direct run's messages, for its tap (manager.scheme.tapped)
+    taken = taken_for(tap, plan, pacer is not None) if direct is not None and tap is not None else None
     yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     period, stages = _schedule(plan, local, tracked)
     n_stages = len(plan.stages)

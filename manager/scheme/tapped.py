@@ -15,6 +15,7 @@ in-process loop of two_mass_damped a third more instructions per step (benchmark
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +26,17 @@ from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.wire.protocol import Kind, command_ref, encode
 
 BLOCK_STEPS = 256  # requests of the stepping loop handed over at once (TakenSteps)
+LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tapped exchange by exchange
+
+
+def taken_for(tap, plan: Plan, paced: bool) -> Taken | TakenSteps:
+    """What hands a direct run's messages to ``tap``: blocks of arrays where the tap takes them (``take_steps``), the
+    run is not paced (a real-time run's live view follows it step by step) and a block, which holds whole schedule
+    periods, stays small (the lcm of the communication ratios at most ``LONGEST_PERIOD`` base steps); else
+    exchange by exchange."""
+    if not paced and hasattr(tap, "take_steps") and math.lcm(*(s.ratio for s in plan.subsystems)) <= LONGEST_PERIOD:
+        return TakenSteps(tap, plan)
+    return Taken(tap, plan)
 
 
 class Taken:

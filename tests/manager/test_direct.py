@@ -19,6 +19,7 @@ from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.replica import PerMessage
+from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import channel_specs
@@ -195,6 +196,31 @@ def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arra
             assert recorder.published == {topic: sum(1 for i, _ in seen[1] if recorder._topics[i] == topic)
                                           for topic in recorder._topics}
     assert len(seen[1]) > 500 and seen[0] == seen[1]
+
+
+def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():
+    """A block holds whole schedule periods: M1 at 4,099 base steps (a period longer than LONGEST_PERIOD) would hold
+    them all in memory, and a real-time run's live view follows it step by step; both are handed to the recorder
+    exchange by exchange (BATCH frames only), still the message path's messages."""
+    long_period = ["manager.macro_step=0.000001", "subsystems.M1.comm_ratio=4099", "subsystems.M1.micro_step=0.004099",
+                   "subsystems.M2.micro_step=0.000001", "manager.duration=0.008198"]
+    plan, _ = plan_scene(load_scene("double_oscillator", long_period))
+    recorder = _FramesRecorder(plan, StatusReport(plan, False))
+    assert isinstance(taken_for(recorder, plan, False), Taken)
+    assert isinstance(taken_for(recorder, plan_scene(load_scene("hydraulic_crane"))[0], True), Taken)
+    assert isinstance(taken_for(recorder, plan_scene(load_scene("hydraulic_crane"))[0], False), TakenSteps)
+    seen = []
+    for direct in (False, True):
+        scene = load_scene("double_oscillator", long_period)
+        plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = _FramesRecorder(plan, status)
+        run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems) if direct else None,
+                                   tap=recorder), plan, subsystems, recorder)
+        recorder.flush(last=True)
+        assert {kind for kind, _ in recorder.frames} == {BATCH}
+        seen.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
+    assert len(seen[1]) > 8000 and seen[0] == seen[1]
 
 
 def test_a_steps_frame_that_does_not_hold_what_its_head_says_is_refused():
