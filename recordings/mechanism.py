@@ -108,9 +108,10 @@ class Mechanism:
         if drawn or on_line:  # a body on a line: every step, for the lane scale
             subsystem = self._subsystems[name]
             sketch = subsystem.model.sketch(subsystem.z, subsystem.w)
-            xs = [c[0] for c, _ in sketch.boxes.values()] + [x for p in sketch.paths.values() for x in p[:, 0]]
-            if on_line and xs:
-                self._spans[name].append((step, min(xs), max(xs)))
+            if on_line:
+                xs = [c[0] for c, _ in sketch.boxes.values()] + [x for p in sketch.paths.values() for x in p[:, 0]]
+                if xs:
+                    self._spans[name].append((step, min(xs), max(xs)))
             if drawn:
                 self._pending.setdefault(step, Frame(step, time_ns)).sketches[name] = sketch
         self._latest[name] = step
