@@ -6,6 +6,7 @@ arithmetic. Indices refer to ``Plan.subsystems`` and to each subsystem's port or
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 from zencosim.manager.plan.memory import memory_problem
 from zencosim.manager.scene.load import Scene, SceneError
@@ -94,13 +95,18 @@ class Plan:
         """The subsystems subsystem ``index`` exchanges values with: its sources and the ones it feeds."""
         return self.sources(index) | frozenset(s.index for s in self.subsystems if index in self.sources(s.index))
 
+    @cached_property
+    def stage_of(self) -> dict[int, int]:
+        """The number of the stage each subsystem steps in."""
+        return {i: number for number, stage in enumerate(self.stages) for i in stage}
+
     def lead(self, source: int, target: int) -> int:
         """Base steps added to a tick before dividing it by ``source``'s ratio, to number ``source``'s newest sample
         when ``target``'s input polynomial is made at that tick: with Jacobi 0 (the sample at or before the tick);
         with Gauss–Seidel, for a source of an earlier stage its ratio (the end of the step it has just taken), and
         of a later stage its ratio − 1 (the end of its step under way, which it took in an earlier macro-step;
         0 single-rate)."""
-        stage_of = {i: number for number, stage in enumerate(self.stages) for i in stage}
+        stage_of = self.stage_of
         if len(self.stages) == 1 or stage_of[source] == stage_of[target]:
             return 0
         ratio = self.subsystems[source].ratio
