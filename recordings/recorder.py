@@ -44,10 +44,10 @@ from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.scheme.tapped import StepsBlock
-from zencosim.manager.wire.status import StatusReport
+from zencosim.manager.wire.status import Statuses, StatusReport
 from zencosim.recordings import RecorderFailed, RecorderLost, RecordingError
 from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
-from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME, STEPS
+from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME, STEPS, channel_index
 from zencosim.recordings.steps_frame import steps_frame
 
 STALL_S = 10.0  # an observer that makes no progress for this long fails (the scene's manager.timeout, once known)
@@ -315,8 +315,7 @@ class Recorder:
         self._topics = [spec.topic for spec in specs]
         self._tapped = np.zeros(len(specs), dtype=np.int64)
         self._status = status_index(specs)
-        index = {tuple(topic.split("/")): i for i, topic in enumerate(self._topics)}  # (source, channel) → index
-        self._index = index
+        self._index = index = channel_index(specs)  # (source, channel) → index
         self.exchange = self._tap(index, max(1, round(HANDOVER_S * 1e9 / status.base_step_ns)) if realtime else None)
         if not realtime:  # a real-time run's tap hands a batch over every HANDOVER_S: exchange by exchange
             self.take_steps = self._take_steps
@@ -328,16 +327,14 @@ class Recorder:
         self.flush()
         with self._signals.held() if self._signals is not None else contextlib.nullcontext():
             statuses = self._report.take(block.statuses)
-            step = block.last_status if block.last_status is not None else self._step
-            if self._observers and all(observer.gone for observer in self._observers):  # --record-lost continue
+            if self._all_gone:
                 return
-            self._write_frame(STEPS, steps_frame(block, statuses), None if block.last else step - self._step)
-            index, tapped = self._index, self._tapped
+            counts = np.zeros(len(self._topics), dtype=np.int64)
             for name, s in zip(block.names, block.subsystems):
-                tapped[index[name, "y"]] += len(s.steps)
-                tapped[index[name, "commands"]] += len(s.ticks)
-            tapped[self._status] += block.statuses
-            self._step = step
+                counts[self._index[name, "y"]] = len(s.steps)
+                counts[self._index[name, "commands"]] = len(s.ticks)
+            counts[self._status] = block.statuses
+            self._send(STEPS, steps_frame(block, statuses), statuses, counts, block.last)
 
     def _tap(self, index: dict[tuple[str, str], int], every: int | None
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
@@ -402,19 +399,27 @@ class Recorder:
             n_statuses = channels.count(self._status)
             del messages[len(channels) - n_statuses:]  # the last messages, whose indices never came
             statuses = self._report.take(n_statuses)
-            step = int(statuses.steps[-1]) if n_statuses else self._step
-            if self._observers and all(observer.gone for observer in self._observers):  # --record-lost continue
-                channels.clear()
-                messages.clear()
-                return
-            self._write_frame(BATCH, b"".join((BATCH_HEAD.pack(len(channels), n_statuses, len(statuses.messages)),
-                                               channels, statuses.stamps.tobytes(), statuses.messages,
-                                               marshal.dumps(messages))),
-                              None if last else step - self._step)
-            self._tapped += np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics))
-            self._step = step
+            if not self._all_gone:
+                self._send(BATCH, b"".join((BATCH_HEAD.pack(len(channels), n_statuses, len(statuses.messages)),
+                                            channels, statuses.stamps.tobytes(), statuses.messages,
+                                            marshal.dumps(messages))), statuses,
+                           np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics)), last)
             channels.clear()
             messages.clear()
+
+    @property
+    def _all_gone(self) -> bool:
+        """Every observer is gone (``--record-lost continue``): what the tap takes is dropped."""
+        return bool(self._observers) and all(observer.gone for observer in self._observers)
+
+    def _send(self, kind: int, payload: bytes, statuses: Statuses, counts: np.ndarray, last: bool) -> None:
+        """Send a frame holding ``statuses`` and ``counts`` messages per channel, and count them handed over; with
+        SIGINT and SIGTERM deferred (``flush``). ``last``: the run's last frame, which the live view is not skipped
+        for; other frames tell it how many macro-steps they hold."""
+        step = int(statuses.steps[-1]) if len(statuses.steps) else self._step
+        self._write_frame(kind, payload, None if last else step - self._step)
+        self._tapped += counts
+        self._step = step
 
     @property
     def pids(self) -> list[int]:

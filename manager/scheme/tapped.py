@@ -115,8 +115,7 @@ class StepsBlock:
     layouts: list[tuple[tuple[int, ...], bool, tuple[int, ...]]]
     order: np.ndarray  # uint32
     subsystems: list[SubsystemSteps]
-    statuses: int  # exchanges that report a status
-    last_status: int | None  # the step the last of them reports
+    statuses: int  # exchanges that report a status (the statuses are the next in the run's status log)
     last: bool  # the run's last block
 
 
@@ -135,7 +134,7 @@ class TakenSteps:
         self.layout_of: dict[tuple, int] = {}  # layout → its number in every block
         self.layout_of_shape: dict[int, int] = {}  # a request's shape → its layout's number (not a block's first)
         self.order: list[int] = []  # the block's exchanges, by layout
-        self.statuses: list[int] = []  # the steps the block's exchanges report
+        self.statuses = 0  # the block's exchanges that report a status
         # per subsystem: the block's commands (ticks, polynomials) and replies (steps, outputs)
         self.ticks: list[list[int]] = [[] for _ in range(n)]
         self.polynomials: list[list[np.ndarray]] = [[] for _ in range(n)]
@@ -165,8 +164,7 @@ class TakenSteps:
                 layout = self.layout_of_shape[shape] = self._layout(self.due, status is not None,
                                                                     tuple(s for s, _ in starting))
         self.order.append(layout)
-        if status is not None:
-            self.statuses.append(status)
+        self.statuses += status is not None
         ticks, polynomials = self.ticks, self.polynomials
         for s, coefficients in starting:
             ticks[s.index].append(tick)
@@ -182,7 +180,7 @@ class TakenSteps:
         """The run has ended: the last status, then the replies of the last request."""
         if status is not None:
             self.order.append(self._layout(self.due, True, ()))
-            self.statuses.append(status)
+            self.statuses += 1
             self.due = ()
         self.flush(last=True)
 
@@ -216,11 +214,11 @@ class TakenSteps:
                 np.array(self.steps[i][:k], dtype=np.int64),
                 np.concatenate(self.outputs[i][:k]).reshape(k, len(s.outputs)) if k else np.zeros((0, len(s.outputs)))))
         block = StepsBlock(self.names, self.plan.base_step_ns, layouts, np.array(self.order, dtype=np.uint32),
-                           subsystems, len(self.statuses), self.statuses[-1] if self.statuses else None, last)
+                           subsystems, self.statuses, last)
         for kept in (self.ticks, self.polynomials, self.steps, self.outputs):
             for each in kept:
                 each.clear()
-        self.order, self.statuses = [], []
+        self.order, self.statuses = [], 0
         self.tap.take_steps(block)
 
     def _layout(self, replying: tuple[SubsystemPlan, ...], status: bool, commanded: tuple[SubsystemPlan, ...]) -> int:
