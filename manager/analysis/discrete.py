@@ -148,7 +148,6 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
     history = [[identity[index] for index in samples] for samples in history_index]  # oldest first
 
     period = math.lcm(*(s.ratio for s in subs))
-    sequential = len(plan.stages) > 1  # Gauss–Seidel: a stage's outputs are taken before the next stage starts
     pending: dict[int, list[tuple[int, np.ndarray]]] = {}
     for tick in range(period):
         for stage in plan.stages:
@@ -171,7 +170,7 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
                 z[s.index] = m.Phi @ z[s.index] + np.einsum("qab,qbx->ax", m.Gamma, c)
                 w_end = np.einsum("q,qbx->bx", m.span ** np.arange(order + 1), c)
                 y_end = m.C_y @ z[s.index] + m.D_y @ w_end
-                if sequential:
+                if plan.sequential:  # Gauss–Seidel: taken before the next stage starts
                     history[s.index].append(y_end)
                 else:
                     pending.setdefault(tick + s.ratio, []).append((s.index, y_end))

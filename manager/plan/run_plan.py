@@ -95,6 +95,12 @@ class Plan:
         """The subsystems subsystem ``index`` exchanges values with: its sources and the ones it feeds."""
         return self.sources(index) | frozenset(s.index for s in self.subsystems if index in self.sources(s.index))
 
+    @property
+    def sequential(self) -> bool:
+        """Whether the subsystems step one stage after another (Gauss–Seidel), a stage's replies taken before the
+        next stage's inputs are made; else all in one stage (Jacobi)."""
+        return len(self.stages) > 1
+
     @cached_property
     def stage_of(self) -> dict[int, int]:
         """The number of the stage each subsystem steps in."""
@@ -107,7 +113,7 @@ class Plan:
         of a later stage its ratio − 1 (the end of its step under way, which it took in an earlier macro-step;
         0 single-rate)."""
         stage_of = self.stage_of
-        if len(self.stages) == 1 or stage_of[source] == stage_of[target]:
+        if not self.sequential or stage_of[source] == stage_of[target]:
             return 0
         ratio = self.subsystems[source].ratio
         return ratio if stage_of[source] < stage_of[target] else ratio - 1

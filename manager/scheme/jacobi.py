@@ -283,7 +283,6 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
     its sample at the step's end: a slower subsystem stepping first gives the faster ones its outputs to
     interpolate through its whole step, and a faster one stepping first gives the slower one its newest sample."""
     subs = plan.subsystems
-    sequential = len(plan.stages) > 1
     period = math.lcm(*(s.ratio for s in subs))
     partners = {side for bond in plan.bonds if {bond.force_side, bond.motion_side} & local
                 for side in (bond.force_side, bond.motion_side)} - local
@@ -292,7 +291,7 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
         stages = []
         for stage in plan.stages:
             members = [subs[i] for i in stage]
-            if sequential:  # one subsystem per stage: its reply is taken where its step starts
+            if plan.sequential:  # one subsystem per stage: its reply is taken where its step starts
                 due = tuple(s for s in members if phase % s.ratio == 0 and s.index in tracked)
                 span = members[0].ratio
             else:
