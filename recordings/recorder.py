@@ -248,6 +248,7 @@ class Recorder:
         self._stall_s = STALL_S  # an observer that takes nothing for this long is said (manager.timeout)
         self._step = 0  # the last step whose status went down the pipe
         self._lost_at: tuple[int, dict[str, int]] = (0, {})  # the step and what was handed over when the recorder was lost
+        self._lost_at_end = False  # the recorder went while finish waited for it (the run had ended)
         self.result: dict | None = None
         self.live: dict | None = None  # what the live view said when it was ready (e.g. the web viewer's address)
         self.finished = False
@@ -439,7 +440,9 @@ class Recorder:
     def finish(self, outcome: str) -> dict | None:
         """Tell the recorder and the live view how the run ended and what the tap handed over; wait for the
         file to be complete and return its end record (None without a recording; for a recorder that is gone,
-        what is known: the outcome says when it was lost, ``messages`` and ``lost`` are None)."""
+        what is known: the outcome says when it was lost, ``messages`` and ``lost`` are None). A recorder that goes
+        only now (a disk that fills with the last chunks) under ``--record-lost stop`` raises :class:`RecorderLost`
+        once every observer is done: the run completed, its recording did not."""
         if self.finished:
             return self.result
         if not self._observers:
@@ -467,11 +470,11 @@ class Recorder:
                 if observer.process.poll() is None and observer.gone is None:
                     raise  # it stopped making progress before it finished
                 if observer.gone is None:
-                    self._lose(observer, stop=False)  # it died after the last frame
+                    self._lose(observer, ended=True)  # it died after the last frame
                 continue
             if end.get("event") == "failed":  # it could not write the end of the file (a full disk)
                 if observer.gone is None:
-                    self._lose(observer, stop=False, said=end.get("reason"))
+                    self._lose(observer, ended=True, said=end.get("reason"))
                 continue
             if observer is self._recorder:
                 observer.process.wait()
@@ -483,6 +486,8 @@ class Recorder:
                            "path": str(self.path), "messages": None, "lost": None,
                            "channels": {topic: {"published": count, "received": None, "lost": None}
                                         for topic, count in published.items()}, "malformed": None}
+        if self._lost_at_end and self.on_lost == "stop":
+            raise RecorderLost(self.lost)
         return self.result
 
     def close(self) -> None:
@@ -509,9 +514,10 @@ class Recorder:
                 except BrokenPipeError:
                     self._lose(observer)
 
-    def _lose(self, observer: _Observer, stop: bool = True, said: str | None = None) -> None:
+    def _lose(self, observer: _Observer, ended: bool = False, said: str | None = None) -> None:
         """``observer``'s process is gone (``said``: the reason it gave, already read from its output): say so; for
-        the recorder under ``on_lost == "stop"`` (and ``stop``), raise :class:`RecorderLost`."""
+        the recorder under ``on_lost == "stop"``, raise :class:`RecorderLost` (``ended``: the run has ended, and
+        ``finish`` raises it when it is done)."""
         observer.gone = observer.ended()
         if said and said not in observer.gone:
             observer.gone += f": {said}"
@@ -521,7 +527,12 @@ class Recorder:
         self._lost_at = (self._step, self.published)
         self.lost = (f"the recorder of {self.path} is gone ({observer.gone}) at step {self._step}: the file ends with "
                      f"its last chunk written, before that step ('zencosim inspect {self.path}' says where)")
-        if stop and self.on_lost == "stop":
+        if ended:
+            self._lost_at_end = True
+            if self.on_lost == "continue":
+                self.announce(f"{self.lost}; the run had ended (--record-lost continue)")
+            return
+        if self.on_lost == "stop":
             raise RecorderLost(f"{self.lost}; with --record-lost continue the run goes on without it")
         self.announce(f"{self.lost}; the run goes on unrecorded (--record-lost {self.on_lost})")
 
