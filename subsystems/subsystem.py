@@ -10,7 +10,8 @@ A linear, time-invariant model (``linear_dynamics()``: no external forces of tim
 effect) under an integrator that is a linear map per micro-step (``linear_step``) is advanced by the
 composition of its micro-steps over the input polynomial (``subsystems.integrators.base.composed_linear_step``):
 the same integrator and micro-step in one matrix product per communication step (it differs from
-stepping only by rounding). This is the one-step map the exact discrete analysis uses.
+stepping only by rounding). This is the one-step map the exact discrete analysis uses. A small one runs that
+step and its outputs as one straight-line function over floats (``subsystems.straight_line``), on every bus.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ import numpy as np
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.integrators.base import composed_linear_step
 from zencosim.subsystems.ports import Port
+from zencosim.subsystems.straight_line import StraightLineStep, straight_line_step
 
 
 @dataclass(frozen=True)
@@ -47,9 +49,11 @@ class Subsystem:
         self._s = np.concatenate((z0, np.zeros(len(model.inputs)))) if self._linear is not None else None
         self.z = z0 if self._s is None else self._s[:z0.size]
         self.t_ns = 0
-        self.w = np.zeros(len(model.inputs))  # input values at t_ns, as the last step or INIT used them
+        self.w = np.zeros(len(model.inputs))  # input values at t_ns, as the last step or INIT used them (floats)
         self.integrator = integrator_cls(model, self.z)
         self._steps: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (micro-steps, rows) -> (Φ^m, Ψ)
+        # (micro-steps, rows) -> the step as straight-line code, None where numpy's products are cheaper
+        self._straight: dict[tuple[int, int], StraightLineStep | None] = {}
 
     @property
     def inputs(self) -> tuple[Port, ...]:
@@ -70,6 +74,14 @@ class Subsystem:
 
     def advance(self, t0_ns: int, t1_ns: int, inputs: InputPolynomial) -> np.ndarray:
         """Integrate from ``t0`` to ``t1`` [ns] and return the outputs at ``t1``."""
+        return np.asarray(self.advance_values(t0_ns, t1_ns, inputs.coefficients), dtype=float)
+
+    def advance_values(self, t0_ns: int, t1_ns: int, coefficients: np.ndarray | list[float]
+                       ) -> list[float] | np.ndarray:
+        """``advance`` over the input polynomial of ``coefficients`` (its rows, as ``InputPolynomial`` takes them, or
+        a zero-order polynomial's values as a list of floats), the outputs at ``t1`` as the step computes them: a
+        list of floats from a straight-line step, else the model's array (the in-process scheme's call:
+        ``manager.bus.inproc.DirectCalls``)."""
         if t0_ns != self.t_ns:
             raise ValueError(f"subsystem {self.name}: asked to advance from t = {t0_ns} ns but it is at {self.t_ns} ns")
         span = t1_ns - t0_ns
@@ -78,15 +90,27 @@ class Subsystem:
             raise ValueError(f"subsystem {self.name}: step of {span} ns is not a positive multiple "
                              f"of the micro-step {h_ns} ns")
         h = h_ns * 1e-9
+        listed = type(coefficients) is list
         if self._linear is not None:  # z ← Φ^m z + Ψ c in place; the outputs from s = [z, w(t1)] as it stands
-            c = inputs.coefficients
-            composed = self._steps.get((span // h_ns, c.shape[0]))  # the step's maps, once composed
-            Phi_m, Psi = composed if composed is not None else self._composed_step(span // h_ns, c.shape[0], h)
+            key = (span // h_ns, 1 if listed else coefficients.shape[0])
+            straight = self._straight.get(key, False)
+            if straight is False:
+                straight = self._straight_step(key, h, span * 1e-9)
+            if straight is not None:
+                y, self.w = straight(self.z, coefficients if listed else coefficients.ravel().tolist())
+                self.t_ns = t1_ns
+                return y
+        if listed:
+            coefficients = np.array([coefficients], dtype=float).reshape(1, len(self.inputs))
+        if self._linear is not None:
+            composed = self._steps.get(key)  # the step's maps, once composed
+            Phi_m, Psi = composed if composed is not None else self._composed_step(*key, h)
             z = self.z
-            np.add(Phi_m.dot(z), Psi.dot(c.ravel()), z)  # out=z, positional: no keyword parsing each step
+            np.add(Phi_m.dot(z), Psi.dot(coefficients.ravel()), z)  # out=z, positional: no keyword parsing each step
             self.t_ns = t1_ns
-            self.w = self._s[z.size:] = inputs.at(span * 1e-9)
+            self.w = self._s[z.size:] = InputPolynomial(coefficients).at(span * 1e-9)
             return self.model.outputs_of(t1_ns * 1e-9, self._s)
+        inputs = InputPolynomial(coefficients)
         step = self.integrator.step
         for j in range(span // h_ns):
             offset_ns = j * h_ns
@@ -94,6 +118,12 @@ class Subsystem:
         self.t_ns = t1_ns
         self.w = inputs.at(span * 1e-9)
         return self.model.outputs_at(t1_ns * 1e-9, self.z, self.w)
+
+    def _straight_step(self, key: tuple[int, int], h: float, span_s: float) -> StraightLineStep | None:
+        """The straight-line step of ``key`` (micro-steps, rows) over ``span_s`` seconds, or None; cached."""
+        Phi_m, Psi = self._composed_step(*key, h)
+        self._straight[key] = straight_line_step(Phi_m, Psi, key[1], span_s, *self.model.output_matrix())
+        return self._straight[key]
 
     def free_step(self, span_ns: int) -> np.ndarray | None:
         """The matrix ``advance`` multiplies the state by over a step of ``span_ns`` when the model is linear and

@@ -21,7 +21,6 @@ from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.base import RunRecord, SubsystemFailure
 from zencosim.manager.scheme.replica import Replica, Tap
 from zencosim.manager.wire.text import printable
-from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.models import MODELS
 from zencosim.subsystems.process.endpoint import SubsystemEndpoint, failure_reason
 from zencosim.subsystems.subsystem import Subsystem
@@ -48,16 +47,16 @@ class DirectCalls:
         except (Exception, SystemExit, KeyboardInterrupt) as error:
             raise self._failure(s, 0, error) from None
 
-    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
-        # initial's body over advance, written out: the stepping loop's path, with no further call in between
+    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
+        # initial's body over advance_values, written out: the stepping loop's path, with no further call in between
         t0_ns = tick * self.base_step_ns
-        arguments = (t0_ns, t0_ns + s.ratio * self.base_step_ns, InputPolynomial(coefficients))
+        arguments = (t0_ns, t0_ns + s.ratio * self.base_step_ns, coefficients)
         mark = self.marks[s.index]
         try:
             if mark is None:
-                return self.subsystems[s.index].advance(*arguments)
+                return self.subsystems[s.index].advance_values(*arguments)
             with self.watch.marking(mark, STEPPING, t0_ns):
-                return self.subsystems[s.index].advance(*arguments)
+                return self.subsystems[s.index].advance_values(*arguments)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
             raise self._failure(s, tick + s.ratio, error) from None
 

@@ -83,9 +83,9 @@ class SubsystemCalls(Protocol):
     def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
         """``s``'s outputs at t_0 with the input values ``w0`` (an INIT command's)."""
 
-    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray) -> np.ndarray:
+    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
         """``s``'s outputs at the end of its step from base step ``tick`` over the input polynomial ``coefficients``
-        (a STEP command's)."""
+        (a STEP command's), both as ``Subsystem.advance_values`` takes and gives them."""
 
 
 @dataclass
@@ -164,17 +164,22 @@ class OutputReader:
         self.newest = self._unpack(data, HEADER.size)
         self.newest_bytes = data
 
-    def commit_values(self, y: np.ndarray, step: int) -> None:
+    def commit_values(self, y: list[float] | np.ndarray, step: int) -> None:
         """Take ``sub``'s outputs for ``step`` as this process computed them (the scheme calling the subsystem
-        itself: ``manager.bus.inproc.DirectCalls``): the values ``commit`` takes from their reply, without the bytes."""
-        if y.shape != self.window.row_shape:
-            raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {y.size}")
+        itself: ``manager.bus.inproc.DirectCalls``; floats or an array): the values ``commit`` takes from their
+        reply, without the bytes."""
+        if type(y) is not list:
+            if y.shape != self.window.row_shape:
+                raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {y.size}")
+            y = y.tolist()
+        elif len(y) != len(self.sub.outputs):  # a straight-line step's: always its model's outputs
+            raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {len(y)}")
         row = step // self.sub.ratio
         window = self.window
         if row >= window.end:
             window.advance(row)
         window.array[row - window.offset] = y
-        self.newest = y.tolist()
+        self.newest = y
 
 
 def expect_reply(data: bytes, sub: SubsystemPlan, expected: Kind, step: int, command: Kind | None = None):

@@ -102,6 +102,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
+    gathered = [_gathered_inputs(s, readers) if direct and not adjusters[s.index] else None for s in subs]
     unpack_inputs = [struct.Struct(f"<{len(s.inputs)}d").unpack_from for s in subs]  # a ZOH command's values
 
     def input_polynomial(s: SubsystemPlan, tick: int, stepping: bool = True) -> np.ndarray:
@@ -148,6 +149,12 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                         command = header(VERSION, step_kind, 1, len(s.inputs), tick, tick * base, 0) + payload
                         sends[s.name] = command
                         sent[s.index] = (tick, [unpack_inputs[s.index](command, HEADER.size)])
+                        continue
+                    sources = gathered[s.index]
+                    if sources is not None:  # direct ZOH: the same values, as floats
+                        values = [reader.newest[output] for reader, output in sources]
+                        sent[s.index] = (tick, [values])
+                        stepping.append((s, values))
                         continue
                     coefficients = input_polynomial(s, tick)
                     sent[s.index] = (tick, coefficients.tolist())
@@ -214,26 +221,39 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 
-def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int, int], ...] | None:
-    """For a subsystem with zero-order inputs, every input fed once: where its input values lie in its sources'
-    newest replies, as byte ranges ``(reader of the source, start, end)`` in input order, adjacent ranges merged
-    (the command's values are then these bytes, unchanged: a ZOH polynomial is the newest sample). None otherwise."""
+def _zero_order_sources(s: SubsystemPlan) -> list[tuple[int, int]] | None:
+    """For a subsystem with zero-order inputs, every input fed once: the source and output index of each input in
+    input order (a ZOH polynomial is the sources' newest sample); None otherwise."""
     if s.order != 0:
         return None
-    where = {}
-    for feed in s.feeds:
-        for output, target in zip(feed.outputs, feed.inputs):
-            where[target] = (feed.source, HEADER.size + 8 * output)
+    where = {target: (feed.source, output) for feed in s.feeds for output, target in zip(feed.outputs, feed.inputs)}
     if sorted(where) != list(range(len(s.inputs))):
         return None
+    return [where[target] for target in range(len(s.inputs))]
+
+
+def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int, int], ...] | None:
+    """For a subsystem with zero-order inputs, every input fed once (``_zero_order_sources``): where its input values
+    lie in its sources' newest replies, as byte ranges ``(reader of the source, start, end)`` in input order,
+    adjacent ranges merged (the command's values are then these bytes, unchanged). None otherwise."""
+    sources = _zero_order_sources(s)
+    if sources is None:
+        return None
     segments: list[list[int]] = []
-    for target in range(len(s.inputs)):
-        source, start = where[target]
+    for source, output in sources:
+        start = HEADER.size + 8 * output
         if segments and segments[-1][0] == source and segments[-1][2] == start:
             segments[-1][2] = start + 8
         else:
             segments.append([source, start, start + 8])
     return tuple((readers[source], start, end) for source, start, end in segments)
+
+
+def _gathered_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int], ...] | None:
+    """As ``_copied_inputs`` for the direct path: per input, ``(reader of its source, output index)``, the value in
+    the source's newest outputs as floats (``OutputReader.newest``). None otherwise."""
+    sources = _zero_order_sources(s)
+    return None if sources is None else tuple((readers[source], output) for source, output in sources)
 
 
 def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],

@@ -58,19 +58,20 @@ class Taken:
         self.last = {s.name: encode(Kind.OUTPUT, 0, 0, y, ref=command_ref(request.sends[s.name]))
                      for s, y in outputs.items()}
 
-    def request(self, starting: list[tuple[SubsystemPlan, np.ndarray]], awaits: tuple[str, ...],
+    def request(self, starting: list[tuple[SubsystemPlan, np.ndarray | list[float]]], awaits: tuple[str, ...],
                 status: int | None, step: int, shape: int | None, due: tuple[SubsystemPlan, ...], tick: int) -> None:
         """A request of the stepping loop: STEP commands with the input polynomials of ``starting`` at ``tick``,
         awaiting ``due`` (``awaits``: their names), whose replies carry ``step``."""
         self._took()
-        self.sends = {s.name: encode(Kind.STEP, tick, tick * self.base_step_ns, coefficients, s.order + 1)
+        self.sends = {s.name: encode(Kind.STEP, tick, tick * self.base_step_ns, np.asarray(coefficients, dtype=float),
+                                     s.order + 1)
                       for s, coefficients in starting}
         self.tap.exchange(self.last, Exchange(self.sends, awaits, status, step, shape))
         self.due = due
 
-    def reply(self, s: SubsystemPlan, step: int, outputs: np.ndarray) -> None:
+    def reply(self, s: SubsystemPlan, step: int, outputs: list[float] | np.ndarray) -> None:
         """``s``'s outputs for ``step``, computed by its step from its command in the last request."""
-        self.replies[s.index] = encode(Kind.OUTPUT, step, step * self.base_step_ns, outputs,
+        self.replies[s.index] = encode(Kind.OUTPUT, step, step * self.base_step_ns, np.asarray(outputs, dtype=float),
                                        ref=command_ref(self.sends[s.name]))
 
     def end(self, status: int | None) -> None:
@@ -137,9 +138,9 @@ class TakenSteps:
         self.statuses = 0  # the block's exchanges that report a status
         # per subsystem: the block's commands (ticks, polynomials) and replies (steps, outputs)
         self.ticks: list[list[int]] = [[] for _ in range(n)]
-        self.polynomials: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self.polynomials: list[list[np.ndarray | list[float]]] = [[] for _ in range(n)]
         self.steps: list[list[int]] = [[] for _ in range(n)]
-        self.outputs: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self.outputs: list[list[list[float] | np.ndarray]] = [[] for _ in range(n)]
         self.due: tuple[SubsystemPlan, ...] = ()  # whose replies the next exchange starts with
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
 
@@ -147,7 +148,7 @@ class TakenSteps:
         """As :meth:`Taken.initial`."""
         self.initial_replies.initial(request, outputs)
 
-    def request(self, starting: list[tuple[SubsystemPlan, np.ndarray]], awaits: tuple[str, ...],
+    def request(self, starting: list[tuple[SubsystemPlan, np.ndarray | list[float]]], awaits: tuple[str, ...],
                 status: int | None, step: int, shape: int | None, due: tuple[SubsystemPlan, ...], tick: int) -> None:
         """As :meth:`Taken.request`; the polynomials are kept (not copied: the scheme makes new ones every step)."""
         if self.initial_replies is not None:  # the initialisation's last replies, before the stepping loop
@@ -171,7 +172,7 @@ class TakenSteps:
             polynomials[s.index].append(coefficients)
         self.due = due
 
-    def reply(self, s: SubsystemPlan, step: int, outputs: np.ndarray) -> None:
+    def reply(self, s: SubsystemPlan, step: int, outputs: list[float] | np.ndarray) -> None:
         """As :meth:`Taken.reply` (a copy: a model may reuse its array)."""
         self.steps[s.index].append(step)
         self.outputs[s.index].append(outputs.copy())

@@ -347,6 +347,12 @@ class MassesModel:
         """Coupling outputs followed by the mechanical energy [J] of the subsystem (incl. its coupling springs)."""
         return self.outputs_of(t, np.concatenate((z, w)))
 
+    def output_matrix(self) -> tuple[np.ndarray, int, np.ndarray | None]:
+        """``(G, k, y_0)`` of a linear, time-invariant model (``linear_dynamics``): its ``k`` linear outputs are
+        ``G[:k] s + y_0`` (``y_0`` None: no constant) and its energy ``s · G[k:] s``, ``s = [z, w]``: the products
+        ``outputs_of`` makes, for ``subsystems.straight_line``."""
+        return self._G, self._n_linear, self._y_constant
+
     def outputs_of(self, t: float, s: np.ndarray) -> np.ndarray:
         """``outputs_at`` of ``s = [z, w]`` (a subsystem keeps its linear state in such a vector)."""
         r = self._G.dot(s)
