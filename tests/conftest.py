@@ -125,3 +125,28 @@ def wait_for(predicate, timeout_s: float, what: str):
             return value
         time.sleep(0.05)
     raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+
+
+# Starts CPU-bound processes, writes their ids to a file, then becomes the command after it: in the run's session,
+# so that Linux's autogroups (one per session) do not shelter the run from them
+BUSY_PREFIX = ("import os, subprocess, sys\n"
+               "loop = [sys.executable, '-c', 'while True: pass']\n"
+               "busy = [subprocess.Popen(loop) for _ in range(int(sys.argv[1]))]\n"
+               "open(sys.argv[2], 'w').write(' '.join(str(process.pid) for process in busy))\n"
+               "os.execv(sys.argv[3], sys.argv[3:])\n")
+
+
+def busy_prefix(count: int, pids: Path) -> tuple[str, ...]:
+    """A ``processes`` prefix that keeps ``count`` CPU-bound processes running beside the command (their ids in
+    ``pids``; end them with ``end_busy``)."""
+    return sys.executable, "-c", BUSY_PREFIX, str(count), str(pids)
+
+
+def end_busy(pids: Path) -> None:
+    """Kill the CPU-bound processes ``busy_prefix`` started."""
+    busy = wait_for(lambda: pids.exists() and pids.read_text(), 60, "the busy processes' ids")
+    for pid in map(int, busy.split()):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

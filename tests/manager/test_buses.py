@@ -13,8 +13,10 @@ import time
 import numpy as np
 import pytest
 
-from tests.conftest import alive, children_of, cmdline, read_until, record_of, summary_of
+import zencosim
+from tests.conftest import alive, busy_prefix, children_of, cmdline, end_busy, read_until, record_of, summary_of
 from zencosim.manager.bus.zenoh_session import free_tcp_port
+from zencosim.scenes.topologies import mass_star
 
 pytestmark = pytest.mark.multiprocess
 
@@ -114,3 +116,23 @@ def test_a_subsystem_started_by_hand_joins_the_run(processes, tmp_path):
 
 def _inproc_digest(scene: str, *overrides: str) -> str:
     return summary_of(scene, *overrides)["digest"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_star_of_33_subsystems_starts_on_a_busy_machine(processes, tmp_path):
+    """34 processes (the hub, 32 leaves and the manager) start beside a CPU-bound process per core: the start-up
+    waits as long as the processes make progress (no fixed deadline a loaded machine misses); the run gives the
+    in-process digest (issue 26). The busy processes end once the run steps (they are the manager's children, which
+    it would wait for). On this 2-CPU machine: a 0.2 s run of it 10 s idle; this test 25 s."""
+    scene, summary, pids = tmp_path / "star33.toml", tmp_path / "summary.json", tmp_path / "busy.pids"
+    scene.write_text(mass_star(33, duration=0.05))
+    manager = processes("run", str(scene), "--bus", "zenoh", "--summary", str(summary),
+                        prefix=busy_prefix(len(os.sched_getaffinity(0)), pids))
+    try:
+        read_until(manager.stderr, "33 subsystem processes connected, starting", 560)
+    finally:
+        end_busy(pids)
+    _, stderr = manager.communicate(timeout=120)
+    assert manager.returncode == 0, stderr
+    assert json.loads(summary.read_text())["digest"] == zencosim.run(zencosim.load_scene(str(scene))).digest

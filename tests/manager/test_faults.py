@@ -24,7 +24,7 @@ import pytest
 import zenoh
 
 import zencosim.examples
-from tests.conftest import alive, children_of, cmdline, read_until, summary_of, wait_for
+from tests.conftest import alive, busy_prefix, children_of, cmdline, end_busy, read_until, summary_of, wait_for
 from tests.interop.peer_pair import write_system
 from zencosim.manager.bus.children import cpu_time_s
 from zencosim.manager.bus.zenoh_session import free_tcp_port, key, session_config, wait_for_listener
@@ -367,33 +367,18 @@ def test_a_model_that_hangs_in_process_is_named_within_the_timeout(processes, tm
                         r"every model shares it; over Zenoh each has its own\)", stderr.strip()), stderr
 
 
-# Starts CPU-bound processes, writes their ids to a file, then becomes the command after it: in the run's session,
-# so that Linux's autogroups (one per session) do not shelter the run from them
-BUSY_PREFIX = ("import os, subprocess, sys\n"
-               "loop = [sys.executable, '-c', 'while True: pass']\n"
-               "busy = [subprocess.Popen(loop) for _ in range(int(sys.argv[1]))]\n"
-               "open(sys.argv[2], 'w').write(' '.join(str(process.pid) for process in busy))\n"
-               "os.execv(sys.argv[3], sys.argv[3:])\n")
-
-
 @pytest.mark.timeout(300)
 def test_a_recorded_run_starts_on_a_machine_kept_busy(processes, tmp_path):
     """Every core busy with two CPU-bound processes: the recorder starts at normal priority (at idle priority it got
     almost no CPU and did not start within a fixed 30 s) and its start is waited for as long as it makes progress;
     the run completes. The busy processes end once the recording is open: the rest is the recorder's usual work."""
     mcap, pids = tmp_path / "busy.mcap", tmp_path / "busy.pids"
-    cores = len(os.sched_getaffinity(0))
     manager = processes("run", "two_mass_damped", "--record", str(mcap), "--quiet", "--set", "manager.duration=0.1",
-                        prefix=(sys.executable, "-c", BUSY_PREFIX, str(2 * cores), str(pids)))
+                        prefix=busy_prefix(2 * len(os.sched_getaffinity(0)), pids))
     try:
         wait_for(lambda: mcap.exists() or manager.poll() is not None, 280, "the recorder to open the recording")
     finally:
-        busy = wait_for(lambda: pids.exists() and pids.read_text(), 60, "the busy processes' ids")
-        for pid in map(int, busy.split()):
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        end_busy(pids)
     _, stderr = manager.communicate(timeout=120)
     assert manager.returncode == 0, stderr
     recording = read_recording(mcap)
