@@ -7,7 +7,7 @@ polynomial forces up to degree 15; for a smooth force of frequency ω its relati
 """
 from __future__ import annotations
 
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 from scipy.linalg import expm
@@ -40,3 +40,24 @@ def linear_response_states(A: np.ndarray, z0: np.ndarray, step: float, n_steps: 
         forced = sum(G @ np.atleast_1d(force(t + s)) for G, s in zip(kernels, offsets))
         z = Phi @ z + forced
         yield z
+
+
+def free_response_blocks(power: Callable[[int], np.ndarray], z0: np.ndarray, n_steps: int,
+                         rows: int) -> Iterator[np.ndarray]:
+    """The states ``z_k = Φ^k z0``, ``k = 0 … n_steps``, ``rows`` at a time (the last block shorter), with ``power(m)``
+    giving ``Φ^m`` (``expm(A m h)`` for the exact solution, a step matrix's power for a discrete one): the first block
+    by doubling (``z_{m+i} = Φ^m z_i``), each next one the block before times ``Φ^rows`` — a few matrix products per
+    block instead of one per state (the same map; the products round differently)."""
+    block = np.empty((min(rows, n_steps + 1), len(z0)))
+    block[0] = z0
+    filled = 1
+    while filled < len(block):
+        count = min(filled, len(block) - filled)
+        block[filled:filled + count] = block[:count] @ power(filled).T
+        filled += count
+    yield block
+    done, jump = len(block), power(len(block)).T if len(block) < n_steps + 1 else None
+    while done < n_steps + 1:
+        block = (block @ jump)[:n_steps + 1 - done]
+        done += len(block)
+        yield block

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import numpy as np
+from scipy.linalg import expm
 
-from zencosim.compensation.analytic import linear_response_states
+from zencosim.compensation.analytic import free_response_blocks, linear_response_states
 from zencosim.manager.analysis.monolithic import build_monolithic
 from zencosim.manager.assembly import build_subsystems
 from zencosim.manager.plan.run_plan import compile_plan
@@ -80,25 +81,22 @@ def _monolithic_rows(n_ticks: int, ports, spill: Spill | None) -> tuple[_Referen
     return _ReferenceRows(n_ticks, [ports[j].name for j in signals], spill), [*signals, -1]
 
 
-def _put_free_response(rows: _ReferenceRows, columns: list[int], model, states: Iterator[np.ndarray],
+def _put_free_response(rows: _ReferenceRows, columns: list[int], model, blocks: Iterator[np.ndarray],
                        step: float) -> None:
-    """The outputs (``columns`` of them) of the monolithic ``model``, which has no inputs, at ``states``, the
-    states at ticks 0, 1, … ``step`` [s] apart: a block of states at a time, their outputs in two matrix
-    products (``MassesModel.outputs_of_rows``), so that a reference costs a few products per sample, not a run."""
+    """The outputs (``columns`` of them) of the monolithic ``model``, which has no inputs, at the states in
+    ``blocks`` (rows of states at ticks 0, 1, … ``step`` [s] apart): their outputs in two matrix products a block
+    (``MassesModel.outputs_of_rows``), so that a reference costs a few products per block, not a run."""
     first = 0
-    while block := list(itertools.islice(states, BLOCK_ROWS)):
+    for block in blocks:
         times = np.arange(first, first + len(block)) * step
-        rows.put_rows(first, model.outputs_of_rows(times, np.array(block))[:, columns])
+        rows.put_rows(first, model.outputs_of_rows(times, block)[:, columns])
         first += len(block)
 
 
-def _free_states(step_matrix: np.ndarray, z0: np.ndarray, n_steps: int) -> Iterator[np.ndarray]:
-    """``z0`` and the ``n_steps`` states after it, each the product of ``step_matrix`` with the one before."""
-    z = z0
-    yield z
-    for _ in range(n_steps):
-        z = step_matrix.dot(z)
-        yield z
+def _blocks(states: Iterator[np.ndarray]) -> Iterator[np.ndarray]:
+    """``states``, one at a time, as blocks of ``BLOCK_ROWS`` rows."""
+    while block := list(itertools.islice(states, BLOCK_ROWS)):
+        yield np.array(block)
 
 
 def analytic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
@@ -122,8 +120,11 @@ def analytic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
             B[n:, j] = Minv[:, body]
         force = lambda t: np.array([effect.force(t) for effect, _ in model.external])  # noqa: E731
     rows, columns = _monolithic_rows(n_ticks, model.outputs, spill)
-    _put_free_response(rows, columns, model, linear_response_states(A, model.initial_state(), step, n_ticks, B, force),
-                       step)
+    if force is None:  # z(k h) = e^{A k h} z0, a block at a time
+        states = free_response_blocks(lambda m: expm(A * (m * step)), model.initial_state(), n_ticks, BLOCK_ROWS)
+    else:
+        states = _blocks(linear_response_states(A, model.initial_state(), step, n_ticks, B, force))
+    _put_free_response(rows, columns, model, states, step)
     return rows.finish("analytic")
 
 
@@ -136,8 +137,10 @@ def monolithic_reference(scene: Scene, spill: Spill | None = None) -> Reference:
     no_inputs = InputPolynomial(np.empty((1, 0)))
     rows, columns = _monolithic_rows(n_ticks, mono.outputs, spill)
     step_matrix = mono.free_step(base)
-    if step_matrix is not None:  # linear: the states as advance computes them, one product each
-        _put_free_response(rows, columns, mono.model, _free_states(step_matrix, mono.z.copy(), n_ticks), base * 1e-9)
+    if step_matrix is not None:  # linear: the states of advance's step matrix, a block at a time
+        blocks = free_response_blocks(lambda m: np.linalg.matrix_power(step_matrix, m), mono.z.copy(), n_ticks,
+                                      BLOCK_ROWS)
+        _put_free_response(rows, columns, mono.model, blocks, base * 1e-9)
         return rows.finish("monolithic")
     rows.put(0, np.asarray(mono.output_values(np.empty(0)), dtype=float)[columns])
     for k in range(n_ticks):
