@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.integrate import solve_ivp
 
-from zencosim.compensation.analytic import linear_response
+from zencosim.compensation.analytic import free_response_blocks, linear_response
 from zencosim.manager.analysis.monolithic import build_monolithic, linear_model
 from zencosim.manager.results.reference import analytic_reference, monolithic_reference
 from zencosim.manager.results.summary import nrms
@@ -68,12 +68,28 @@ def test_linear_model_of_the_four_mass_chain_is_paper_000_eq_44_45():
     assert (bond.force_dof, bond.motion_dof, bond.stiffness, bond.damping) == (1, 2, 300.0, 0.03)
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 70), st.integers(1, 16))
+def test_free_response_blocks_are_the_states_one_product_after_another(n_steps, rows):
+    """Every state once, in order, in blocks of ``rows`` (the last shorter), equal to the products one after
+    another to rounding: a damped oscillator's step matrix, whose powers decay, so 1e-13 of the initial state's size
+    bounds the difference of any order of adding."""
+    Phi = np.array([[0.99, 0.01], [-0.5, 0.98]])
+    z = np.array([0.3, -1.0])
+    expected = [z]
+    for _ in range(n_steps):
+        expected.append(Phi @ expected[-1])
+    blocks = list(free_response_blocks(lambda m: np.linalg.matrix_power(Phi, m), z, n_steps, rows))
+    assert [len(block) for block in blocks[:-1]] == [rows] * (len(blocks) - 1) and 1 <= len(blocks[-1]) <= rows
+    assert np.abs(np.concatenate(blocks) - np.array(expected)).max() <= 1e-13
+
+
 @pytest.mark.parametrize("name", ["two_mass_damped", "four_mass", "multiple_oscillator_n5", "double_oscillator"])
 def test_the_monolithic_reference_is_the_monolithic_model_stepped_and_evaluated_sample_by_sample(name):
-    """The reference takes the step matrix and evaluates outputs a block of samples at a time (two products, not
-    a run of the model); it equals stepping the monolithic subsystem with ``advance`` and its outputs, sample by
-    sample: the states bit for bit (the same product), the outputs to rounding (gemm and gemv may add in another
-    order: a few ulps of each signal's range, far inside 1e-12)."""
+    """The reference takes the step matrix's powers and evaluates outputs a block of samples at a time (a few
+    products, not a run of the model); it equals stepping the monolithic subsystem with ``advance`` and its outputs,
+    sample by sample, to rounding (powers and products add in another order: a few ulps of each signal's range, far
+    inside 1e-12)."""
     scene = load_scene(name, ["manager.duration=3.0"])
     fast = monolithic_reference(scene)
     mono = build_monolithic(scene)
@@ -102,3 +118,21 @@ def test_outputs_of_rows_are_outputs_of_each_row(states, name):
     k = len(model.outputs) - 1
     bound = np.column_stack((magnitudes[:, :k], np.sum(magnitudes[:, k:] * np.abs(S), axis=1)))
     assert np.all(np.abs(model.outputs_of_rows(times, S) - expected) <= 1e-13 * (bound + 1e-300))
+
+
+def test_a_long_analytic_reference_is_the_exact_solution_sample_by_sample():
+    """20,000 samples, past the first block (``BLOCK_ROWS``): the blocks' states against ``linear_response``'s, one
+    product after another, in every signal to 1e-12 of its range (both the exact map, rounded differently)."""
+    scene = load_scene("two_mass_damped", ["manager.duration=20"])
+    reference = analytic_reference(scene)
+    model = build_monolithic(scene).model
+    n = model.n_dof
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n], A[n:, n:] = -np.linalg.solve(model.M, model.K), -np.linalg.solve(model.M, model.C)
+    states = linear_response(A, model.initial_state(), scene.manager.macro_step, 20_000)
+    outputs = model.outputs_of_rows(np.arange(20_001) * scene.manager.macro_step, states)
+    columns = {port.name: j for j, port in enumerate(model.outputs)}
+    for signal, values in [*reference.signals.items(), ("energy", reference.energy)]:
+        expected = outputs[:, columns[signal] if signal != "energy" else -1]
+        assert np.max(np.abs(values - expected)) <= 1e-12 * np.max(np.abs(expected)), signal
