@@ -31,7 +31,9 @@ class DirectCalls:
 
     def __init__(self, plan: Plan, subsystems: dict[str, Subsystem]) -> None:
         self.subsystems = [subsystems[s.name] for s in plan.subsystems]
+        self.advance = [subsystem.advance_values for subsystem in self.subsystems]
         self.base_step_ns = plan.base_step_ns
+        self.comm_step_ns = [s.ratio * plan.base_step_ns for s in plan.subsystems]
         self.watch = model_watch()
         # in a watched run, the watch's number of each subsystem whose calls it marks (watched_models); else None
         marked = watched_models(subsystems) if self.watch.shared else set()
@@ -49,14 +51,14 @@ class DirectCalls:
 
     def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
         # initial's body over advance_values, written out: the stepping loop's path, with no further call in between
+        i = s.index
         t0_ns = tick * self.base_step_ns
-        arguments = (t0_ns, t0_ns + s.ratio * self.base_step_ns, coefficients)
-        mark = self.marks[s.index]
+        mark = self.marks[i]
         try:
             if mark is None:
-                return self.subsystems[s.index].advance_values(*arguments)
+                return self.advance[i](t0_ns, t0_ns + self.comm_step_ns[i], coefficients)
             with self.watch.marking(mark, STEPPING, t0_ns):
-                return self.subsystems[s.index].advance_values(*arguments)
+                return self.advance[i](t0_ns, t0_ns + self.comm_step_ns[i], coefficients)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
             raise self._failure(s, tick + s.ratio, error) from None
 

@@ -336,8 +336,12 @@ def _bond_residual_power(readers: list[OutputReader], sent: list, bond, componen
     f_row = readers[bond.force_side].newest
     m_row = readers[bond.motion_side].newest
     f_tau, m_tau = (tick - f_start) * step_s, (tick - m_start) * step_s
+    f_constant, m_constant = len(f_coefficients) == 1, len(m_coefficients) == 1  # ZOH: the value, no call
     delta_p = 0.0
     for force, velocity_input, force_input, velocity in components:
-        delta_p += residual_power(f_row[force], evaluate(f_coefficients, velocity_input, f_tau),
-                                  evaluate(m_coefficients, force_input, m_tau), m_row[velocity])
+        delta_p += residual_power(
+            f_row[force],
+            f_coefficients[0][velocity_input] if f_constant else evaluate(f_coefficients, velocity_input, f_tau),
+            m_coefficients[0][force_input] if m_constant else evaluate(m_coefficients, force_input, m_tau),
+            m_row[velocity])
     return delta_p
