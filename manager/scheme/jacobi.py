@@ -41,7 +41,7 @@ from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficient
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.residual import residual_power
-from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
+from zencosim.manager.scheme.tapped import BLOCK_STEPS, Taken, TakenSteps, taken_for
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
 from zencosim.manager.wire.status import StatusReport
@@ -121,10 +121,17 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    # a direct run's messages, for its tap (manager.scheme.tapped)
-    taken = taken_for(tap, plan, pacer is not None) if direct is not None and tap is not None else None
-    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     period, stages = _schedule(plan, local, tracked)
+    # a direct run's messages, for its tap (manager.scheme.tapped): request by request, or appended to a block's lists
+    taken = (taken_for(tap, plan, pacer is not None, status is not None, stages)
+             if direct is not None and tap is not None else None)
+    block = taken if isinstance(taken, TakenSteps) else None
+    if block is not None:
+        block_ticks, block_shapes, block_commands, block_outputs = block.ticks, block.shapes, block.commands, \
+            block.outputs
+    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
+    if block is not None:
+        block.start()
     n_stages = len(plan.stages)
     some_bonds_idle = [len(bonds) < n_bonds for _, bonds in stages]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
@@ -178,12 +185,22 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                     for s in due:
                         readers[s.index].commit(replies[s.name], due_step)
                     continue
-                if taken is not None:
+                if block is not None:  # its commands, then the request (TakenSteps: nothing called per step)
+                    if shape == 0 and len(block_ticks) >= BLOCK_STEPS:  # a period starts: every command answered
+                        block.flush()
+                    for s, coefficients in stepping:
+                        block_commands[s.index].extend(coefficients if type(coefficients) is list
+                                                       else coefficients.ravel().tolist())
+                    block_ticks.append(tick)
+                    block_shapes.append(shape)
+                elif taken is not None:
                     taken.request(stepping, due_names, None if number else step_status, due_step, shape, due, tick)
                 for s, coefficients in stepping:
-                    computed[s.index] = direct.step(s, tick, coefficients)
-                    if taken is not None:
-                        taken.reply(s, tick + s.ratio, computed[s.index])
+                    y = computed[s.index] = direct.step(s, tick, coefficients)
+                    if block is not None:
+                        block_outputs[s.index].extend(y if type(y) is list else y.tolist())
+                    elif taken is not None:
+                        taken.reply(s, tick + s.ratio, y)
                 stepping.clear()
                 for s in due:
                     readers[s.index].commit_values(computed[s.index], due_step)

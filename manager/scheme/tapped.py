@@ -29,13 +29,14 @@ BLOCK_STEPS = 256  # requests of the stepping loop handed over at once (TakenSte
 LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tapped exchange by exchange
 
 
-def taken_for(tap, plan: Plan, paced: bool) -> Taken | TakenSteps:
+def taken_for(tap, plan: Plan, paced: bool, status: bool, stages: list[tuple]) -> Taken | TakenSteps:
     """What hands a direct run's messages to ``tap``: blocks of arrays where the tap takes them (``take_steps``), the
     run is not paced (a real-time run's live view follows it step by step) and a block, which holds whole schedule
     periods, stays small (the lcm of the communication ratios at most ``LONGEST_PERIOD`` base steps); else
-    exchange by exchange."""
+    exchange by exchange. ``status``: the run reports its status; ``stages``: its schedule's phases
+    (``manager.scheme.jacobi._schedule``)."""
     if not paced and hasattr(tap, "take_steps") and math.lcm(*(s.ratio for s in plan.subsystems)) <= LONGEST_PERIOD:
-        return TakenSteps(tap, plan)
+        return TakenSteps(tap, plan, status, stages)
     return Taken(tap, plan)
 
 
@@ -124,105 +125,105 @@ class TakenSteps:
     """What :class:`Taken` hands its tap, as a :class:`StepsBlock` to ``tap.take_steps`` at the first schedule period
     that starts after ``BLOCK_STEPS`` requests, when the run ends and when it fails. The initialisation's rounds go
     to ``tap.exchange`` as :class:`Taken` hands them, and so do the replies of its last round, with a request that
-    sends nothing (a replica hands them with the first request of the stepping loop: the same messages, in the same
-    order)."""
+    sends nothing (``start``; a replica hands them with the first request of the stepping loop: the same messages,
+    in the same order).
 
-    def __init__(self, tap, plan: Plan) -> None:
+    The stepping loop calls nothing here per step: it appends to flat lists of numbers (``manager.scheme.jacobi``) —
+    each request's tick and shape to ``ticks`` and ``shapes`` (after its commands), each command's polynomial
+    (its values, rows after rows) to ``commands`` and each reply's outputs to ``outputs`` of its subsystem — and
+    calls ``flush`` where a period starts after a full block. Flat lists of floats, not a list per message: the
+    cyclic garbage collector walks every list a block keeps alive, and with a list per message that walk cost more
+    than the rest of the tap. The rest follows from the schedule: a request of shape ``phase × stages + stage``
+    commands the subsystems that start there and awaits those due there (``jacobi._schedule``), a status comes with
+    each stage-0 request but the run's first, and a subsystem's k-th reply answers its k-th command (its step: the
+    command's tick plus its ratio)."""
+
+    def __init__(self, tap, plan: Plan, status: bool, stages: list[tuple]) -> None:
         self.tap = tap
         self.plan = plan
         n = len(plan.subsystems)
         self.names = tuple(s.name for s in plan.subsystems)
+        self.status = status  # the run reports its status (each stage-0 request but the first carries it)
+        self.n_stages = len(plan.stages)
+        # per request shape: the subsystems it commands and those whose replies it awaits (plan indices; and as masks)
+        shaped = [stage for phase_stages, _ in stages for stage in phase_stages]
+        self.commanded = [tuple(s.index for s in stage[0]) for stage in shaped]
+        self.awaited = [tuple(s.index for s in stage[2]) for stage in shaped]
+        self.commands_mask = np.array([[i in c for i in range(n)] for c in self.commanded], dtype=bool).reshape(-1, n)
+        self.awaits_mask = np.array([[i in a for i in range(n)] for a in self.awaited], dtype=bool).reshape(-1, n)
         self.layout_of: dict[tuple, int] = {}  # layout → its number in every block
-        self.layout_of_shape: dict[int, int] = {}  # a request's shape → its layout's number (not a block's first)
-        self.order: list[int] = []  # the block's exchanges, by layout
-        self.statuses = 0  # the block's exchanges that report a status
-        # per subsystem: the block's commands (ticks, polynomials) and replies (steps, outputs)
-        self.ticks: list[list[int]] = [[] for _ in range(n)]
-        self.polynomials: list[list[np.ndarray | list[float]]] = [[] for _ in range(n)]
-        self.steps: list[list[int]] = [[] for _ in range(n)]
-        self.outputs: list[list[list[float] | np.ndarray]] = [[] for _ in range(n)]
-        self.due: tuple[SubsystemPlan, ...] = ()  # whose replies the next exchange starts with
+        self.ticks: list[int] = []  # the block's requests: their ticks
+        self.shapes: list[int | None] = []  # and their shapes
+        self.commands: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its polynomials' values, flat
+        self.outputs: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its replies' outputs, flat
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
 
     def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
         """As :meth:`Taken.initial`."""
         self.initial_replies.initial(request, outputs)
 
-    def request(self, starting: list[tuple[SubsystemPlan, np.ndarray | list[float]]], awaits: tuple[str, ...],
-                status: int | None, step: int, shape: int | None, due: tuple[SubsystemPlan, ...], tick: int) -> None:
-        """As :meth:`Taken.request`; the polynomials are kept (not copied: the scheme makes new ones every step)."""
-        if self.initial_replies is not None:  # the initialisation's last replies, before the stepping loop
-            if self.initial_replies.last:
-                self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
-            self.initial_replies = None
-        elif shape == 0 and len(self.order) >= BLOCK_STEPS:  # a schedule period starts: every command is answered
-            self.flush()
-        if not self.order:  # a block's first exchange: the replies before it ended the block before
-            layout = self._layout((), status is not None, tuple(s for s, _ in starting))
-        else:
-            layout = self.layout_of_shape.get(shape)
-            if layout is None:
-                layout = self.layout_of_shape[shape] = self._layout(self.due, status is not None,
-                                                                    tuple(s for s, _ in starting))
-        self.order.append(layout)
-        self.statuses += status is not None
-        ticks, polynomials = self.ticks, self.polynomials
-        for s, coefficients in starting:
-            ticks[s.index].append(tick)
-            polynomials[s.index].append(coefficients)
-        self.due = due
-
-    def reply(self, s: SubsystemPlan, step: int, outputs: list[float] | np.ndarray) -> None:
-        """As :meth:`Taken.reply` (a copy: a model may reuse its array)."""
-        self.steps[s.index].append(step)
-        self.outputs[s.index].append(outputs.copy())
+    def start(self) -> None:
+        """The stepping loop starts: the initialisation's last replies, with a request that sends nothing."""
+        if self.initial_replies.last:
+            self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
 
     def end(self, status: int | None) -> None:
-        """The run has ended: the last status, then the replies of the last request."""
-        if status is not None:
-            self.order.append(self._layout(self.due, True, ()))
-            self.statuses += 1
-            self.due = ()
-        self.flush(last=True)
+        """The run has ended: the replies of the last request, with the last status."""
+        self.flush(last=True, status=status is not None)
 
     def failed(self) -> None:
         """The run ended in the last request: the block up to its commands (the replies it awaits never came)."""
-        self.due = ()
-        self.flush()
+        self.flush(answered=False)
 
-    def flush(self, last: bool = False) -> None:
-        """Hand the block over, ended by the replies of its last exchange (nothing when it holds no exchange);
-        ``last``: the run's last. The block holds the replies its exchanges hand over (not those of a last request
-        that the scheme never took: a run that failed or was interrupted), and it is built before anything is
-        cleared, so that an interrupt while it is built leaves it whole for ``failed``."""
-        if self.due:
-            self.order.append(self._layout(self.due, False, ()))
-            self.due = ()
-        if not self.order:
+    def flush(self, last: bool = False, answered: bool = True, status: bool = False) -> None:
+        """Hand the block over (nothing when it holds no request), ended by the replies of its last request
+        (``answered``; with the run's last status: ``status``); ``last``: the run's last. The block holds the
+        replies its requests hand over (not those of a last request that the scheme never took: a run that failed
+        or was interrupted), and it is built before anything is cleared, so that an interrupt while it is built
+        leaves it whole for ``failed``."""
+        count = min(len(self.ticks), len(self.shapes))  # requests made (an interrupt may fall between the two)
+        if not count and not status:
             return
+        shapes = np.array(self.shapes[:count], dtype=float)  # the run's first request: None, here NaN
+        first = np.isnan(shapes)
+        shapes = np.where(first, 0, shapes).astype(np.int64)  # ... of shape 0, without the status
+        ticks = np.array(self.ticks[:count], dtype=np.int64)
+        before = np.concatenate(([-1], shapes[:-1])) if count else shapes  # each request follows the replies of the
+        # one before it; the block's first, none (the block before ended with them)
+        carries = (shapes % self.n_stages == 0) & ~first & self.status
+        n_shapes = len(self.commanded)
+        codes = (before + 1) * (2 * n_shapes) + carries * n_shapes + shapes
+        kinds, kind_of = np.unique(codes, return_inverse=True)
+        numbers = [self._layout(self.awaited[code // (2 * n_shapes) - 1] if code >= 2 * n_shapes else (),
+                                bool(code % (2 * n_shapes) >= n_shapes), self.commanded[code % n_shapes])
+                   for code in kinds.tolist()]
+        order = np.array(numbers, dtype=np.uint32)[kind_of].tolist()
+        statuses = int(carries.sum())
+        handed = self.awaits_mask[before[before >= 0]].sum(axis=0)  # replies each subsystem hands over in the block
+        due = self.awaited[shapes[-1]] if count and answered else ()
+        if due or status:
+            order.append(self._layout(due, status, ()))
+            statuses += status
+            handed[list(due)] += 1
+        commanded = self.commands_mask[shapes]
         layouts = list(self.layout_of)
-        handed = [0] * len(self.names)  # replies each subsystem hands over in the block
-        for (replying, _, _), uses in zip(layouts, np.bincount(self.order, minlength=len(layouts)).tolist()):
-            for i in replying:
-                handed[i] += uses
         subsystems = []
         for s in self.plan.subsystems:
-            i, width, k = s.index, (s.order + 1) * len(s.inputs), handed[s.index]
-            ticks, polynomials = self.ticks[i], self.polynomials[i]
+            i, width, k = s.index, (s.order + 1) * len(s.inputs), int(handed[s.index])
+            sent, n_outputs = ticks[commanded[:, i]], len(s.outputs)
             subsystems.append(SubsystemSteps(
-                np.array(ticks, dtype=np.int64),
-                np.concatenate(polynomials).reshape(len(ticks), width) if ticks else np.zeros((0, width)), s.order + 1,
-                np.array(self.steps[i][:k], dtype=np.int64),
-                np.concatenate(self.outputs[i][:k]).reshape(k, len(s.outputs)) if k else np.zeros((0, len(s.outputs)))))
-        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, np.array(self.order, dtype=np.uint32),
-                           subsystems, self.statuses, last)
-        for kept in (self.ticks, self.polynomials, self.steps, self.outputs):
+                sent, np.array(self.commands[i][:len(sent) * width], dtype=float).reshape(len(sent), width),
+                s.order + 1, sent[:k] + s.ratio,
+                np.array(self.outputs[i][:k * n_outputs], dtype=float).reshape(k, n_outputs)))
+        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, np.array(order, dtype=np.uint32),
+                           subsystems, statuses, last)
+        for kept in (self.commands, self.outputs):
             for each in kept:
                 each.clear()
-        self.order, self.statuses = [], 0
+        self.ticks.clear()
+        self.shapes.clear()
         self.tap.take_steps(block)
 
-    def _layout(self, replying: tuple[SubsystemPlan, ...], status: bool, commanded: tuple[SubsystemPlan, ...]) -> int:
-        """The number of the layout (subsystems replying, status, subsystems commanded), by plan index."""
-        key = (tuple(s.index for s in replying), status, tuple(s.index for s in commanded))
-        return self.layout_of.setdefault(key, len(self.layout_of))
+    def _layout(self, replying: tuple[int, ...], status: bool, commanded: tuple[int, ...]) -> int:
+        """The number of the layout (subsystems replying, status, subsystems commanded: plan indices)."""
+        return self.layout_of.setdefault((replying, status, commanded), len(self.layout_of))

@@ -18,6 +18,7 @@ from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
+from zencosim.manager.scheme.jacobi import _schedule
 from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.wire.protocol import HEADER
@@ -206,9 +207,14 @@ def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():
                    "subsystems.M2.micro_step=0.000001", "manager.duration=0.008198"]
     plan, _ = plan_scene(load_scene("double_oscillator", long_period))
     recorder = _FramesRecorder(plan, StatusReport(plan, False))
-    assert isinstance(taken_for(recorder, plan, False), Taken)
-    assert isinstance(taken_for(recorder, plan_scene(load_scene("hydraulic_crane"))[0], True), Taken)
-    assert isinstance(taken_for(recorder, plan_scene(load_scene("hydraulic_crane"))[0], False), TakenSteps)
+    crane = plan_scene(load_scene("hydraulic_crane"))[0]
+
+    def taken(plan, paced):
+        every = frozenset(range(len(plan.subsystems)))
+        return taken_for(recorder, plan, paced, True, _schedule(plan, every, every)[1])
+    assert isinstance(taken(plan, False), Taken)
+    assert isinstance(taken(crane, True), Taken)
+    assert isinstance(taken(crane, False), TakenSteps)
     seen = []
     for direct in (False, True):
         scene = load_scene("double_oscillator", long_period)
