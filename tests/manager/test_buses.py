@@ -136,3 +136,21 @@ def test_a_star_of_33_subsystems_starts_on_a_busy_machine(processes, tmp_path):
     _, stderr = manager.communicate(timeout=120)
     assert manager.returncode == 0, stderr
     assert json.loads(summary.read_text())["digest"] == zencosim.run(zencosim.load_scene(str(scene))).digest
+
+
+def _short(name: str) -> zencosim.Scene:
+    """A bundled scene run for 0.1 s, or for its own duration where one schedule period is longer."""
+    try:
+        return zencosim.load_scene(name, {"manager.duration": 0.1})
+    except zencosim.SceneError:
+        return zencosim.load_scene(name)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(180)
+@pytest.mark.parametrize("name", zencosim.bundled_scenes())
+def test_every_bundled_scene_gives_one_digest_on_both_buses(name):
+    """Issue 26: the in-process path (straight-line steps, arrays) and the Zenoh processes (the same steps, through
+    the wire protocol) give one digest for every bundled scene."""
+    scene = _short(name)
+    assert zencosim.run(scene, "zenoh").digest == zencosim.run(scene).digest
