@@ -75,8 +75,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
     ``direct``: the subsystems, which the scheme then calls itself (``manager.bus.inproc.DirectCalls``: an in-process
     run): it yields nothing and hands them arrays; every value is the one the messages carry. With ``tap`` too (a
-    recorded in-process run), it encodes the commands and the replies the subsystems would have sent and hands
-    them to the tap exactly as a replica driving it would (``manager.scheme.replica``)."""
+    recorded in-process run), it hands the tap the commands and the replies the subsystems would have sent, as a
+    replica driving it would (``manager.scheme.replica``): encoded request by request, or their values kept in
+    blocks that the recorder encodes (``manager.scheme.tapped``)."""
     subs = plan.subsystems
     base = plan.base_step_ns
     n_ticks = plan.n_ticks
