@@ -35,6 +35,7 @@ from zencosim.subsystems.units import BASE, UnitError, exponents
 INTERFACES = {"co-simulation": "coSimulation", "model-exchange": "modelExchange"}
 REAL_TYPES = ("Real", "Float64")
 _WARNING = 1  # fmi2Warning and fmi3Warning: a status above it (discard, error, fatal) fails the call
+FMI2_FALSE = ctypes.c_int(0)  # fmi2Boolean, as a bare call passes it (_bare)
 # FMI type -> (kind, the fmpy setter and getter of an FMI 2.0 or 3.0 instance): Integer and Boolean variables
 # are exchanged as float64 values like every other and converted at the FMU's boundary
 DISCRETE_TYPES = {"Integer": ("Integer", "Integer"), "Int32": ("Integer", "Int32"), "Int64": ("Integer", "Int64"),
@@ -217,14 +218,17 @@ class _FmuInstance:
                         f"({_STATUS.get(error.status, 'unknown')}) while {what} at t = {self.time:.9g} s")
 
     def _real_calls(self, set_name: str, get_name: str) -> None:
-        """The FMU's own set and get of its real variables, called on the preallocated arrays: fmpy's ctypes
-        functions with the argument types fmpy gave them (``getattr`` on its library keeps them), without its
-        Python wrapper, which logs and checks every call (``set_inputs`` and ``get_outputs`` check the status)."""
-        fmu, n_u, n_y = self.fmu, len(self._u_view), len(self._y_view)
-        self._set, self._get = getattr(fmu.dll, set_name), getattr(fmu.dll, get_name)
+        """The FMU's own set and get of its real variables, called on the preallocated arrays (``set_inputs`` and
+        ``get_outputs`` check the status they return): bare handles on the library's functions (``_bare``), their
+        arguments built once as the C types FMI declares (the instance pointer, the value references, ``size_t``
+        counts, the values)."""
+        n_u, n_y = len(self._u_view), len(self._y_view)
+        self._set, self._get = _bare(self.fmu.dll, set_name), _bare(self.fmu.dll, get_name)
         extra = self.version == "3"  # FMI 3.0 takes the number of values too
-        self._set_arguments = (fmu.component, self._inputs, n_u, self._u) + ((n_u,) if extra else ())
-        self._get_arguments = (fmu.component, self._outputs, n_y, self._y) + ((n_y,) if extra else ())
+        self._instance = ctypes.c_void_p(self.fmu.component)
+        n_u_arg, n_y_arg = ctypes.c_size_t(n_u), ctypes.c_size_t(n_y)
+        self._set_arguments = (self._instance, self._inputs, n_u_arg, self._u) + ((n_u_arg,) if extra else ())
+        self._get_arguments = (self._instance, self._outputs, n_y_arg, self._y) + ((n_y_arg,) if extra else ())
 
     def _discrete(self, names: tuple[str, ...], types: dict[str, str], verb: str) -> list[tuple]:
         """(positions, value references, fmpy's setter or getter, Boolean?) of the Integer and Boolean variables
@@ -289,7 +293,11 @@ class _FmuInstance:
 
 
 class FmuCoSimulation(_FmuInstance):
-    """An FMU advancing itself with ``doStep``."""
+    """An FMU advancing itself with ``doStep``. Its outputs right after a step whose inputs are the ones they are
+    read with (a zero-order input polynomial: always) are read without setting the inputs again, as libcosim
+    reads them: an FMU's input keeps the value last set until it is set again."""
+
+    _stepped_with: list[float] | None = None  # the real inputs of the last doStep, until the outputs are read
 
     def _instantiate(self, model, description: ComponentDescription, instance_name: str):
         if self.version == "2":
@@ -307,7 +315,7 @@ class FmuCoSimulation(_FmuInstance):
         fmu = self.fmu
         if self.version == "2":
             self._real_calls("fmi2SetReal", "fmi2GetReal")
-            self._step = getattr(fmu.dll, "fmi2DoStep")  # called as the others, on the status it returns
+            self._step = _bare(fmu.dll, "fmi2DoStep")  # called as the others, on the status it returns
             self._serialize, self._deserialize = fmu.serializeFMUstate, fmu.deSerializeFMUstate
             fmu.setupExperiment(startTime=0.0)
             _set_start(fmu.setReal, self.references, start)
@@ -326,8 +334,9 @@ class FmuCoSimulation(_FmuInstance):
         self.time = t
         try:
             self.set_inputs(u)
+            self._stepped_with = None if self._discrete_u else u.tolist()
             if self.version == "2":  # 0: no fmi2SetFMUstate to an earlier time promised (zencosim may roll back)
-                status = self._step(self.fmu.component, t, h, 0)
+                status = self._step(self._instance, ctypes.c_double(t), ctypes.c_double(h), FMI2_FALSE)
                 if status > _WARNING:
                     raise self.FailedCall(function="fmi2DoStep", status=status)
                 return
@@ -340,10 +349,16 @@ class FmuCoSimulation(_FmuInstance):
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         self.time = t
         try:
-            self.set_inputs(u)
+            if self._stepped_with is None or u.tolist() != self._stepped_with:
+                self.set_inputs(u)
+            self._stepped_with = None
             return self.get_outputs()
         except self.FailedCall as error:
             raise self.failure(error, "reading its outputs") from None
+
+    def restore_state(self, state) -> None:
+        self._stepped_with = None  # the restored FMU holds the inputs of its saved state
+        super().restore_state(state)
 
 
 class FmuModelExchange(_FmuInstance):
@@ -424,3 +439,14 @@ def open_fmu(path: Path, description: ComponentDescription, start: dict[str, flo
     """An instance of the FMU for one subsystem (see :class:`~.component.Instance`)."""
     cls = FmuCoSimulation if description.interface == "co-simulation" else FmuModelExchange
     return cls(path, description, start, inputs, outputs, instance_name)
+
+
+
+def _bare(library: ctypes.CDLL, name: str):
+    """A handle on ``name`` in the FMU's library without fmpy's argument types (``library[name]`` makes a new one;
+    ``getattr`` returns fmpy's): ctypes then passes arguments that are already of the C types as they are, where
+    converting them through the declared types cost about 3,500 instructions a call (valgrind; a call is 9,000);
+    it returns the FMI status, an int."""
+    function = library[name]
+    function.restype = ctypes.c_int
+    return function

@@ -196,6 +196,11 @@ class ExternalModel:
         self.instance = self._open(ports.component_inputs, ports.component_outputs)
         if self.second_order:
             self.n_dof = len(self.instance.initial_state()) // 2
+        if self._u_plain:  # zencosim's inputs are the component's: its own calls, one Python frame fewer a step
+            if hasattr(self.instance, "do_step"):
+                self.do_step = self.instance.do_step
+            if self._y.identity:  # and its outputs zencosim's
+                self.outputs_at = self.instance.outputs
 
     def _open(self, inputs: tuple[str, ...], outputs: tuple[str, ...]):
         raise NotImplementedError
