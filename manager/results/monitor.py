@@ -49,7 +49,8 @@ class SpikeMonitor:
 
     def __init__(self, window: float, threshold: float, merge_gap: float) -> None:
         self.window, self.threshold, self.merge_gap = window, threshold, merge_gap
-        self.history: deque[tuple[float, float]] = deque()  # (time, |δP|) of the unflagged points in the window
+        self.times: deque[float] = deque()  # the times of the unflagged points in the window
+        self.magnitudes: deque[float] = deque()  # and their |δP|
         self.ordered: list[float] = []  # the same magnitudes, sorted (a running median in O(log n) + memmove)
         self.start: float | None = None
         self.intervals: list[SpikeInterval] = []
@@ -58,19 +59,26 @@ class SpikeMonitor:
     def flags(self, t: np.ndarray, p_res: np.ndarray) -> np.ndarray:
         """Boolean mask of the flagged points among the next points ``t`` [s], ``p_res`` [W]."""
         flagged = np.zeros(len(t), dtype=bool)
-        history, ordered, window = self.history, self.ordered, self.window
+        times, magnitudes, ordered = self.times, self.magnitudes, self.ordered
+        window, threshold = self.window, self.threshold
         if self.start is None and len(t):
             self.start = float(t[0])
+        start = self.start
+        insort, position = bisect.insort, bisect.bisect_left
         for i, (time, magnitude) in enumerate(zip(t.tolist(), np.abs(p_res).tolist())):
-            while history and history[0][0] < time - window:
-                del ordered[bisect.bisect_left(ordered, history.popleft()[1])]
-            if time - self.start >= window and ordered:
+            oldest = time - window
+            while times and times[0] < oldest:
+                times.popleft()
+                del ordered[position(ordered, magnitudes.popleft())]
+            if time - start >= window and ordered:  # a full window of history
                 middle = len(ordered) // 2
                 baseline = ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
-                flagged[i] = magnitude > self.threshold * baseline
-            if not flagged[i]:
-                history.append((time, magnitude))
-                bisect.insort(ordered, magnitude)
+                if magnitude > threshold * baseline:
+                    flagged[i] = True
+                    continue
+            times.append(time)
+            magnitudes.append(magnitude)
+            insort(ordered, magnitude)
         return flagged
 
     def add(self, t: np.ndarray, p_res: np.ndarray) -> None:

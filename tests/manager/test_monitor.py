@@ -1,7 +1,11 @@
 """The residual-power spike detector on synthetic series: what it flags and what it leaves alone."""
 from __future__ import annotations
 
+import statistics
+
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from zencosim.manager.results.monitor import flag_spikes, spike_intervals
 
@@ -31,3 +35,28 @@ def test_nothing_is_flagged_before_a_full_window_of_history():
     p[T < 1.0] *= 1e-6  # a run that starts at rest
     p[500] = 1e6
     assert not flag_spikes(T, p, window=2.0, threshold=50.0)[T < 2.0].any()
+
+
+def _flags_by_definition(t: np.ndarray, p: np.ndarray, window: float, threshold: float) -> list[bool]:
+    """The module text's rule, written out point by point: the median of |δP| over the unflagged points of the
+    preceding window, once a full window of history exists."""
+    kept: list[tuple[float, float]] = []  # (time, |δP|) of the points not flagged
+    flagged = []
+    for time, magnitude in zip(t.tolist(), np.abs(p).tolist()):
+        recent = [m for s, m in kept if s >= time - window]
+        flag = time - t[0] >= window and bool(recent) and magnitude > threshold * statistics.median(recent)
+        flagged.append(flag)
+        if not flag:
+            kept.append((time, magnitude))
+    return flagged
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=300), st.sampled_from([0.01, 0.05, 0.2]),
+       st.sampled_from([1.5, 3.0, 50.0]))
+def test_the_detector_flags_what_its_rule_flags(values, window, threshold):
+    """The running median (a sorted list, points leaving it as the window passes) against the rule evaluated
+    afresh at every point, on generated series with spikes and exact zeros."""
+    t = np.arange(1, len(values) + 1) * 1e-3
+    p = np.array(values)
+    assert flag_spikes(t, p, window, threshold).tolist() == _flags_by_definition(t, p, window, threshold)
