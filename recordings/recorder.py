@@ -248,7 +248,6 @@ class Recorder:
         self._stall_s = STALL_S  # an observer that takes nothing for this long is said (manager.timeout)
         self._step = 0  # the last step whose status went down the pipe
         self._lost_at: tuple[int, dict[str, int]] = (0, {})  # the step and what was handed over when the recorder was lost
-        self._lost_at_end = False  # the recorder went while finish waited for it (the run had ended)
         self.result: dict | None = None
         self.live: dict | None = None  # what the live view said when it was ready (e.g. the web viewer's address)
         self.finished = False
@@ -448,6 +447,7 @@ class Recorder:
         if not self._observers:
             raise RecordingError("the recorder was never started")
         self.finished = True
+        lost_before = self.lost is not None  # then the run has said so (or stopped for it) already
         try:
             self.flush(last=True)
             if self._live is not None and self._live.skipped[0]:
@@ -456,7 +456,7 @@ class Recorder:
                               "to it" + ("; the recording holds every step" if self._recorder is not None else ""))
             self._write_frame(CONTROL, json.dumps({"outcome": outcome, "published": self.published}).encode())
         except RecorderLost:
-            pass  # said in self.lost; the run has ended anyway
+            pass  # in self.lost: raised below, once every observer is done
         for observer in self._observers:
             if observer.gone is None and not observer.process.stdin.closed:
                 try:
@@ -486,7 +486,7 @@ class Recorder:
                            "path": str(self.path), "messages": None, "lost": None,
                            "channels": {topic: {"published": count, "received": None, "lost": None}
                                         for topic, count in published.items()}, "malformed": None}
-        if self._lost_at_end and self.on_lost == "stop":
+        if self.lost is not None and not lost_before and self.on_lost == "stop":
             raise RecorderLost(self.lost)
         return self.result
 
@@ -517,7 +517,7 @@ class Recorder:
     def _lose(self, observer: _Observer, ended: bool = False, said: str | None = None) -> None:
         """``observer``'s process is gone (``said``: the reason it gave, already read from its output): say so; for
         the recorder under ``on_lost == "stop"``, raise :class:`RecorderLost` (``ended``: the run has ended, and
-        ``finish`` raises it when it is done)."""
+        ``finish`` raises it when it is done, as for a recorder lost while ``finish`` sends its last frames)."""
         observer.gone = observer.ended()
         if said and said not in observer.gone:
             observer.gone += f": {said}"
@@ -528,7 +528,6 @@ class Recorder:
         self.lost = (f"the recorder of {self.path} is gone ({observer.gone}) at step {self._step}: the file ends with "
                      f"its last chunk written, before that step ('zencosim inspect {self.path}' says where)")
         if ended:
-            self._lost_at_end = True
             if self.on_lost == "continue":
                 self.announce(f"{self.lost}; the run had ended (--record-lost continue)")
             return
