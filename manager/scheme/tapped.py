@@ -6,12 +6,12 @@ the commands it computed and the replies its subsystems would have sent, in that
 
 :class:`Taken` encodes them exchange by exchange, for any tap and for a paced (real-time) run, whose live view
 follows it step by step. :class:`TakenSteps`, for a tap that takes blocks of arrays (the recorder's ``take_steps``),
-keeps the stepping loop's arrays and hands over a :class:`StepsBlock` about every ``BLOCK_STEPS`` requests: each
-subsystem's commands (ticks and input polynomials) and replies (steps, outputs), and the order of the exchanges; the
-recorder process builds the wire messages and each reply's reference, the CRC-32 of its command
-(``recordings.steps_frame``). Encoding and handing over every message on the stepping loop cost the recorded
-in-process loop of two_mass_damped a third more instructions per step (benchmarks/bench_instructions.py
---recording).
+keeps the values the stepping loop appends to its lists and hands over a :class:`StepsBlock` about every
+``BLOCK_STEPS`` requests: each subsystem's commands (ticks and input polynomials) and replies (steps, outputs), and
+the order of the exchanges; the recorder process builds the wire messages and each reply's reference, the CRC-32 of
+its command (``recordings.steps_frame``). Encoding and handing over every message on the stepping loop cost the
+recorded in-process loop of two_mass_damped a third more instructions per step (stop 29; the blocks' cost:
+docs/recording.md, benchmarks/bench_instructions.py --recording).
 """
 from __future__ import annotations
 
