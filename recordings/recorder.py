@@ -486,8 +486,8 @@ class Recorder:
                            "path": str(self.path), "messages": None, "lost": None,
                            "channels": {topic: {"published": count, "received": None, "lost": None}
                                         for topic, count in published.items()}, "malformed": None}
-        if self.lost is not None and not lost_before and self.on_lost == "stop":
-            raise RecorderLost(self.lost)
+            if not lost_before and self.on_lost == "stop":  # lost during finish, its file not finished
+                raise RecorderLost(self.lost)
         return self.result
 
     def close(self) -> None:
