@@ -337,16 +337,25 @@ class ZenohBus:
         return record, wall_s
 
     def _timing_reports(self) -> dict[str, dict]:
-        """Every subsystem's timing of its own steps (asked together)."""
-        pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=self.timeout_s)
-                   for name in self.names}
-        reports = {}
-        for name, replies in pending.items():
-            answers = [reply.ok for reply in replies if reply.ok is not None]
-            if not answers:
-                raise SubsystemFailure(name, "did not report the timing of its steps")
-            reports[name] = json.loads(answers[0].payload.to_bytes())
-        return reports
+        """Every subsystem's timing of its own steps (asked together). One whose replica has not finished yet says
+        so at once (on a loaded host a process may still be taking the last replies, which the manager has): it is
+        asked again, until ``manager.timeout`` passes with no subsystem's report arriving."""
+        reports: dict[str, dict] = {}
+        arrived = time.monotonic()  # when the last report came
+        while missing := [name for name in self.names if name not in reports]:
+            pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=self.timeout_s)
+                       for name in missing}
+            for name, replies in pending.items():
+                answers = [reply.ok for reply in replies if reply.ok is not None]
+                if answers:
+                    reports[name] = json.loads(answers[0].payload.to_bytes())
+                    arrived = time.monotonic()
+            still = [name for name in self.names if name not in reports]
+            if still and time.monotonic() - arrived > self.timeout_s:
+                raise SubsystemFailure(still[0], "did not report the timing of its steps")
+            if still:
+                time.sleep(0.05)
+        return {name: reports[name] for name in self.names}
 
     def _on_log(self, sample: zenoh.Sample) -> None:
         """A batch of replies: handed to the follower thread (Zenoh's thread returns at once); one on the key
