@@ -17,12 +17,61 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 MAX_TERMS = 200  # products per step; at about 25 ns each in CPython, beyond this numpy's four calls are cheaper
 
 StraightLineStep = Callable[[np.ndarray, list[float]], tuple[list[float], list[float]]]
+
+
+@dataclass(frozen=True)
+class StepText:
+    """A straight-line step as statements over float names with one prefix: it reads the state ``state`` and the
+    input coefficients ``coefficients`` (row after row) and leaves the state at the step's end in ``new_state``, the
+    input values there in ``inputs_at_end`` and the outputs (the linear ones, then the energy) in ``outputs``."""
+
+    statements: tuple[str, ...]
+    state: tuple[str, ...]
+    coefficients: tuple[str, ...]
+    new_state: tuple[str, ...]
+    inputs_at_end: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+
+def step_text(Phi_m: np.ndarray, Psi: np.ndarray, rows: int, span_s: float, G: np.ndarray, n_linear: int,
+              y_0: np.ndarray | None, prefix: str = "") -> StepText | None:
+    """The statements of the step ``straight_line_step`` makes a function of, each name prefixed with ``prefix`` (a
+    generated scene loop holds several subsystems' steps: ``manager.scheme.compiled``); None when the step has more
+    than ``MAX_TERMS`` products or a non-finite entry."""
+    n_state = Phi_m.shape[0]
+    n_inputs = Psi.shape[1] // rows
+    terms = sum(np.count_nonzero(m) for m in (Phi_m, Psi, G))
+    finite = all(np.isfinite(m).all() for m in (Phi_m, Psi, G)) and math.isfinite(span_s)
+    if terms > MAX_TERMS or not finite or (y_0 is not None and not np.isfinite(y_0).all()):
+        return None
+    z_names = [f"{prefix}z{i}" for i in range(n_state)]
+    c_names = [f"{prefix}c{i}" for i in range(rows * n_inputs)]
+    n_names = [f"{prefix}n{i}" for i in range(n_state)]
+    lines = [f"{n_names[i]} = " + _sum(Phi_m[i], z_names, Psi[i], c_names) for i in range(n_state)]
+    w_names = []
+    for j in range(n_inputs):  # at τ_end, as InputPolynomial.at evaluates it
+        w_names.append(f"{prefix}w{j}")
+        lines.append(f"{w_names[-1]} = " + (_horner(c_names, rows, n_inputs, j, span_s) if rows > 1 else c_names[j]))
+    s_names = n_names + w_names
+    outputs = []
+    for row in range(n_linear):
+        value = _sum(G[row], s_names)
+        if y_0 is not None:
+            value = f"({value}) + {float(y_0[row])!r}"
+        outputs.append(f"{prefix}y{row}")
+        lines.append(f"{outputs[-1]} = {value}")
+    quadratic = [(f"{prefix}q{i}", i) for i in range(len(s_names)) if np.any(G[n_linear + i])]
+    lines.extend(f"{q} = {_sum(G[n_linear + i], s_names)}" for q, i in quadratic)
+    outputs.append(f"{prefix}energy")
+    lines.append(f"{outputs[-1]} = " + (" + ".join(f"{q} * {s_names[i]}" for q, i in quadratic) or "0.0"))
+    return StepText(tuple(lines), tuple(z_names), tuple(c_names), tuple(n_names), tuple(w_names), tuple(outputs))
 
 
 def straight_line_step(Phi_m: np.ndarray, Psi: np.ndarray, rows: int, span_s: float, G: np.ndarray, n_linear: int,
@@ -33,52 +82,34 @@ def straight_line_step(Phi_m: np.ndarray, Psi: np.ndarray, rows: int, span_s: fl
     at the step's end, both lists of floats. ``Psi`` is flattened to ``(n_state, rows × n_inputs)``, ``G`` is
     ``[G_y; Q/2]`` over ``s = [z, w]``, ``y_0`` the constant output offsets (None: none). None when the step has
     more than ``MAX_TERMS`` products or a non-finite entry."""
-    n_state = Phi_m.shape[0]
-    n_inputs = Psi.shape[1] // rows
-    terms = sum(np.count_nonzero(m) for m in (Phi_m, Psi, G))
-    finite = all(np.isfinite(m).all() for m in (Phi_m, Psi, G)) and math.isfinite(span_s)
-    if terms > MAX_TERMS or not finite or (y_0 is not None and not np.isfinite(y_0).all()):
+    text = step_text(Phi_m, Psi, rows, span_s, G, n_linear, y_0)
+    if text is None:
         return None
-    z_names = [f"z{i}" for i in range(n_state)]
-    c_names = [f"c{i}" for i in range(rows * n_inputs)]
     lines = ["def step(z, c):"]
-    if n_state:
-        lines.append(f"    {_unpacked(z_names)} = z.tolist()")
-    if c_names:
-        lines.append(f"    {_unpacked(c_names)} = c")
-    for i in range(n_state):
-        lines.append(f"    n{i} = " + _sum(Phi_m[i], z_names, Psi[i], c_names))
-    for i in range(n_state):
-        lines.append(f"    z[{i}] = n{i}")
-    w_names = []
-    for j in range(n_inputs):  # at τ_end, as InputPolynomial.at evaluates it
-        value = _horner(rows, n_inputs, j, span_s) if rows > 1 else f"c{j}"
-        lines.append(f"    w{j} = {value}")
-        w_names.append(f"w{j}")
-    s_names = [f"n{i}" for i in range(n_state)] + w_names
-    outputs = []
-    for row in range(n_linear):
-        value = _sum(G[row], s_names)
-        if y_0 is not None:
-            value = f"({value}) + {float(y_0[row])!r}"
-        lines.append(f"    y{row} = {value}")
-        outputs.append(f"y{row}")
-    quadratic = [(i, _sum(G[n_linear + i], s_names)) for i in range(len(s_names)) if np.any(G[n_linear + i])]
-    for i, value in quadratic:
-        lines.append(f"    q{i} = {value}")
-    lines.append("    energy = " + (" + ".join(f"q{i} * {s_names[i]}" for i, _ in quadratic) or "0.0"))
-    lines.append(f"    return [{', '.join(outputs + ['energy'])}], [{', '.join(w_names)}]")
-    namespace: dict = {}
-    exec(compile("\n".join(lines) + "\n", "<straight-line step>", "exec"), namespace)  # noqa: S102 (our own text)
-    return namespace["step"]
+    if text.state:
+        lines.append(f"    {unpacked(text.state)} = z.tolist()")
+    if text.coefficients:
+        lines.append(f"    {unpacked(text.coefficients)} = c")
+    lines.extend(f"    {statement}" for statement in text.statements)
+    lines.extend(f"    z[{i}] = {name}" for i, name in enumerate(text.new_state))
+    lines.append(f"    return [{', '.join(text.outputs)}], [{', '.join(text.inputs_at_end)}]")
+    return define("\n".join(lines), "step", "<straight-line step>")
 
 
-def _horner(rows: int, n_inputs: int, j: int, span_s: float) -> str:
-    """Input ``j`` at ``span_s``: ``((c_o τ + c_{o-1}) τ + …) τ + c_0`` with ``c_r`` the flat name ``c{r n + j}``."""
-    value = f"c{(rows - 1) * n_inputs + j} * {span_s!r}"
+def define(source: str, name: str, label: str, namespace: dict | None = None):
+    """The function ``name`` that ``source`` (our own generated text) defines, compiled under ``label``, its globals
+    ``namespace``."""
+    namespace = {} if namespace is None else namespace
+    exec(compile(source + "\n", label, "exec"), namespace)  # noqa: S102 (our own text)
+    return namespace[name]
+
+
+def _horner(c_names: list[str], rows: int, n_inputs: int, j: int, span_s: float) -> str:
+    """Input ``j`` at ``span_s``: ``((c_o τ + c_{o-1}) τ + …) τ + c_0``, ``c_r`` the flat name ``c_names[r n + j]``."""
+    value = f"{c_names[(rows - 1) * n_inputs + j]} * {span_s!r}"
     for r in range(rows - 2, 0, -1):
-        value = f"(({value}) + c{r * n_inputs + j}) * {span_s!r}"
-    return f"({value}) + c{j}"
+        value = f"(({value}) + {c_names[r * n_inputs + j]}) * {span_s!r}"
+    return f"({value}) + {c_names[j]}"
 
 
 def _sum(*factors_and_names) -> str:
@@ -89,6 +120,6 @@ def _sum(*factors_and_names) -> str:
     return " + ".join(terms) or "0.0"
 
 
-def _unpacked(names: list[str]) -> str:
+def unpacked(names: tuple[str, ...]) -> str:
     """The target of an unpacking assignment (a one-element one needs its comma)."""
     return ", ".join(names) + ("," if len(names) == 1 else "")

@@ -22,7 +22,7 @@ import numpy as np
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.integrators.base import composed_linear_step
 from zencosim.subsystems.ports import Port
-from zencosim.subsystems.straight_line import StraightLineStep, straight_line_step
+from zencosim.subsystems.straight_line import StepText, StraightLineStep, step_text, straight_line_step
 
 
 @dataclass(frozen=True)
@@ -124,6 +124,24 @@ class Subsystem:
         Phi_m, Psi = self._composed_step(*key, h)
         self._straight[key] = straight_line_step(Phi_m, Psi, key[1], span_s, *self.model.output_matrix())
         return self._straight[key]
+
+    def straight_line_text(self, span_ns: int, prefix: str) -> StepText | None:
+        """The statements of the straight-line step ``advance_values`` takes over ``span_ns`` with zero-order inputs
+        (its names prefixed with ``prefix``), or None where it takes none (``subsystems.straight_line``): the same
+        products, in the same order, for a loop that runs the step itself (``manager.scheme.compiled``), which hands
+        the state it leaves to ``took_steps``."""
+        h_ns = self.micro_step_ns
+        if self._linear is None or span_ns <= 0 or span_ns % h_ns:
+            return None
+        Phi_m, Psi = self._composed_step(span_ns // h_ns, 1, h_ns * 1e-9)
+        return step_text(Phi_m, Psi, 1, span_ns * 1e-9, *self.model.output_matrix(), prefix=prefix)
+
+    def took_steps(self, t_ns: int, z: list[float], w: list[float]) -> None:
+        """Take the state ``z`` and the input values ``w`` at ``t_ns`` that the straight-line steps of
+        ``straight_line_text`` left, run elsewhere: as if ``advance_values`` had taken them."""
+        self.z[:] = z
+        self.t_ns = t_ns
+        self.w = w
 
     def free_step(self, span_ns: int) -> np.ndarray | None:
         """The matrix ``advance`` multiplies the state by over a step of ``span_ns`` when the model is linear and

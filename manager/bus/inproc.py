@@ -23,6 +23,7 @@ from zencosim.manager.scheme.replica import Replica, Tap
 from zencosim.manager.wire.text import printable
 from zencosim.subsystems.models import MODELS
 from zencosim.subsystems.process.endpoint import SubsystemEndpoint, failure_reason
+from zencosim.subsystems.straight_line import StepText
 from zencosim.subsystems.subsystem import Subsystem
 
 
@@ -61,6 +62,19 @@ class DirectCalls:
                 return self.advance[i](t0_ns, t0_ns + self.comm_step_ns[i], coefficients)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
             raise self._failure(s, tick + s.ratio, error) from None
+
+    def straight_line_text(self, s: SubsystemPlan, prefix: str) -> StepText | None:
+        """``s``'s step as straight-line statements (``Subsystem.straight_line_text``), or None: it takes none, or
+        its calls are marked (a watched model's)."""
+        if self.marks[s.index] is not None:
+            return None
+        return self.subsystems[s.index].straight_line_text(self.comm_step_ns[s.index], prefix)
+
+    def state(self, s: SubsystemPlan) -> list[float]:
+        return self.subsystems[s.index].z.tolist()
+
+    def took_steps(self, s: SubsystemPlan, tick: int, z: list[float], w: list[float]) -> None:
+        self.subsystems[s.index].took_steps(tick * self.base_step_ns, z, w)
 
     @staticmethod
     def _failure(s: SubsystemPlan, due: int, error: BaseException) -> BaseException:

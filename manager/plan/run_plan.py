@@ -53,6 +53,18 @@ class SubsystemPlan:
         """Index of the energy output, the last one (None: the model reports no energy, e.g. an FMU without)."""
         return len(self.outputs) - 1 if self.outputs and self.outputs[-1].quantity == "energy" else None
 
+    @property
+    def zero_order_sources(self) -> list[tuple[int, int]] | None:
+        """With zero-order inputs, every input fed once: the source and output index of each input in input order (a
+        ZOH polynomial is the sources' newest sample); None otherwise."""
+        if self.order != 0:
+            return None
+        where = {target: (feed.source, output) for feed in self.feeds
+                 for output, target in zip(feed.outputs, feed.inputs)}
+        if sorted(where) != list(range(len(self.inputs))):
+            return None
+        return [where[target] for target in range(len(self.inputs))]
+
 
 @dataclass(frozen=True)
 class BondPlan:

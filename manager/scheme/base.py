@@ -16,6 +16,7 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode
+from zencosim.subsystems.straight_line import StepText
 
 PROGRESS_EVERY = 500  # base steps between two progress callbacks
 HISTORY_ROWS = 8  # rows of a trajectory a scheme reads back: Lagrange samples (order + 1 <= 3), correctors (2)
@@ -86,6 +87,17 @@ class SubsystemCalls(Protocol):
     def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
         """``s``'s outputs at the end of its step from base step ``tick`` over the input polynomial ``coefficients``
         (a STEP command's), both as ``Subsystem.advance_values`` takes and gives them."""
+
+    def straight_line_text(self, s: SubsystemPlan, prefix: str) -> StepText | None:
+        """``s``'s zero-order step as straight-line statements over names prefixed ``prefix``
+        (``Subsystem.straight_line_text``: a loop that runs it itself, ``manager.scheme.compiled``), or None."""
+
+    def state(self, s: SubsystemPlan) -> list[float]:
+        """``s``'s state now, as the statements of ``straight_line_text`` read it."""
+
+    def took_steps(self, s: SubsystemPlan, tick: int, z: list[float], w: list[float]) -> None:
+        """``s`` is at base step ``tick`` with the state ``z`` and input values ``w`` that a loop running its
+        statements left (``Subsystem.took_steps``)."""
 
 
 @dataclass

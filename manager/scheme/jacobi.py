@@ -37,6 +37,7 @@ from zencosim.manager.scheme.base import (
     RunRecord,
     SubsystemCalls,
 )
+from zencosim.manager.scheme.compiled import compiled_steps
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.replica import Tap
@@ -142,9 +143,14 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     step_kind = int(Kind.STEP)
     stepping: list[tuple[SubsystemPlan, np.ndarray]] = []  # direct: the steps to call once released
     computed: list[np.ndarray | None] = [None] * len(subs)  # direct: the outputs each subsystem's step computed
+    # a direct run with nothing to hand out per step may run as one generated loop (manager.scheme.compiled): then
+    # it has run every step, and this loop none
+    compiled = (compiled_steps(plan, direct) if direct is not None and taken is None and status is None
+                and pacer is None and not correctors else None)
+    first_tick = 0 if compiled is None else compiled.run(readers, p_window, e_window, releases.times, progress)
 
     try:
-        for tick in range(n_ticks):
+        for tick in range(first_tick, n_ticks):
             phase = tick % period
             next_tick = tick + 1
             released_ns = None
@@ -239,22 +245,11 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                      0 if pacer is None else pacer.missed, tuple(entry for c in correctors for entry in c.log()))
 
 
-def _zero_order_sources(s: SubsystemPlan) -> list[tuple[int, int]] | None:
-    """For a subsystem with zero-order inputs, every input fed once: the source and output index of each input in
-    input order (a ZOH polynomial is the sources' newest sample); None otherwise."""
-    if s.order != 0:
-        return None
-    where = {target: (feed.source, output) for feed in s.feeds for output, target in zip(feed.outputs, feed.inputs)}
-    if sorted(where) != list(range(len(s.inputs))):
-        return None
-    return [where[target] for target in range(len(s.inputs))]
-
-
 def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int, int], ...] | None:
-    """For a subsystem with zero-order inputs, every input fed once (``_zero_order_sources``): where its input values
-    lie in its sources' newest replies, as byte ranges ``(reader of the source, start, end)`` in input order,
-    adjacent ranges merged (the command's values are then these bytes, unchanged). None otherwise."""
-    sources = _zero_order_sources(s)
+    """For a subsystem with zero-order inputs, every input fed once (``SubsystemPlan.zero_order_sources``): where its
+    input values lie in its sources' newest replies, as byte ranges ``(reader of the source, start, end)`` in input
+    order, adjacent ranges merged (the command's values are then these bytes, unchanged). None otherwise."""
+    sources = s.zero_order_sources
     if sources is None:
         return None
     segments: list[list[int]] = []
@@ -270,7 +265,7 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
 def _gathered_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int], ...] | None:
     """As ``_copied_inputs`` for the direct path: per input, ``(reader of its source, output index)``, the value in
     the source's newest outputs as floats (``OutputReader.newest``). None otherwise."""
-    sources = _zero_order_sources(s)
+    sources = s.zero_order_sources
     return None if sources is None else tuple((readers[source], output) for source, output in sources)
 
 

@@ -25,3 +25,9 @@ def residual_power(force: float, velocity_input: float, force_input: float, velo
     vector bond is one power bond (its components are not bonds to be monitored apart).
     """
     return force_input * velocity - force * velocity_input
+
+
+def residual_power_text(force: str, velocity_input: str, force_input: str, velocity: str) -> str:
+    """``residual_power`` as the text of an expression over the four names (a generated loop's:
+    ``manager.scheme.compiled``), the same operations in the same order."""
+    return f"{force_input} * {velocity} - {force} * {velocity_input}"

@@ -1,0 +1,132 @@
+"""A single-rate, zero-order Jacobi run of small linear subsystems as one generated loop (issue 26).
+
+When every subsystem of an in-process run (``manager.bus.inproc.DirectCalls``) takes straight-line steps
+(``subsystems.straight_line``), all at the base macro-step with zero-order inputs each fed once, one macro-step
+of ``manager.scheme.jacobi`` is: every subsystem's inputs are its sources' newest outputs (paper 000 §2.1, ZOH),
+each subsystem steps, its outputs are committed, and every bond's residual power and energy are evaluated
+(paper 002 Eqs. 8–9, 13). This module writes that macro-step for the scene at hand as one Python loop over float
+locals — the subsystems' step statements, their inputs read from the names that hold their sources' outputs,
+each bond's δP and δE — and appends each step's row to one list. It is the scheme's arithmetic, operation for
+operation: the statements ``Subsystem.advance_values`` runs (``Subsystem.straight_line_text``), δP as
+``residual_power`` adds it up, δE as the scheme accumulates it (with every bond evaluated at every step, its
+``δP × (ticks since the last evaluation = 1) × step`` is ``δP × step``, bit for bit). The run's arrays and
+digest are therefore the generic loop's and the message path's, bit for bit (tests/manager/test_compiled.py).
+
+The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``); after each, the block's rows
+go to the run's windows (``manager.scheme.window``) and the release times to the run's record. At the end the
+subsystems take the state the loop left (``Subsystem.took_steps``).
+
+Anything else runs the generic loop: multi-rate, polynomial inputs, Gauss–Seidel, correctors, pacing, a status
+or a tap (a recorded run), a watched model, a subsystem that takes no straight-line step.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from zencosim.manager.plan.run_plan import Plan
+from zencosim.manager.scheme.base import PROGRESS_EVERY, OutputReader, SubsystemCalls
+from zencosim.manager.scheme.residual import residual_power_text
+from zencosim.manager.scheme.window import RowWindow
+from zencosim.subsystems.straight_line import StepText, define, unpacked
+
+
+class CompiledSteps:
+    """A scene's macro-steps as one generated loop (see the module text); ``run`` takes the place of the
+    scheme's loop."""
+
+    def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText]) -> None:
+        self.plan, self.direct, self.texts = plan, direct, texts
+        self.width = [len(s.outputs) for s in plan.subsystems]
+        self.source = _loop_text(plan, texts)
+        self.steps = define(self.source, "steps", "<compiled macro-steps>")
+
+    def run(self, readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
+            release_times: RowWindow, progress: Callable[[int], None] | None) -> int:
+        """Run every macro-step from the outputs at t_0 the ``readers`` hold; fill their windows, the bonds' and the
+        release times'; report progress as the scheme does. Returns the number of macro-steps run (all)."""
+        plan = self.plan
+        n_ticks, n_bonds = plan.n_ticks, len(plan.bonds)
+        state = [list(self.direct.state(s)) for s in plan.subsystems]
+        newest = [list(reader.newest) for reader in readers]
+        energies = [0.0] * n_bonds
+        ends = np.cumsum(self.width)
+        first = 0
+        while first < n_ticks:
+            last = min(n_ticks, (first // PROGRESS_EVERY + 1) * PROGRESS_EVERY)
+            rows, times = [], []
+            state, newest, energies, inputs_at_end = self.steps(first, last, state, newest, energies, rows.extend,
+                                                                times.append, time.perf_counter_ns)
+            block = np.array(rows).reshape(last - first, -1)
+            for reader, end, width, values in zip(readers, ends, self.width, newest):
+                reader.window.put_rows(first + 1, block[:, end - width:end])
+                reader.newest = values
+            residual_power.put_rows(first + 1, block[:, ends[-1]:ends[-1] + n_bonds])
+            residual_energy.put_rows(first + 1, block[:, ends[-1] + n_bonds:])
+            release_times.put_rows(first, np.array(times, dtype=np.int64))
+            first = last
+            if progress is not None and last % PROGRESS_EVERY == 0:
+                progress(last)
+        for s, z, w in zip(plan.subsystems, state, inputs_at_end):
+            self.direct.took_steps(s, n_ticks, z, w)
+        return n_ticks
+
+
+def compiled_steps(plan: Plan, direct: SubsystemCalls) -> CompiledSteps | None:
+    """The scene's macro-steps as one loop, or None where the generic loop must run them (see the module text; the
+    caller has ruled out correctors, pacing, a status and a tap)."""
+    subs = plan.subsystems
+    if plan.sequential or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
+        return None
+    texts = [direct.straight_line_text(s, f"s{s.index}_") for s in subs]
+    if any(text is None or len(text.outputs) != len(s.outputs) for text, s in zip(texts, subs)):
+        return None
+    return CompiledSteps(plan, direct, texts)
+
+
+def _loop_text(plan: Plan, texts: list[StepText]) -> str:
+    """The source of ``steps(first, last, state, newest, energies, extend, stamp, perf)``: macro-steps ``first`` …
+    ``last - 1`` from each subsystem's ``state`` and ``newest`` outputs and each bond's energy, each step's release
+    time stamped, its row (every subsystem's outputs, the bonds' δP, their δE) extended; it returns the state, the
+    newest outputs, the energies and the input values at the last step's end."""
+    subs = plan.subsystems
+    step_s = plan.base_step_ns * 1e-9
+    head = ["def steps(first, last, state, newest, energies, extend, stamp, perf):"]
+    for s, text in zip(subs, texts):
+        if text.state:
+            head.append(f"    {unpacked(text.state)} = state[{s.index}]")
+        if text.outputs:
+            head.append(f"    {unpacked(text.outputs)} = newest[{s.index}]")
+    powers = [f"b{b}_power" for b in range(len(plan.bonds))]
+    energies = [f"b{b}_energy" for b in range(len(plan.bonds))]
+    if energies:
+        head.append(f"    {unpacked(energies)} = energies")
+    body = ["stamp(perf())"]
+    for s, text in zip(subs, texts):  # every command first, from the outputs at the step's start
+        body.extend(f"{c} = {texts[source].outputs[output]}"
+                    for c, (source, output) in zip(text.coefficients, s.zero_order_sources))
+    for text in texts:
+        body.extend(text.statements)
+        body.extend(f"{z} = {n}" for z, n in zip(text.state, text.new_state))
+    for b, bond in enumerate(plan.bonds):
+        force_side, motion_side = texts[bond.force_side], texts[bond.motion_side]
+        power = "0.0"  # as the scheme adds the components up, from 0.0
+        for force, velocity_input, force_input, velocity in bond.components:
+            term = residual_power_text(force_side.outputs[force], force_side.coefficients[velocity_input],
+                                       motion_side.coefficients[force_input], motion_side.outputs[velocity])
+            power = f"{power} + ({term})"
+        body.append(f"{powers[b]} = {power}")
+        body.append(f"{energies[b]} = {energies[b]} + {powers[b]} * {step_s!r}")
+    row = [name for text in texts for name in text.outputs] + powers + energies
+    body.append(f"extend(({', '.join(row)},))")
+    lines = head + ["    for _ in range(first, last):"] + [f"        {line}" for line in body]
+    lines.append(f"    return [{', '.join(f'[{_listed(t.state)}]' for t in texts)}], "
+                 f"[{', '.join(f'[{_listed(t.outputs)}]' for t in texts)}], [{_listed(energies)}], "
+                 f"[{', '.join(f'[{_listed(t.inputs_at_end)}]' for t in texts)}]")
+    return "\n".join(lines)
+
+
+def _listed(names) -> str:
+    return ", ".join(names)

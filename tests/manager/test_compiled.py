@@ -1,0 +1,136 @@
+"""The generated macro-step loop (``manager.scheme.compiled``): a single-rate, zero-order run of straight-line
+subsystems computes every array of the generic Jacobi loop bit for bit, leaves the subsystems where it leaves them,
+reports progress as it does, and is taken where it may be taken only.
+
+The oracle is the generic loop on the same scene (``compiled_steps`` patched to give None), whose equality with the
+message path and with a Zenoh run tests/manager/test_direct.py and tests/manager/test_buses.py check."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import zencosim.manager.scheme.jacobi as jacobi_module
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.bus.inproc import DirectCalls, run_in_process
+from zencosim.manager.results.summary import digest
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.compiled import compiled_steps
+from zencosim.manager.scheme.residual import residual_power, residual_power_text
+
+# the bundled scenes the generated loop runs (single-rate, ZOH, linear subsystems), and a few it must not
+COMPILED = ["two_mass_damped", "two_mass_undamped", "four_mass", "mass_chain", "multiple_oscillator_n3",
+            "multiple_oscillator_n5", "double_oscillator"]
+GENERIC = {"FOH": ("two_mass_damped", ["manager.extrapolation=1"]),
+           "multi-rate": ("double_oscillator", ["manager.macro_step=0.0001", "subsystems.M1.comm_ratio=10",
+                                                "subsystems.M2.micro_step=0.0001"]),
+           "Gauss-Seidel": ("two_mass_damped", ["manager.scheme=gauss-seidel"]),
+           "nonlinear": ("hydraulic_crane", []),
+           "input table": ("two_mass_chirp", [])}
+
+
+def _run(name: str, overrides: list[str], compiled: bool, monkeypatch, keep: bool | None = None, progress=None):
+    """A direct run of the scene, by the generated loop or (``compiled`` False) the generic one: (record, subsystems,
+    whether the generated loop ran)."""
+    ran = []
+
+    def spied(plan, direct):
+        steps = compiled_steps(plan, direct) if compiled else None
+        ran.append(steps is not None)
+        return steps
+
+    scene = load_scene(name, overrides)
+    plan, subsystems = plan_scene(scene)
+    with monkeypatch.context() as patched:
+        patched.setattr(jacobi_module, "compiled_steps", spied)
+        scheme = make_scheme(scene, plan, progress=progress, keep=keep, direct=DirectCalls(plan, subsystems))
+        with np.errstate(over="ignore", invalid="ignore"):
+            record = run_in_process(scheme, plan, subsystems)
+    return record, subsystems, ran == [True]
+
+
+def _assert_same_run(ours, theirs) -> None:
+    """Every array of the two records and the subsystems' state at the end, bit for bit."""
+    (record, subsystems), (expected, expected_subsystems) = ours, theirs
+    assert digest(record) == digest(expected)
+    for mine, other in zip(record.trajectories, expected.trajectories):
+        assert np.array_equal(mine, other, equal_nan=True)
+    assert np.array_equal(record.residual_power, expected.residual_power, equal_nan=True)
+    assert np.array_equal(record.residual_energy, expected.residual_energy, equal_nan=True)
+    assert record.send_time_ns.shape == expected.send_time_ns.shape
+    assert (np.diff(record.send_time_ns) >= 0).all() and (record.send_time_ns > 0).all()
+    for name, subsystem in subsystems.items():
+        other = expected_subsystems[name]
+        assert subsystem.t_ns == other.t_ns
+        assert np.array_equal(subsystem.z, other.z, equal_nan=True)
+        assert np.array_equal(np.asarray(subsystem.w, dtype=float), np.asarray(other.w, dtype=float), equal_nan=True)
+
+
+@pytest.mark.parametrize("name", COMPILED)
+def test_the_generated_loop_computes_the_generic_loops_arrays_bit_for_bit(name, monkeypatch):
+    overrides = ["manager.duration=1.2"]  # 1,200 steps or more: blocks of 500, one shorter
+    record, subsystems, compiled = _run(name, overrides, True, monkeypatch)
+    expected, expected_subsystems, generic_compiled = _run(name, overrides, False, monkeypatch)
+    assert compiled and not generic_compiled
+    _assert_same_run((record, subsystems), (expected, expected_subsystems))
+
+
+def test_a_long_run_spilled_to_files_is_the_same(monkeypatch):
+    """Past the windows' memory (spilled every 8,192 rows) the generated loop's rows land where the generic loop's do;
+    and progress is reported at the same steps."""
+    overrides = ["manager.duration=20.0"]
+    seen, expected_seen = [], []
+    record, subsystems, compiled = _run("two_mass_damped", overrides, True, monkeypatch, keep=False,
+                                        progress=seen.append)
+    expected, expected_subsystems, _ = _run("two_mass_damped", overrides, False, monkeypatch, keep=False,
+                                            progress=expected_seen.append)
+    assert compiled
+    _assert_same_run((record, subsystems), (expected, expected_subsystems))
+    assert seen == expected_seen == list(range(500, 20_001, 500))
+
+
+@pytest.mark.parametrize("case", GENERIC)
+def test_scenes_the_generated_loop_cannot_run_take_the_generic_loop(case, monkeypatch):
+    name, overrides = GENERIC[case]
+    _, _, compiled = _run(name, overrides + ["manager.duration=0.1"], True, monkeypatch)
+    assert not compiled
+
+
+@st.composite
+def linear_chains(draw) -> list[str]:
+    """mass_chain with drawn masses, springs, dampers and couplings (stable and unstable co-simulations both)."""
+    scene = load_scene("mass_chain")
+    value = st.floats(0.1, 10.0)
+    overrides = ["manager.duration=0.6"]
+    for name, doc in scene.resolved["subsystems"].items():
+        for body in doc.get("bodies", {}):
+            overrides.append(f"subsystems.{name}.bodies.{body}.mass={draw(value)!r}")
+        for effect, spec in doc.get("effects", {}).items():
+            key = "stiffness" if spec["type"] == "spring" else "damping"
+            overrides.append(f"subsystems.{name}.effects.{effect}.{key}={100 * draw(value)!r}")
+    for name, doc in scene.resolved["couplings"].items():
+        for effect, spec in doc.get("effects", {}).items():
+            key = "stiffness" if spec["type"] == "spring" else "damping"
+            overrides.append(f"couplings.{name}.effects.{effect}.{key}={100 * draw(value)!r}")
+    return overrides
+
+
+@settings(max_examples=15, deadline=None)
+@given(linear_chains())
+def test_on_generated_chains_the_generated_loop_is_the_generic_loop_bit_for_bit(overrides):
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        ours = _run("mass_chain", overrides, True, monkeypatch)
+        theirs = _run("mass_chain", overrides, False, monkeypatch)
+    assert ours[2]
+    _assert_same_run(ours[:2], theirs[:2])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4))
+def test_the_residual_powers_text_is_its_function_bit_for_bit(values):
+    names = ("f", "v_in", "f_in", "v")
+    evaluated = eval(residual_power_text(*names), {}, dict(zip(names, values)))  # our own text
+    expected = residual_power(*values)
+    assert np.array_equal(np.float64(evaluated), np.float64(expected), equal_nan=True)
+    assert np.signbit(evaluated) == np.signbit(expected)
