@@ -12,12 +12,15 @@ operation: the statements ``Subsystem.advance_values`` runs (``Subsystem.straigh
 ``δP × (ticks since the last evaluation = 1) × step`` is ``δP × step``, bit for bit). The run's arrays and
 digest are therefore the generic loop's and the message path's, bit for bit (tests/manager/test_compiled.py).
 
-The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``); after each, the block's rows
-go to the run's windows (``manager.scheme.window``) and the release times to the run's record. At the end the
-subsystems take the state the loop left (``Subsystem.took_steps``).
+The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``) and, in a recorded run, where
+it hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps); after each, the
+block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, the
+residuals and times to the status log (``StatusReport.log_steps``) and the commands and outputs to the tap
+(``TakenSteps.append_steps``): what the scheme's loop appends step by step, appended a block at a time. At the
+end the subsystems take the state the loop left (``Subsystem.took_steps``).
 
-Anything else runs the generic loop: multi-rate, polynomial inputs, Gauss–Seidel, correctors, pacing, a status
-or a tap (a recorded run), a watched model, a subsystem that takes no straight-line step.
+Anything else runs the generic loop: multi-rate, polynomial inputs, Gauss–Seidel, correctors, pacing (a real-time
+run), a tap that takes messages one by one, a watched model, a subsystem that takes no straight-line step.
 """
 from __future__ import annotations
 
@@ -29,43 +32,64 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import PROGRESS_EVERY, OutputReader, SubsystemCalls
 from zencosim.manager.scheme.residual import residual_power_text
+from zencosim.manager.scheme.tapped import BLOCK_STEPS, TakenSteps
 from zencosim.manager.scheme.window import RowWindow
+from zencosim.manager.wire.status import StatusReport
 from zencosim.subsystems.straight_line import StepText, define, unpacked
+
+# steps in a block handed to a recorder's tap: a generated loop's step costs about an eighth of the scheme's loop's,
+# so that its blocks hold about the run time of the scheme's (BLOCK_STEPS) and cost as little per step
+TAP_BLOCK_STEPS = 8 * BLOCK_STEPS
 
 
 class CompiledSteps:
     """A scene's macro-steps as one generated loop (see the module text); ``run`` takes the place of the
     scheme's loop."""
 
-    def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText]) -> None:
+    def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText], commands: bool) -> None:
         self.plan, self.direct, self.texts = plan, direct, texts
         self.width = [len(s.outputs) for s in plan.subsystems]
-        self.source = _loop_text(plan, texts)
+        self.commands = [len(s.inputs) if commands else 0 for s in plan.subsystems]  # each row's command columns
+        self.source = _loop_text(plan, texts, commands)
         self.steps = define(self.source, "steps", "<compiled macro-steps>")
 
     def run(self, readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
-            release_times: RowWindow, progress: Callable[[int], None] | None) -> int:
+            release_times: RowWindow, progress: Callable[[int], None] | None, status: StatusReport | None = None,
+            taken: TakenSteps | None = None) -> int:
         """Run every macro-step from the outputs at t_0 the ``readers`` hold; fill their windows, the bonds' and the
-        release times'; report progress as the scheme does. Returns the number of macro-steps run (all)."""
+        release times'; report progress, log the status (``status``) and hand the tap its blocks (``taken``) as the
+        scheme does. Returns the number of macro-steps run (all)."""
         plan = self.plan
         n_ticks, n_bonds = plan.n_ticks, len(plan.bonds)
         state = [list(self.direct.state(s)) for s in plan.subsystems]
         newest = [list(reader.newest) for reader in readers]
         energies = [0.0] * n_bonds
-        ends = np.cumsum(self.width)
+        output_ends = np.cumsum(self.width)
+        command_ends = output_ends[-1] + np.cumsum(self.commands)
+        bonds_start = command_ends[-1]
         first = 0
         while first < n_ticks:
-            last = min(n_ticks, (first // PROGRESS_EVERY + 1) * PROGRESS_EVERY)
+            last = min(n_ticks, _next(first, PROGRESS_EVERY), _next(first, TAP_BLOCK_STEPS) if taken else n_ticks)
+            if taken is not None and taken.requests >= TAP_BLOCK_STEPS:  # where a period starts, as the scheme does
+                taken.flush()
             rows, times = [], []
             state, newest, energies, inputs_at_end = self.steps(first, last, state, newest, energies, rows.extend,
                                                                 times.append, time.perf_counter_ns)
-            block = np.array(rows).reshape(last - first, -1)
-            for reader, end, width, values in zip(readers, ends, self.width, newest):
-                reader.window.put_rows(first + 1, block[:, end - width:end])
+            done_ns = time.perf_counter_ns()
+            block = np.fromiter(rows, float, len(rows)).reshape(last - first, -1)
+            for reader, rows, values in zip(readers, _columns(block, output_ends, self.width), newest):
+                reader.window.put_rows(first + 1, rows)
                 reader.newest = values
-            residual_power.put_rows(first + 1, block[:, ends[-1]:ends[-1] + n_bonds])
-            residual_energy.put_rows(first + 1, block[:, ends[-1] + n_bonds:])
-            release_times.put_rows(first, np.array(times, dtype=np.int64))
+            residual_power.put_rows(first + 1, block[:, bonds_start:bonds_start + n_bonds])
+            residual_energy.put_rows(first + 1, block[:, bonds_start + n_bonds:])
+            released = np.fromiter(times, np.int64, len(times))
+            release_times.put_rows(first, released)
+            if status is not None:  # a step completed where the next was released (the loop's next statement)
+                completed = np.append(released[1:], done_ns)
+                status.log_steps(block[:, bonds_start:], np.arange(first + 1, last + 1), released, completed)
+            if taken is not None:
+                taken.append_steps(first, _columns(block, command_ends, self.commands),
+                                   _columns(block, output_ends, self.width))
             first = last
             if progress is not None and last % PROGRESS_EVERY == 0:
                 progress(last)
@@ -74,22 +98,34 @@ class CompiledSteps:
         return n_ticks
 
 
-def compiled_steps(plan: Plan, direct: SubsystemCalls) -> CompiledSteps | None:
+def _columns(block: np.ndarray, ends: np.ndarray, widths: list[int]) -> list[np.ndarray]:
+    """The columns of ``block`` that end at each of ``ends``, ``widths`` of them each."""
+    return [block[:, end - width:end] for end, width in zip(ends, widths)]
+
+
+def _next(tick: int, every: int) -> int:
+    """The first multiple of ``every`` after ``tick``."""
+    return (tick // every + 1) * every
+
+
+def compiled_steps(plan: Plan, direct: SubsystemCalls, commands: bool = False) -> CompiledSteps | None:
     """The scene's macro-steps as one loop, or None where the generic loop must run them (see the module text; the
-    caller has ruled out correctors, pacing, a status and a tap)."""
+    caller has ruled out correctors, pacing and a tap that takes messages one by one); ``commands``: each step's row
+    holds the commands too (for a tap)."""
     subs = plan.subsystems
     if plan.sequential or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
         return None
     texts = [direct.straight_line_text(s, f"s{s.index}_") for s in subs]
     if any(text is None or len(text.outputs) != len(s.outputs) for text, s in zip(texts, subs)):
         return None
-    return CompiledSteps(plan, direct, texts)
+    return CompiledSteps(plan, direct, texts, commands)
 
 
-def _loop_text(plan: Plan, texts: list[StepText]) -> str:
+def _loop_text(plan: Plan, texts: list[StepText], commands: bool) -> str:
     """The source of ``steps(first, last, state, newest, energies, extend, stamp, perf)``: macro-steps ``first`` …
     ``last - 1`` from each subsystem's ``state`` and ``newest`` outputs and each bond's energy, each step's release
-    time stamped, its row (every subsystem's outputs, the bonds' δP, their δE) extended; it returns the state, the
+    time stamped, its row (every subsystem's outputs, with ``commands`` every subsystem's commands, the bonds' δP,
+    their δE) extended; it returns the state, the
     newest outputs, the energies and the input values at the last step's end."""
     subs = plan.subsystems
     step_s = plan.base_step_ns * 1e-9
@@ -119,7 +155,10 @@ def _loop_text(plan: Plan, texts: list[StepText]) -> str:
             power = f"{power} + ({term})"
         body.append(f"{powers[b]} = {power}")
         body.append(f"{energies[b]} = {energies[b]} + {powers[b]} * {step_s!r}")
-    row = [name for text in texts for name in text.outputs] + powers + energies
+    row = [name for text in texts for name in text.outputs]
+    if commands:
+        row += [name for text in texts for name in text.coefficients]
+    row += powers + energies
     body.append(f"extend(({', '.join(row)},))")
     lines = head + ["    for _ in range(first, last):"] + [f"        {line}" for line in body]
     lines.append(f"    return [{', '.join(f'[{_listed(t.state)}]' for t in texts)}], "

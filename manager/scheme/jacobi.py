@@ -143,13 +143,16 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     step_kind = int(Kind.STEP)
     stepping: list[tuple[SubsystemPlan, np.ndarray]] = []  # direct: the steps to call once released
     computed: list[np.ndarray | None] = [None] * len(subs)  # direct: the outputs each subsystem's step computed
-    # a direct run with nothing to hand out per step may run as one generated loop (manager.scheme.compiled): then
-    # it has run every step, and this loop none
-    compiled = (compiled_steps(plan, direct) if direct is not None and taken is None and status is None
-                and pacer is None and not correctors else None)
-    first_tick = 0 if compiled is None else compiled.run(readers, p_window, e_window, releases.times, progress)
+    # a direct run that is not paced, with no corrector and no tap that takes messages one by one, may run as one
+    # generated loop (manager.scheme.compiled): then it runs every step, and this loop none
+    compiled = (compiled_steps(plan, direct, block is not None) if direct is not None and pacer is None
+                and not correctors and (taken is None or block is not None) else None)
 
     try:
+        first_tick = 0
+        if compiled is not None:
+            first_tick = compiled.run(readers, p_window, e_window, releases.times, progress, status, block)
+            step_status = first_tick if status is not None else None
         for tick in range(first_tick, n_ticks):
             phase = tick % period
             next_tick = tick + 1

@@ -136,7 +136,8 @@ class TakenSteps:
     than the rest of the tap. The rest follows from the schedule: a request of shape ``phase × stages + stage``
     commands the subsystems that start there and awaits those due there (``jacobi._schedule``), a status comes with
     each stage-0 request but the run's first, and a subsystem's k-th reply answers its k-th command (its step: the
-    command's tick plus its ratio)."""
+    command's tick plus its ratio). A generated loop (``manager.scheme.compiled``) appends the same values a block of
+    steps at a time, as arrays (``append_steps``), which are handed over as they are."""
 
     def __init__(self, tap, plan: Plan, status: bool, stages: list[tuple]) -> None:
         self.tap = tap
@@ -156,6 +157,10 @@ class TakenSteps:
         self.shapes: list[int | None] = []  # and their shapes
         self.commands: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its polynomials' values, flat
         self.outputs: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its replies' outputs, flat
+        # or, appended a block of steps at a time (append_steps; a run appends one way or the other), rows of each
+        self.request_blocks: list[tuple[np.ndarray, np.ndarray]] = []  # (ticks, shapes: NaN for none)
+        self.command_blocks: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self.output_blocks: list[list[np.ndarray]] = [[] for _ in range(n)]
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
 
     def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
@@ -166,6 +171,25 @@ class TakenSteps:
         """The stepping loop starts: the initialisation's last replies, with a request that sends nothing."""
         if self.initial_replies.last:
             self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
+
+    def append_steps(self, first: int, commands: list[np.ndarray], outputs: list[np.ndarray]) -> None:
+        """Base steps ``first`` … of a single-rate run of one stage (``manager.scheme.compiled``), appended as the
+        stepping loop appends them step by step: per step a request (the run's first of no shape, every other of
+        shape 0) commanding every subsystem and awaiting its reply; per subsystem a row of ``commands`` and of
+        ``outputs`` each step."""
+        count = len(outputs[0])
+        for blocks, rows in zip(self.command_blocks, commands):
+            blocks.append(rows)
+        shapes = np.zeros(count)
+        shapes[:first == 0] = np.nan
+        self.request_blocks.append((np.arange(first, first + count), shapes))
+        for blocks, rows in zip(self.output_blocks, outputs):
+            blocks.append(rows)
+
+    @property
+    def requests(self) -> int:
+        """Requests appended since the last block was handed over."""
+        return len(self.ticks) + sum(len(ticks) for ticks, _ in self.request_blocks)
 
     def end(self, status: int | None) -> None:
         """The run has ended: the replies of the last request, with the last status."""
@@ -181,13 +205,18 @@ class TakenSteps:
         replies its requests hand over (not those of a last request that the scheme never took: a run that failed
         or was interrupted), and it is built before anything is cleared, so that an interrupt while it is built
         leaves it whole for ``failed``."""
-        count = min(len(self.ticks), len(self.shapes))  # requests made (an interrupt may fall between the two)
+        if self.request_blocks:
+            ticks = np.concatenate([ticks for ticks, _ in self.request_blocks])
+            shapes = np.concatenate([shapes for _, shapes in self.request_blocks])
+        else:
+            count = min(len(self.ticks), len(self.shapes))  # requests made (an interrupt may fall between the two)
+            ticks = np.array(self.ticks[:count], dtype=np.int64)
+            shapes = np.array(self.shapes[:count], dtype=float)  # the run's first request: None, here NaN
+        count = len(ticks)
         if not count and not status:
             return
-        shapes = np.array(self.shapes[:count], dtype=float)  # the run's first request: None, here NaN
         first = np.isnan(shapes)
         shapes = np.where(first, 0, shapes).astype(np.int64)  # ... of shape 0, without the status
-        ticks = np.array(self.ticks[:count], dtype=np.int64)
         before = np.concatenate(([-1], shapes[:-1])) if count else shapes  # each request follows the replies of the
         # one before it; the block's first, none (the block before ended with them)
         carries = (shapes % self.n_stages == 0) & ~first & self.status
@@ -197,12 +226,12 @@ class TakenSteps:
         numbers = [self._layout(self.awaited[code // (2 * n_shapes) - 1] if code >= 2 * n_shapes else (),
                                 bool(code % (2 * n_shapes) >= n_shapes), self.commanded[code % n_shapes])
                    for code in kinds.tolist()]
-        order = np.array(numbers, dtype=np.uint32)[kind_of].tolist()
+        order = np.array(numbers, dtype=np.uint32)[kind_of]
         statuses = int(carries.sum())
         handed = self.awaits_mask[before[before >= 0]].sum(axis=0)  # replies each subsystem hands over in the block
         due = self.awaited[shapes[-1]] if count and answered else ()
         if due or status:
-            order.append(self._layout(due, status, ()))
+            order = np.append(order, np.uint32(self._layout(due, status, ())))
             statuses += status
             handed[list(due)] += 1
         commanded = self.commands_mask[shapes]
@@ -212,12 +241,10 @@ class TakenSteps:
             i, width, k = s.index, (s.order + 1) * len(s.inputs), int(handed[s.index])
             sent, n_outputs = ticks[commanded[:, i]], len(s.outputs)
             subsystems.append(SubsystemSteps(
-                sent, np.array(self.commands[i][:len(sent) * width], dtype=float).reshape(len(sent), width),
-                s.order + 1, sent[:k] + s.ratio,
-                np.array(self.outputs[i][:k * n_outputs], dtype=float).reshape(k, n_outputs)))
-        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, np.array(order, dtype=np.uint32),
-                           subsystems, statuses, last)
-        for kept in (self.commands, self.outputs):
+                sent, _rows(self.commands[i], self.command_blocks[i], width, len(sent)), s.order + 1,
+                sent[:k] + s.ratio, _rows(self.outputs[i], self.output_blocks[i], n_outputs, k)))
+        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, order, subsystems, statuses, last)
+        for kept in (self.commands, self.outputs, self.command_blocks, self.output_blocks, [self.request_blocks]):
             for each in kept:
                 each.clear()
         self.ticks.clear()
@@ -227,3 +254,10 @@ class TakenSteps:
     def _layout(self, replying: tuple[int, ...], status: bool, commanded: tuple[int, ...]) -> int:
         """The number of the layout (subsystems replying, status, subsystems commanded: plan indices)."""
         return self.layout_of.setdefault((replying, status, commanded), len(self.layout_of))
+
+
+def _rows(values: list[float], blocks: list[np.ndarray], width: int, count: int) -> np.ndarray:
+    """The first ``count`` rows of ``width`` values: of the flat ``values`` or the row ``blocks``."""
+    if blocks:
+        return np.concatenate(blocks)[:count]
+    return np.array(values[:count * width], dtype=float).reshape(count, width)

@@ -8,9 +8,9 @@ the end of the list; *measured* fields (wall-clock times) differ from run to run
 when a recording is verified by re-running it.
 
 The stepping loop does not encode the messages: as a scheme ends a step it only logs the step's figures
-(``log_residuals``, ``log_times``: two list extensions), and whoever taps the run takes the
-messages in step order (:meth:`StatusReport.take`), encoded many steps at once with numpy when a batch is
-handed over — a recording's cost on the stepping loop (docs/recording.md, Overhead).
+(``log_residuals``, ``log_times``: two list extensions; a generated loop logs a block of steps' arrays at a
+time, ``log_steps``), and whoever taps the run takes the messages in step order (:meth:`StatusReport.take`),
+encoded many steps at once with numpy when a batch is handed over — a recording's cost on the stepping loop (docs/recording.md, Overhead).
 """
 from __future__ import annotations
 
@@ -63,24 +63,38 @@ class StatusReport:
         self._times: list[int] = []
         self.log_residuals = self._residuals.extend
         self.log_times = self._times.extend
+        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []  # or (residuals, times) rows, a block at a time
         self._start_ns: int | None = None  # the release of step 0: the first step logged was released then
         self._table = np.dtype([("header", HEADER_DTYPE), ("values", "<f8", (len(self.fields),))])  # a message
         self.size = self._table.itemsize  # [bytes] of a message
 
+    def log_steps(self, residuals: np.ndarray, steps: np.ndarray, released: np.ndarray, completed: np.ndarray) -> None:
+        """Steps logged a block at a time, the values ``log_residuals`` and ``log_times`` log one by one (a generated
+        loop's: ``manager.scheme.compiled``; a run logs one way or the other): per step its row of ``residuals`` (δP
+        then δE of every bond), its number, its release and completion times [ns, perf_counter_ns]; no lateness (it
+        is not paced). The arrays are kept as they are (not copied)."""
+        self._blocks.append((residuals, np.column_stack((steps, released, completed, np.zeros_like(steps)))))
+
     @property
     def logged(self) -> int:
         """Steps logged and not yet taken."""
-        return len(self._times) // TIMES
+        return len(self._times) // TIMES + sum(len(times) for _, times in self._blocks)
 
     def take(self, count: int) -> Statuses:
         """The STATUS messages of the oldest ``count`` steps logged (they leave the log). The values are those the
         scheme computed, bit for bit; a time in seconds is its integer nanoseconds times 1e-9, as Python's."""
         count = min(count, self.logged)
         n_times, n_residuals = TIMES * count, self.n_residuals * count
-        # through struct, which converts a Python int or float in a fraction of numpy's time for a list of them
-        times = np.frombuffer(struct.pack(f"<{n_times}q", *self._times[:n_times]), dtype=np.int64).reshape(count, TIMES)
-        residuals = np.frombuffer(struct.pack(f"<{n_residuals}d", *self._residuals[:n_residuals]), dtype=np.float64)
-        del self._times[:n_times], self._residuals[:n_residuals]
+        if self._blocks:  # logged a block at a time: the oldest rows, the rest kept as one block
+            residual_rows = np.concatenate([rows for rows, _ in self._blocks])
+            time_rows = np.concatenate([rows for _, rows in self._blocks])
+            residuals, times = residual_rows[:count].ravel(), time_rows[:count]
+            self._blocks = [(residual_rows[count:], time_rows[count:])] if count < len(time_rows) else []
+        else:  # through struct, which converts a Python int or float in a fraction of numpy's time for a list of them
+            times = np.frombuffer(struct.pack(f"<{n_times}q", *self._times[:n_times]), dtype=np.int64).reshape(
+                count, TIMES)
+            residuals = np.frombuffer(struct.pack(f"<{n_residuals}d", *self._residuals[:n_residuals]), dtype=np.float64)
+            del self._times[:n_times], self._residuals[:n_residuals]
         if count == 0:
             return Statuses(b"", times[:, 0], times[:, 2])
         if self._start_ns is None:

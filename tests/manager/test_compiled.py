@@ -12,12 +12,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import zencosim.manager.scheme.jacobi as jacobi_module
+from tests.manager.frames_recorder import FramesRecorder
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.compiled import compiled_steps
 from zencosim.manager.scheme.residual import residual_power, residual_power_text
+from zencosim.manager.wire.protocol import HEADER, decode
+from zencosim.manager.wire.status import StatusReport
 
 # the bundled scenes the generated loop runs (single-rate, ZOH, linear subsystems), and a few it must not
 COMPILED = ["two_mass_damped", "two_mass_undamped", "four_mass", "mass_chain", "multiple_oscillator_n3",
@@ -35,8 +38,8 @@ def _run(name: str, overrides: list[str], compiled: bool, monkeypatch, keep: boo
     whether the generated loop ran)."""
     ran = []
 
-    def spied(plan, direct):
-        steps = compiled_steps(plan, direct) if compiled else None
+    def spied(plan, direct, commands):
+        steps = compiled_steps(plan, direct, commands) if compiled else None
         ran.append(steps is not None)
         return steps
 
@@ -134,3 +137,33 @@ def test_the_residual_powers_text_is_its_function_bit_for_bit(values):
     expected = residual_power(*values)
     assert np.array_equal(np.float64(evaluated), np.float64(expected), equal_nan=True)
     assert np.signbit(evaluated) == np.signbit(expected)
+
+
+def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_messages(monkeypatch):
+    """With a status and a recorder's tap of blocks (``TakenSteps``) the generated loop runs the steps, and the
+    recorder gets every message of the generic loop (each status's residuals included, not its wall times), in
+    order, in the same frames; its statuses' wall times are the steps' own (a step completes before the next is
+    released)."""
+    seen, ran = [], []
+    for compiled in (True, False):
+        def spied(plan, direct, commands, compiled=compiled):
+            steps = compiled_steps(plan, direct, commands) if compiled else None
+            ran.append(steps is not None)
+            return steps
+        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])  # blocks of 2,048 steps and a shorter one
+        plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = FramesRecorder(plan, status)
+        with monkeypatch.context() as patched:
+            patched.setattr(jacobi_module, "compiled_steps", spied)
+            run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems),
+                                       tap=recorder), plan, subsystems, recorder)
+        recorder.flush(last=True)
+        seen.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
+        if compiled:
+            statuses = [decode(data, "status").values.tolist() for i, data in recorder.messages(None)
+                        if i == recorder._status]
+    assert ran == [True, False]
+    assert len(seen[0]) > 3 * 4500 and seen[0] == seen[1]
+    wall, step_wall = np.array([values[2:4] for values in statuses]).T
+    assert len(wall) == 4500 and (np.diff(wall) >= 0).all() and (step_wall >= 0).all() and (step_wall <= wall).all()

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import zencosim.examples
+from tests.manager.frames_recorder import FramesRecorder
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.results.summary import digest
@@ -23,8 +24,6 @@ from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings.layout import channel_specs
-from zencosim.recordings.recorder import Recorder
 from zencosim.recordings.recorder_process import BATCH, frame_messages
 from zencosim.recordings.recorder_process import STEPS as STEPS_FRAME
 from zencosim.recordings.steps_frame import STEPS_HEAD
@@ -104,7 +103,7 @@ def test_a_failing_model_is_named_as_its_error_reply_names_it(tmp_path, monkeypa
         scene = load_scene(str(scene_file), ["manager.duration=0.2"])
         plan, subsystems = plan_scene(scene)
         status = StatusReport(plan, False)
-        recorder = _FramesRecorder(plan, status)  # what the recording holds: every message up to the failure
+        recorder = FramesRecorder(plan, status)  # what the recording holds: every message up to the failure
         with pytest.raises(SubsystemFailure) as failure:
             run_in_process(make_scheme(scene, plan, status=status,
                                        direct=DirectCalls(plan, subsystems) if direct else None, tap=recorder),
@@ -146,28 +145,6 @@ def test_a_tap_sees_the_same_messages_in_the_same_order_on_both_paths(name, over
     assert len(seen[1]) > 100 and seen[0] == seen[1]
 
 
-class _FramesRecorder(Recorder):
-    """The recorder's tap with its frames kept here (no recorder process)."""
-
-    def __init__(self, plan, status: StatusReport) -> None:
-        super().__init__(None)
-        self._declare(channel_specs(plan, status), False, status)
-        self.frames: list[tuple[int, bytes]] = []
-
-    def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
-        self.frames.append((kind, payload))
-
-    def messages(self, residuals_end: int) -> list[tuple[int, bytes]]:
-        """Every message of the frames, (channel index, bytes), a status's only up to ``residuals_end``."""
-        found = []
-        for kind, frame in self.frames:
-            channels, sizes, _, blob = frame_messages(kind, frame, self._index, self._status)
-            ends = np.cumsum(sizes).tolist()
-            found += [(i, blob[end - size:end][:residuals_end] if i == self._status else blob[end - size:end])
-                      for i, size, end in zip(channels.tolist(), sizes.tolist(), ends)]
-        return found
-
-
 @pytest.mark.parametrize("name, overrides, duration", [("two_mass_damped", [], 1.2),
                                                        (*VARIANTS["double_oscillator_multi_rate_foh"], 0.12),
                                                        (*VARIANTS["double_oscillator_multi_rate_gauss_seidel"], 0.12),
@@ -185,7 +162,7 @@ def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arra
         scene = load_scene(name, [*overrides, f"manager.duration={duration}"])
         plan, subsystems = plan_scene(scene)
         status = StatusReport(plan, False)
-        recorder = _FramesRecorder(plan, status)
+        recorder = FramesRecorder(plan, status)
         scheme = make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems) if direct else None,
                              tap=recorder)
         run_in_process(scheme, plan, subsystems, recorder)
@@ -206,7 +183,7 @@ def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():
     long_period = ["manager.macro_step=0.000001", "subsystems.M1.comm_ratio=4099", "subsystems.M1.micro_step=0.004099",
                    "subsystems.M2.micro_step=0.000001", "manager.duration=0.008198"]
     plan, _ = plan_scene(load_scene("double_oscillator", long_period))
-    recorder = _FramesRecorder(plan, StatusReport(plan, False))
+    recorder = FramesRecorder(plan, StatusReport(plan, False))
     crane = plan_scene(load_scene("hydraulic_crane"))[0]
 
     def taken(plan, paced):
@@ -220,7 +197,7 @@ def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():
         scene = load_scene("double_oscillator", long_period)
         plan, subsystems = plan_scene(scene)
         status = StatusReport(plan, False)
-        recorder = _FramesRecorder(plan, status)
+        recorder = FramesRecorder(plan, status)
         run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems) if direct else None,
                                    tap=recorder), plan, subsystems, recorder)
         recorder.flush(last=True)
@@ -235,7 +212,7 @@ def test_a_steps_frame_that_does_not_hold_what_its_head_says_is_refused():
     scene = load_scene("two_mass_damped", ["manager.duration=0.2"])  # one block
     plan, subsystems = plan_scene(scene)
     status = StatusReport(plan, False)
-    recorder = _FramesRecorder(plan, status)
+    recorder = FramesRecorder(plan, status)
     run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems), tap=recorder),
                    plan, subsystems, recorder)
     (frame,) = [data for kind, data in recorder.frames if kind == STEPS_FRAME]
