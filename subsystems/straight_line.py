@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,9 +28,11 @@ StraightLineStep = Callable[[np.ndarray, list[float]], tuple[list[float], list[f
 
 @dataclass(frozen=True)
 class StepText:
-    """A straight-line step as statements over float names with one prefix: it reads the state ``state`` and the
+    """A subsystem's step as statements over float names with one prefix: it reads the state ``state`` and the
     input coefficients ``coefficients`` (row after row) and leaves the state at the step's end in ``new_state``, the
-    input values there in ``inputs_at_end`` and the outputs (the linear ones, then the energy) in ``outputs``."""
+    input values there in ``inputs_at_end`` and the outputs in ``outputs`` (a linear model's: the linear ones, then
+    the energy). ``namespace``: the objects the statements call, by their (prefixed) names (a model's own step:
+    ``subsystems.models.external.fmu``)."""
 
     statements: tuple[str, ...]
     state: tuple[str, ...]
@@ -38,6 +40,7 @@ class StepText:
     new_state: tuple[str, ...]
     inputs_at_end: tuple[str, ...]
     outputs: tuple[str, ...]
+    namespace: dict = field(default_factory=dict)
 
 
 def step_text(Phi_m: np.ndarray, Psi: np.ndarray, rows: int, span_s: float, G: np.ndarray, n_linear: int,

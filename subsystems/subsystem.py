@@ -21,6 +21,7 @@ import numpy as np
 
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.integrators.base import composed_linear_step
+from zencosim.subsystems.integrators.own_solver import OwnSolver
 from zencosim.subsystems.ports import Port
 from zencosim.subsystems.straight_line import StepText, StraightLineStep, step_text, straight_line_step
 
@@ -125,20 +126,26 @@ class Subsystem:
         self._straight[key] = straight_line_step(Phi_m, Psi, key[1], span_s, *self.model.output_matrix())
         return self._straight[key]
 
-    def straight_line_text(self, span_ns: int, prefix: str) -> StepText | None:
-        """The statements of the straight-line step ``advance_values`` takes over ``span_ns`` with zero-order inputs
-        (its names prefixed with ``prefix``), or None where it takes none (``subsystems.straight_line``): the same
-        products, in the same order, for a loop that runs the step itself (``manager.scheme.compiled``), which hands
+    def step_text(self, span_ns: int, prefix: str, start_ns: str) -> StepText | None:
+        """The statements of the step ``advance_values`` takes over ``span_ns`` with zero-order inputs (its names
+        prefixed with ``prefix``; ``start_ns`` the text of an expression giving the step's start [ns], an int), or
+        None where it has none: a linear model's straight-line step (``subsystems.straight_line``: the same products,
+        in the same order), or a model's own (a co-simulation FMU's calls under the ``own`` integrator,
+        ``step_text`` of the model). For a loop that runs the step itself (``manager.scheme.compiled``), which hands
         the state it leaves to ``took_steps``."""
         h_ns = self.micro_step_ns
-        if self._linear is None or span_ns <= 0 or span_ns % h_ns:
+        if span_ns <= 0 or span_ns % h_ns:
             return None
-        Phi_m, Psi = self._composed_step(span_ns // h_ns, 1, h_ns * 1e-9)
-        return step_text(Phi_m, Psi, 1, span_ns * 1e-9, *self.model.output_matrix(), prefix=prefix)
+        if self._linear is not None:
+            Phi_m, Psi = self._composed_step(span_ns // h_ns, 1, h_ns * 1e-9)
+            return step_text(Phi_m, Psi, 1, span_ns * 1e-9, *self.model.output_matrix(), prefix=prefix)
+        if isinstance(self.integrator, OwnSolver) and hasattr(self.model, "step_text"):
+            return self.model.step_text(prefix, start_ns, span_ns // h_ns, h_ns)
+        return None
 
     def took_steps(self, t_ns: int, z: list[float], w: list[float]) -> None:
-        """Take the state ``z`` and the input values ``w`` at ``t_ns`` that the straight-line steps of
-        ``straight_line_text`` left, run elsewhere: as if ``advance_values`` had taken them."""
+        """Take the state ``z`` and the input values ``w`` at ``t_ns`` that the steps of ``step_text`` left, run
+        elsewhere: as if ``advance_values`` had taken them."""
         self.z[:] = z
         self.t_ns = t_ns
         self.w = w

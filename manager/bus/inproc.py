@@ -13,6 +13,8 @@ model is named as its ERROR reply would name it (``failure_reason``), and a watc
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from zencosim.manager.bus.signals import InterruptWatch
@@ -48,7 +50,7 @@ class DirectCalls:
             with self.watch.marking(mark, STEPPING):
                 return self.subsystems[s.index].output_values(w0)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
-            raise self._failure(s, 0, error) from None
+            raise self.failure(s, 0, error) from None
 
     def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
         # initial's body over advance_values, written out: the stepping loop's path, with no further call in between
@@ -61,14 +63,18 @@ class DirectCalls:
             with self.watch.marking(mark, STEPPING, t0_ns):
                 return self.advance[i](t0_ns, t0_ns + self.comm_step_ns[i], coefficients)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
-            raise self._failure(s, tick + s.ratio, error) from None
+            raise self.failure(s, tick + s.ratio, error) from None
 
-    def straight_line_text(self, s: SubsystemPlan, prefix: str) -> StepText | None:
-        """``s``'s step as straight-line statements (``Subsystem.straight_line_text``), or None: it takes none, or
-        its calls are marked (a watched model's)."""
-        if self.marks[s.index] is not None:
-            return None
-        return self.subsystems[s.index].straight_line_text(self.comm_step_ns[s.index], prefix)
+    def step_text(self, s: SubsystemPlan, prefix: str, start_ns: str) -> StepText | None:
+        """``s``'s zero-order step as statements (``Subsystem.step_text``), or None; in a watched run, a model that is
+        not zencosim's own marks its step as ``step`` does (``ModelWatch.marking_statements``)."""
+        text = self.subsystems[s.index].step_text(self.comm_step_ns[s.index], prefix, start_ns)
+        mark = self.marks[s.index]
+        if text is None or mark is None:
+            return text
+        before, after = self.watch.marking_statements(mark, start_ns, f"{prefix}watched")
+        return replace(text, statements=(*before, *text.statements, *after),
+                       namespace={**text.namespace, f"{prefix}watched": self.watch.slots})
 
     def state(self, s: SubsystemPlan) -> list[float]:
         return self.subsystems[s.index].z.tolist()
@@ -76,9 +82,10 @@ class DirectCalls:
     def took_steps(self, s: SubsystemPlan, tick: int, z: list[float], w: list[float]) -> None:
         self.subsystems[s.index].took_steps(tick * self.base_step_ns, z, w)
 
-    @staticmethod
-    def _failure(s: SubsystemPlan, due: int, error: BaseException) -> BaseException:
-        """``s``'s failure as its ERROR reply would name it, or the user's interrupt as it was."""
+    def failure(self, s: SubsystemPlan, due: int, error: BaseException) -> BaseException:
+        """``s``'s failure as its ERROR reply would name it, or the user's interrupt as it was; no model's call is under
+        way any more."""
+        self.watch.clear()
         reason = failure_reason(error)
         return error if reason is None else SubsystemFailure(s.name, f"failed at step {due}: {printable(reason)}")
 

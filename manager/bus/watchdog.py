@@ -89,6 +89,18 @@ class ModelWatch:
         finally:
             slots[SUBSYSTEM] = -1
 
+    def marking_statements(self, index: int, t_ns: str, slots: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """``marking(index, STEPPING, t_ns)`` as statements around a step that a generated loop runs
+        (``manager.scheme.compiled``): (before, after), ``t_ns`` the text of the step's start [ns], ``slots`` the
+        name the statements know :attr:`slots` by. A step that raises leaves the mark: whoever catches it clears it
+        (``clear``)."""
+        return ((f"{slots}[{SUBSYSTEM}], {slots}[{PHASE}], {slots}[{T_NS}] = {index}, {STEPPING}, {t_ns}",
+                 f"{slots}[{CALLS}] += 1"), (f"{slots}[{SUBSYSTEM}] = -1",))
+
+    def clear(self) -> None:
+        """No call into a model is under way (its step raised, ``marking_statements``)."""
+        self.slots[SUBSYSTEM] = -1
+
     def constructing(self, name: str) -> AbstractContextManager:
         """Marks the construction of subsystem ``name`` (one of the names given to :meth:`start`)."""
         return self.marking(self.index(name), CONSTRUCTING)

@@ -88,12 +88,16 @@ class SubsystemCalls(Protocol):
         """``s``'s outputs at the end of its step from base step ``tick`` over the input polynomial ``coefficients``
         (a STEP command's), both as ``Subsystem.advance_values`` takes and gives them."""
 
-    def straight_line_text(self, s: SubsystemPlan, prefix: str) -> StepText | None:
-        """``s``'s zero-order step as straight-line statements over names prefixed ``prefix``
-        (``Subsystem.straight_line_text``: a loop that runs it itself, ``manager.scheme.compiled``), or None."""
+    def step_text(self, s: SubsystemPlan, prefix: str, start_ns: str) -> StepText | None:
+        """``s``'s zero-order step as statements over names prefixed ``prefix``, its start [ns] the expression
+        ``start_ns`` (``Subsystem.step_text``: for a loop that runs it itself, ``manager.scheme.compiled``), or None."""
+
+    def failure(self, s: SubsystemPlan, due: int, error: BaseException) -> BaseException:
+        """What ``s`` raising ``error`` in its step to ``due`` ends the run with (a model's failure, named as its
+        ERROR reply would name it, or the user's interrupt as it was)."""
 
     def state(self, s: SubsystemPlan) -> list[float]:
-        """``s``'s state now, as the statements of ``straight_line_text`` read it."""
+        """``s``'s state now, as the statements of ``step_text`` read it."""
 
     def took_steps(self, s: SubsystemPlan, tick: int, z: list[float], w: list[float]) -> None:
         """``s`` is at base step ``tick`` with the state ``z`` and input values ``w`` that a loop running its

@@ -50,52 +50,101 @@ class CompiledSteps:
         self.plan, self.direct, self.texts = plan, direct, texts
         self.width = [len(s.outputs) for s in plan.subsystems]
         self.commands = [len(s.inputs) if commands else 0 for s in plan.subsystems]  # each row's command columns
+        self.output_ends = np.cumsum(self.width)
+        self.command_ends = self.output_ends[-1] + np.cumsum(self.commands)
+        self.bonds_start = int(self.command_ends[-1])  # the bonds' δP, then their δE
         self.source = _loop_text(plan, texts, commands)
-        self.steps = define(self.source, "steps", "<compiled macro-steps>")
+        namespace = {"Stopped": Stopped}
+        for text in texts:
+            namespace.update(text.namespace)
+        self.steps = define(self.source, "steps", "<compiled macro-steps>", namespace)
 
     def run(self, readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
             release_times: RowWindow, progress: Callable[[int], None] | None, status: StatusReport | None = None,
             taken: TakenSteps | None = None) -> int:
         """Run every macro-step from the outputs at t_0 the ``readers`` hold; fill their windows, the bonds' and the
         release times'; report progress, log the status (``status``) and hand the tap its blocks (``taken``) as the
-        scheme does. Returns the number of macro-steps run (all)."""
+        scheme does. Returns the number of macro-steps run (all). A step that raises (a model's failure, an
+        interrupt) ends the run as the scheme's loop ends it: the steps before it handed over, the tap given its
+        request, and the failure named as ``SubsystemCalls.step`` names it."""
         plan = self.plan
-        n_ticks, n_bonds = plan.n_ticks, len(plan.bonds)
+        n_ticks = plan.n_ticks
         state = [list(self.direct.state(s)) for s in plan.subsystems]
         newest = [list(reader.newest) for reader in readers]
-        energies = [0.0] * n_bonds
-        output_ends = np.cumsum(self.width)
-        command_ends = output_ends[-1] + np.cumsum(self.commands)
-        bonds_start = command_ends[-1]
+        energies = [0.0] * len(plan.bonds)
         first = 0
         while first < n_ticks:
             last = min(n_ticks, _next(first, PROGRESS_EVERY), _next(first, TAP_BLOCK_STEPS) if taken else n_ticks)
             if taken is not None and taken.requests >= TAP_BLOCK_STEPS:  # where a period starts, as the scheme does
                 taken.flush()
             rows, times = [], []
-            state, newest, energies, inputs_at_end = self.steps(first, last, state, newest, energies, rows.extend,
-                                                                times.append, time.perf_counter_ns)
-            done_ns = time.perf_counter_ns()
-            block = np.fromiter(rows, float, len(rows)).reshape(last - first, -1)
-            for reader, rows, values in zip(readers, _columns(block, output_ends, self.width), newest):
-                reader.window.put_rows(first + 1, rows)
+            try:
+                state, newest, energies, inputs_at_end = self.steps(first, last, state, newest, energies,
+                                                                    rows.extend, times.append, time.perf_counter_ns)
+            except Stopped as stopped:
+                self._stopped(stopped, first, rows, times, readers, residual_power, residual_energy, release_times,
+                              status, taken)
+            self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
+                            release_times, status, taken)
+            for reader, values in zip(readers, newest):
                 reader.newest = values
-            residual_power.put_rows(first + 1, block[:, bonds_start:bonds_start + n_bonds])
-            residual_energy.put_rows(first + 1, block[:, bonds_start + n_bonds:])
-            released = np.fromiter(times, np.int64, len(times))
-            release_times.put_rows(first, released)
-            if status is not None:  # a step completed where the next was released (the loop's next statement)
-                completed = np.append(released[1:], done_ns)
-                status.log_steps(block[:, bonds_start:], np.arange(first + 1, last + 1), released, completed)
-            if taken is not None:
-                taken.append_steps(first, _columns(block, command_ends, self.commands),
-                                   _columns(block, output_ends, self.width))
             first = last
             if progress is not None and last % PROGRESS_EVERY == 0:
                 progress(last)
         for s, z, w in zip(plan.subsystems, state, inputs_at_end):
             self.direct.took_steps(s, n_ticks, z, w)
         return n_ticks
+
+    def _hand_over(self, first: int, rows: list[float], times: list[int], done_ns: int, readers: list[OutputReader],
+                   residual_power: RowWindow, residual_energy: RowWindow, release_times: RowWindow,
+                   status: StatusReport | None, taken: TakenSteps | None) -> np.ndarray:
+        """The steps from ``first`` whose ``rows`` the loop extended (whole steps) to the run's windows, the status
+        log and the tap; ``times``: their releases (and perhaps one more), ``done_ns``: when the last completed.
+        Returns the rows as an array."""
+        n_bonds = len(self.plan.bonds)
+        width = self.bonds_start + 2 * n_bonds
+        block = np.fromiter(rows, float, len(rows)).reshape(len(rows) // width, width)
+        count = len(block)
+        for reader, values in zip(readers, _columns(block, self.output_ends, self.width)):
+            reader.window.put_rows(first + 1, values)
+        residual_power.put_rows(first + 1, block[:, self.bonds_start:self.bonds_start + n_bonds])
+        residual_energy.put_rows(first + 1, block[:, self.bonds_start + n_bonds:])
+        released = np.fromiter(times, np.int64, len(times))[:count]
+        release_times.put_rows(first, released)
+        if status is not None:  # a step completed where the next was released (the loop's next statement)
+            completed = np.append(released[1:], done_ns)[:count]
+            status.log_steps(block[:, self.bonds_start:], np.arange(first + 1, first + count + 1), released, completed)
+        if taken is not None:
+            taken.append_steps(first, _columns(block, self.command_ends, self.commands),
+                               _columns(block, self.output_ends, self.width))
+        return block
+
+    def _stopped(self, stopped: Stopped, first: int, rows: list[float], times: list[int], readers: list[OutputReader],
+                 residual_power: RowWindow, residual_energy: RowWindow, release_times: RowWindow,
+                 status: StatusReport | None, taken: TakenSteps | None) -> None:
+        """Hand over the steps before the one that raised and raise what the scheme's loop raises: as it, the tap
+        gets that step's request (its commands, the outputs at its start), not its replies."""
+        block = self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
+                                release_times, status, taken)
+        if taken is not None:
+            at_start = ([values[0].tolist() for values in _columns(block[-1:], self.output_ends, self.width)]
+                        if len(block) else [list(reader.newest) for reader in readers])
+            commands = [np.array([[at_start[source][output] for source, output in s.zero_order_sources]])
+                        for s in self.plan.subsystems]
+            taken.append_steps(first + len(block), commands, [np.empty((0, width)) for width in self.width])
+        if stopped.subsystem is None:
+            raise stopped.error
+        raise self.direct.failure(self.plan.subsystems[stopped.subsystem], first + len(block) + 1,
+                                  stopped.error) from None
+
+
+class Stopped(BaseException):  # not an error of its own: it carries one out of the generated loop
+    """A step of the generated loop raised ``error`` in the statements of ``subsystem`` (its plan index; None: outside
+    them, an interrupt). The step is the first the loop did not extend its row for."""
+
+    def __init__(self, subsystem: int | None, error: BaseException) -> None:
+        super().__init__(subsystem, error)
+        self.subsystem, self.error = subsystem, error
 
 
 def _columns(block: np.ndarray, ends: np.ndarray, widths: list[int]) -> list[np.ndarray]:
@@ -115,7 +164,7 @@ def compiled_steps(plan: Plan, direct: SubsystemCalls, commands: bool = False) -
     subs = plan.subsystems
     if plan.sequential or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
         return None
-    texts = [direct.straight_line_text(s, f"s{s.index}_") for s in subs]
+    texts = [direct.step_text(s, f"s{s.index}_", f"tick * {plan.base_step_ns}") for s in subs]
     if any(text is None or len(text.outputs) != len(s.outputs) for text, s in zip(texts, subs)):
         return None
     return CompiledSteps(plan, direct, texts, commands)
@@ -143,9 +192,11 @@ def _loop_text(plan: Plan, texts: list[StepText], commands: bool) -> str:
     for s, text in zip(subs, texts):  # every command first, from the outputs at the step's start
         body.extend(f"{c} = {texts[source].outputs[output]}"
                     for c, (source, output) in zip(text.coefficients, s.zero_order_sources))
-    for text in texts:
+    for s, text in zip(subs, texts):
+        body.append(f"stepping = {s.index}")
         body.extend(text.statements)
         body.extend(f"{z} = {n}" for z, n in zip(text.state, text.new_state))
+    body.append("stepping = None")
     for b, bond in enumerate(plan.bonds):
         force_side, motion_side = texts[bond.force_side], texts[bond.motion_side]
         power = "0.0"  # as the scheme adds the components up, from 0.0
@@ -160,7 +211,9 @@ def _loop_text(plan: Plan, texts: list[StepText], commands: bool) -> str:
         row += [name for text in texts for name in text.coefficients]
     row += powers + energies
     body.append(f"extend(({', '.join(row)},))")
-    lines = head + ["    for _ in range(first, last):"] + [f"        {line}" for line in body]
+    lines = head + ["    stepping = None", "    try:", "        for tick in range(first, last):"]
+    lines += [f"            {line}" for line in body]
+    lines += ["    except BaseException as error:", "        raise Stopped(stepping, error) from None"]
     lines.append(f"    return [{', '.join(f'[{_listed(t.state)}]' for t in texts)}], "
                  f"[{', '.join(f'[{_listed(t.outputs)}]' for t in texts)}], [{_listed(energies)}], "
                  f"[{', '.join(f'[{_listed(t.inputs_at_end)}]' for t in texts)}]")

@@ -175,9 +175,9 @@ class TakenSteps:
     def append_steps(self, first: int, commands: list[np.ndarray], outputs: list[np.ndarray]) -> None:
         """Base steps ``first`` … of a single-rate run of one stage (``manager.scheme.compiled``), appended as the
         stepping loop appends them step by step: per step a request (the run's first of no shape, every other of
-        shape 0) commanding every subsystem and awaiting its reply; per subsystem a row of ``commands`` and of
-        ``outputs`` each step."""
-        count = len(outputs[0])
+        shape 0) commanding every subsystem and awaiting its reply; per subsystem a row of ``commands`` each step,
+        and of ``outputs`` each step answered (all but a last one that failed or was interrupted)."""
+        count = len(commands[0])
         for blocks, rows in zip(self.command_blocks, commands):
             blocks.append(rows)
         shapes = np.zeros(count)

@@ -6,6 +6,8 @@ The oracle is the generic loop on the same scene (``compiled_steps`` patched to 
 message path and with a Zenoh run tests/manager/test_direct.py and tests/manager/test_buses.py check."""
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -17,6 +19,7 @@ from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.compiled import compiled_steps
 from zencosim.manager.scheme.residual import residual_power, residual_power_text
 from zencosim.manager.wire.protocol import HEADER, decode
@@ -167,3 +170,56 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
     assert len(seen[0]) > 3 * 4500 and seen[0] == seen[1]
     wall, step_wall = np.array([values[2:4] for values in statuses]).T
     assert len(wall) == 4500 and (np.diff(wall) >= 0).all() and (step_wall >= 0).all() and (step_wall <= wall).all()
+
+
+@pytest.fixture(scope="module")
+def examples(tmp_path_factory):
+    if shutil.which("gcc") is None:
+        pytest.skip("building the example FMUs needs gcc")
+    from zencosim.examples.write import write_examples
+
+    directory = tmp_path_factory.mktemp("examples")
+    write_examples(directory)
+    return directory
+
+
+@pytest.mark.parametrize("name", ["two_mass_damped_fmu", "double_oscillator_fmu"])
+def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(examples, name, monkeypatch):
+    """The example C FMUs' calls (set, doStep at the same times, get) written into the loop: the same arrays."""
+    scene = str(examples / f"{name}.toml")
+    record, subsystems, compiled = _run(scene, ["manager.duration=1.2"], True, monkeypatch)
+    expected, expected_subsystems, _ = _run(scene, ["manager.duration=1.2"], False, monkeypatch)
+    assert compiled
+    _assert_same_run((record, subsystems), (expected, expected_subsystems))
+
+
+@pytest.mark.parametrize("fail_at, duration", [(0.7005, 1.2), (0.0, 0.1)], ids=["mid-run", "first step"])
+def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(examples, fail_at, duration, monkeypatch):
+    """An FMU whose doStep fails at ``fail_at`` (the example's parameter): the same one line (the subsystem, the
+    step, the FMI call, its status, the time) and a recording of each holds the same messages, up to the failing
+    step's commands."""
+    text = (examples / "two_mass_damped_fmu.toml").read_text()
+    failing = examples / "failing_fmu.toml"
+    failing.write_text(text.replace("start = { m = 1.0, k = 1000.0,", f"start = {{ fail_at = {fail_at}, m = 1.0, "
+                                    "k = 1000.0,"))
+    said, recorded, ran = [], [], []
+    for compiled in (True, False):
+        def spied(plan, direct, commands, compiled=compiled):
+            steps = compiled_steps(plan, direct, commands) if compiled else None
+            ran.append(steps is not None)
+            return steps
+        scene = load_scene(str(failing), [f"manager.duration={duration}"])
+        plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = FramesRecorder(plan, status)
+        with monkeypatch.context() as patched, pytest.raises(SubsystemFailure) as failure:
+            patched.setattr(jacobi_module, "compiled_steps", spied)
+            run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems),
+                                       tap=recorder), plan, subsystems, recorder)
+        recorder.flush(last=True)
+        said.append(str(failure.value))
+        recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
+    assert ran == [True, False]
+    assert said[0] == said[1] and said[0].startswith("subsystem S2: failed at step "), said
+    assert "fmi2DoStep failed with status" in said[0]
+    assert recorded[0] == recorded[1] and len(recorded[0]) >= 4

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
+from zencosim.subsystems.straight_line import StepText
 from zencosim.subsystems.units import BASE, UnitError, exponents
 
 INTERFACES = {"co-simulation": "coSimulation", "model-exchange": "modelExchange"}
@@ -345,6 +346,42 @@ class FmuCoSimulation(_FmuInstance):
             raise self.failure(error, "doStep") from None
         if result[1]:  # terminateSimulation
             raise FmuError(f"FMU {self.path.name}: asked to terminate the simulation at t = {t:.9g} s")
+
+    def step_text(self, prefix: str, start_ns: str, micro_steps: int, h_ns: int) -> StepText | None:
+        """One communication step of ``micro_steps`` micro-steps of ``h_ns`` with zero-order inputs as statements
+        (``subsystems.subsystem.Subsystem.step_text``; ``start_ns``: the text of the step's start [ns], an int): the
+        calls ``do_step`` and ``outputs`` make, with the same arguments — per micro-step the inputs set, then
+        ``fmi2DoStep`` at ``t = (start + j h) × 1e-9`` s, and the outputs read at the end without setting the same
+        inputs again — each status checked as they check it, a failure raised as the same :class:`FmuError`.
+        FMI 2.0 with real inputs and outputs only; else None."""
+        if self.version != "2" or self._discrete_u or self._discrete_y:
+            return None
+        p, n_u, n_y = prefix, len(self._u_view), len(self._y_view)
+        inputs, outputs = tuple(f"{p}c{i}" for i in range(n_u)), tuple(f"{p}y{i}" for i in range(n_y))
+        lines = []
+        for j in range(micro_steps):
+            t = f"({start_ns} + {j * h_ns}) * 1e-9"
+            if n_u:
+                lines += [f"{p}u[:] = ({', '.join(inputs)},)", f"{p}status = {p}set_real(*{p}set_arguments)",
+                          f"if {p}status > {_WARNING}: {p}failed({self._set.__name__!r}, {p}status, {t}, 'doStep')"]
+            lines += [f"{p}status = {p}do_step({p}instance, {p}time({t}), {p}h, {p}false)",
+                      f"if {p}status > {_WARNING}: {p}failed('fmi2DoStep', {p}status, {t}, 'doStep')"]
+        if n_y:
+            t = f"({start_ns} + {micro_steps * h_ns}) * 1e-9"
+            lines += [f"{p}status = {p}get_real(*{p}get_arguments)",
+                      f"if {p}status > {_WARNING}: {p}failed({self._get.__name__!r}, {p}status, {t}, "
+                      "'reading its outputs')",
+                      f"{', '.join(outputs)}{',' if n_y == 1 else ''} = {p}y"]
+
+        def failed(function: str, status: int, t: float, what: str) -> None:
+            self.time = t
+            raise self.failure(self.FailedCall(function=function, status=status), what)
+
+        namespace = {f"{p}u": self._u, f"{p}y": self._y, f"{p}set_real": self._set, f"{p}get_real": self._get,
+                     f"{p}set_arguments": self._set_arguments, f"{p}get_arguments": self._get_arguments,
+                     f"{p}do_step": self._step, f"{p}instance": self._instance, f"{p}time": ctypes.c_double,
+                     f"{p}h": ctypes.c_double(h_ns * 1e-9), f"{p}false": FMI2_FALSE, f"{p}failed": failed}
+        return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
 
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         self.time = t

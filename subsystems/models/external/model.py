@@ -40,6 +40,7 @@ from zencosim.subsystems.models.external.python_model import (
 from zencosim.subsystems.models.external.table import InputTable, read_input_table
 from zencosim.subsystems.params import Problems, check_value, read_table
 from zencosim.subsystems.ports import UNITS, Attachments, Port
+from zencosim.subsystems.straight_line import StepText
 from zencosim.subsystems.units import UnitError, describe, exponents
 
 
@@ -244,6 +245,14 @@ class ExternalModel:
         y[a.input_rows] = w[a.input_columns]
         y[a.constant_rows] = a.constants
         return y
+
+    def step_text(self, prefix: str, start_ns: str, micro_steps: int, h_ns: int) -> StepText | None:
+        """The component's own zero-order step as statements (``Subsystem.step_text``), where zencosim's inputs and
+        outputs are the component's as they are and the component has such a text (a co-simulation FMU's:
+        ``subsystems.models.external.fmu``); else None."""
+        if not (self._u_plain and self._y.identity and hasattr(self.instance, "step_text")):
+            return None
+        return self.instance.step_text(prefix, start_ns, micro_steps, h_ns)
 
     def save_state(self) -> object | None:
         """The component's own state (co-simulation), or None when zencosim's ``z`` is the whole state."""
