@@ -104,7 +104,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
 
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
-    gathered = [_gathered_inputs(s, readers) if direct and not adjusters[s.index] else None for s in subs]
+    # a ZOH polynomial's values, its sources' newest (where this replica tracks every source)
+    zero_order = [_gathered_inputs(s, readers) if all(f.source in tracked for f in s.feeds) else None for s in subs]
+    gathered = [zero_order[s.index] if direct and not adjusters[s.index] else None for s in subs]
     unpack_inputs = [struct.Struct(f"<{len(s.inputs)}d").unpack_from for s in subs]  # a ZOH command's values
 
     def input_polynomial(s: SubsystemPlan, tick: int, stepping: bool = True) -> np.ndarray:
@@ -182,7 +184,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                     else:
                         stepping.append((s, coefficients))
                 for s in partners_starting:  # the other side of a local bond: its polynomial, for the residual
-                    sent[s.index] = (tick, input_polynomial(s, tick).tolist())
+                    sources = zero_order[s.index]
+                    sent[s.index] = (tick, [[reader.newest[output] for reader, output in sources]]
+                                     if sources is not None else input_polynomial(s, tick).tolist())
                 if released_ns is None:
                     released_ns = releases.release(tick)
                 elif not (starting or partners_starting or due):  # its subsystem is amid a longer step (Gauss–Seidel)

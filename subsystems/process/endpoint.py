@@ -6,8 +6,19 @@ scheme (called directly), on identical bytes; the in-process Jacobi scheme calls
 """
 from __future__ import annotations
 
+import struct
+
 from zencosim.manager.bus.signals import raised_by_code
-from zencosim.manager.wire.protocol import Kind, ProtocolError, command_ref, decode, encode, encode_error
+from zencosim.manager.wire.protocol import (
+    HEADER,
+    VERSION,
+    Kind,
+    ProtocolError,
+    command_ref,
+    decode,
+    encode,
+    encode_error,
+)
 from zencosim.subsystems.inputs import InputPolynomial
 from zencosim.subsystems.subsystem import SavedState, Subsystem
 
@@ -32,12 +43,20 @@ class SubsystemEndpoint:
         self.comm_step_ns = ratio * base_step_ns
         self.n_inputs = len(subsystem.inputs)
         self.saved: tuple[int, SavedState] | None = None  # (step, state): SAVE replaces the previous one
+        self._zero_order_size = HEADER.size + 8 * self.n_inputs  # a STEP with one row of inputs: its bytes
+        self._unpack_inputs = struct.Struct(f"<{self.n_inputs}d").unpack_from
+        self._pack_outputs = struct.Struct(f"<{len(subsystem.outputs)}d").pack
 
     def handle(self, data: bytes) -> bytes:
         """One command in, one reply out (carrying the command's reference); a failing command is
         answered with an ERROR message (:func:`failure_reason`); a KeyboardInterrupt of the user's goes on."""
         step, time_ns, ref = -1, -1, command_ref(data)
         try:
+            if len(data) == self._zero_order_size:  # perhaps a zero-order STEP: its values as floats, no array
+                version, kind, rows, count, step, time_ns, _ = HEADER.unpack_from(data)
+                if version == VERSION and kind == Kind.STEP and rows == 1 and count == self.n_inputs:
+                    return self._zero_order_step(step, time_ns, self._unpack_inputs(data, HEADER.size), ref)
+                step, time_ns = -1, -1
             message = decode(data, "manager")
             step, time_ns = message.step, message.time_ns
             return self._dispatch(message, ref)
@@ -46,6 +65,15 @@ class SubsystemEndpoint:
             if reason is None:
                 raise
             return encode_error(step, time_ns, reason, ref)
+
+    def _zero_order_step(self, step: int, time_ns: int, inputs: tuple[float, ...], ref: int) -> bytes:
+        """A STEP's reply as ``_dispatch`` gives it, its one row of inputs taken as floats
+        (``Subsystem.advance_values``): the same outputs, the same bytes."""
+        t1 = time_ns + self.comm_step_ns
+        y = self.subsystem.advance_values(time_ns, t1, list(inputs))
+        if type(y) is not list:
+            return encode(Kind.OUTPUT, step + self.ratio, t1, y, ref=ref)
+        return HEADER.pack(VERSION, Kind.OUTPUT, 0, len(y), step + self.ratio, t1, ref) + self._pack_outputs(*y)
 
     def _inputs(self, message) -> InputPolynomial:
         rows = message.rows

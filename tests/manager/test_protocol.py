@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import alive, wait_for
@@ -22,8 +22,9 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.replica import Replica
-from zencosim.manager.wire.protocol import HEADER, Kind, ProtocolError, decode, encode, encode_error
+from zencosim.manager.wire.protocol import HEADER, Kind, ProtocolError, command_ref, decode, encode, encode_error
 from zencosim.manager.wire.text import printable
+from zencosim.subsystems.process.endpoint import failure_reason
 
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=64), st.integers(0, 2 ** 40),
@@ -92,6 +93,41 @@ def test_save_and_restore_over_the_protocol_repeat_a_step_bit_for_bit():
     assert step(1) == first
     error = decode(s1.handle(encode(Kind.RESTORE, 7, 0)), "S1")
     assert error.kind == Kind.ERROR and "no state saved at step 7" in error.text()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(allow_nan=True, allow_infinity=True), st.floats(-1e3, 1e3)), min_size=1,
+                max_size=20), st.sampled_from(["two_mass_damped", "hydraulic_crane"]), st.integers(0, 3))
+def test_a_zero_order_step_taken_as_floats_answers_the_bytes_the_decoded_one_does(inputs, name, mangle):
+    """A STEP with one row of inputs is read as floats, not an array (``SubsystemEndpoint._zero_order_step``): the
+    same reply, byte for byte, as the decoded command's (``_dispatch``), for a linear and a nonlinear subsystem, values
+    of every kind, and commands that are not such a STEP (cut, of two rows, of the wrong count) answered alike."""
+    scene = load_scene(name, ["manager.duration=0.05"])
+    (_, ours), (_, theirs) = (_endpoints(scene) for _ in range(2))
+    target = next(iter(ours))
+    n = len(ours[target].subsystem.inputs)
+    comm_step_ns = ours[target].comm_step_ns
+    for k, (first, rest) in enumerate(inputs):
+        values = np.array([[first] + [rest] * (n - 1)])
+        command = encode(Kind.STEP, k, k * comm_step_ns, values, rows=1)
+        if k == len(inputs) - 1:  # the last: perhaps not a zero-order STEP at all
+            command = [command, command[:-8], encode(Kind.STEP, k, k * comm_step_ns, np.vstack([values, values]),
+                                                     rows=2), encode(Kind.STEP, k, k * comm_step_ns, values[:, :-1],
+                                                                     rows=1)][mangle]
+        with np.errstate(all="ignore"):
+            assert ours[target].handle(command) == _decoded_reply(theirs[target], command)
+
+
+def _decoded_reply(endpoint, command: bytes) -> bytes:
+    """The reply to ``command`` through the decoded message (``SubsystemEndpoint._dispatch``), a failure answered as
+    ``handle`` answers it."""
+    step, time_ns, ref = -1, -1, command_ref(command)
+    try:
+        message = decode(command, "manager")
+        step, time_ns = message.step, message.time_ns
+        return endpoint._dispatch(message, ref)
+    except Exception as error:  # noqa: BLE001 (every failure is the ERROR reply's)
+        return encode_error(step, time_ns, failure_reason(error), ref)
 
 
 def test_the_manager_drops_every_reply_of_a_subsystem_whose_replica_executed_another_command():
