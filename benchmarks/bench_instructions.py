@@ -1,6 +1,6 @@
 """Instructions per in-process macro-step of two_mass_damped and of its plain-Python floor, counted by valgrind.
 
-    python benchmarks/bench_instructions.py [--tree DIR] [--recording] [--fmu]
+    python benchmarks/bench_instructions.py [--tree DIR] [--recording] [--fmu] [--replicas]
 
 ``zencosim.run`` counts a run as a user makes it (``zencosim.run(zencosim.load_scene("two_mass_damped", …))``):
 the stepping loop, the references and the summary, which must grow with the samples, not cost a second run.
@@ -16,7 +16,9 @@ were 80 instructions apart, with the seed fixed 1). ``--tree DIR``
 status, and with the status and the recorder's tap (its frames dropped: no recorder process). ``--fmu`` counts
 the same system with both subsystems as the example C FMUs (``zencosim examples``: two_mass_damped_fmu.toml) and,
 where libcosimpy is installed, libcosim stepping the same two FMUs from an OSP file of that scene (issue 26's
-reference: 9,382 instructions per step). Needs valgrind.
+reference: 9,382 instructions per step). ``--replicas`` counts what the two subsystem processes of a Zenoh run
+compute per step besides Zenoh (``replicas.py``: their replicas in one thread, each reply handed to the other).
+Needs valgrind.
 """
 from __future__ import annotations
 
@@ -58,6 +60,9 @@ elif sys.argv[1] == "run":
 elif sys.argv[1] == "user":  # a run as a user makes it: references and summary included
     import zencosim
     zencosim.run(zencosim.load_scene("two_mass_damped", {{"manager.duration": int(sys.argv[2]) / 1000}}))
+elif sys.argv[1] == "replicas":  # the subsystem processes' replicas, their replies handed across in this thread
+    from replicas import replicas_in_lock_step
+    replicas_in_lock_step(scene)
 else:  # the stepping loop: "plain", with the "status", with the status and the "tap"
     from bench_recording import stepping_loop
     from zencosim.manager.assembly import plan_scene
@@ -115,6 +120,8 @@ def main() -> int:
                         help="also count the step of this source tree (before/after; repeatable)")
     parser.add_argument("--recording", action="store_true", help="also count the step with the status and the tap")
     parser.add_argument("--fmu", action="store_true", help="also count the step with two C FMUs, and libcosim's")
+    parser.add_argument("--replicas", action="store_true",
+                        help="also count the two subsystem processes' own work per step, without Zenoh")
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
@@ -136,6 +143,8 @@ def main() -> int:
             show(f"{label} (+{100 * (count / plain - 1):.1f} %)", count)
     if args.fmu:
         fmu_pair(show)
+    if args.replicas:
+        show("subsystem processes' replicas, both, without Zenoh", per_step("replicas"))
     for tree in args.tree:
         from bench_runtime import package_farm
         farm = package_farm(tree)
