@@ -362,16 +362,17 @@ class FmuCoSimulation(_FmuInstance):
         for j in range(micro_steps):
             t = f"({start_ns} + {j * h_ns}) * 1e-9"
             if n_u:
-                lines += [f"{p}u[:] = ({', '.join(inputs)},)", f"{p}status = {p}set_real(*{p}set_arguments)",
+                lines += [f"{p}u[{i}] = {name}" for i, name in enumerate(inputs)]
+                lines += [f"{p}status = {p}set_real(*{p}set_arguments)",
                           f"if {p}status > {_WARNING}: {p}failed({self._set.__name__!r}, {p}status, {t}, 'doStep')"]
-            lines += [f"{p}status = {p}do_step({p}instance, {p}time({t}), {p}h, {p}false)",
+            lines += [f"{p}time.value = {t}", f"{p}status = {p}do_step({p}instance, {p}time, {p}h, {p}false)",
                       f"if {p}status > {_WARNING}: {p}failed('fmi2DoStep', {p}status, {t}, 'doStep')"]
         if n_y:
             t = f"({start_ns} + {micro_steps * h_ns}) * 1e-9"
             lines += [f"{p}status = {p}get_real(*{p}get_arguments)",
                       f"if {p}status > {_WARNING}: {p}failed({self._get.__name__!r}, {p}status, {t}, "
                       "'reading its outputs')",
-                      f"{', '.join(outputs)}{',' if n_y == 1 else ''} = {p}y"]
+                      *(f"{name} = {p}y[{i}]" for i, name in enumerate(outputs))]
 
         def failed(function: str, status: int, t: float, what: str) -> None:
             self.time = t
@@ -379,7 +380,7 @@ class FmuCoSimulation(_FmuInstance):
 
         namespace = {f"{p}u": self._u, f"{p}y": self._y, f"{p}set_real": self._set, f"{p}get_real": self._get,
                      f"{p}set_arguments": self._set_arguments, f"{p}get_arguments": self._get_arguments,
-                     f"{p}do_step": self._step, f"{p}instance": self._instance, f"{p}time": ctypes.c_double,
+                     f"{p}do_step": self._step, f"{p}instance": self._instance, f"{p}time": ctypes.c_double(),
                      f"{p}h": ctypes.c_double(h_ns * 1e-9), f"{p}false": FMI2_FALSE, f"{p}failed": failed}
         return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
 
