@@ -222,24 +222,28 @@ class TakenSteps:
         carries = (shapes % self.n_stages == 0) & ~first & self.status
         n_shapes = len(self.commanded)
         codes = (before + 1) * (2 * n_shapes) + carries * n_shapes + shapes
-        kinds, kind_of = np.unique(codes, return_inverse=True)
+        # the codes that occur, in order, and each request's place among them (np.unique's, without its sort)
+        kinds = np.flatnonzero(np.bincount(codes, minlength=1))
+        place = np.zeros(kinds[-1] + 1 if len(kinds) else 1, dtype=np.intp)
+        place[kinds] = np.arange(len(kinds))
+        kind_of = place[codes]
         numbers = [self._layout(self.awaited[code // (2 * n_shapes) - 1] if code >= 2 * n_shapes else (),
                                 bool(code % (2 * n_shapes) >= n_shapes), self.commanded[code % n_shapes])
                    for code in kinds.tolist()]
         order = np.array(numbers, dtype=np.uint32)[kind_of]
         statuses = int(carries.sum())
-        handed = self.awaits_mask[before[before >= 0]].sum(axis=0)  # replies each subsystem hands over in the block
+        # replies each subsystem hands over in the block: per shape, the requests after one of that shape
+        handed = np.bincount(before[before >= 0], minlength=n_shapes) @ self.awaits_mask.astype(np.int64)
         due = self.awaited[shapes[-1]] if count and answered else ()
         if due or status:
             order = np.append(order, np.uint32(self._layout(due, status, ())))
             statuses += status
             handed[list(due)] += 1
-        commanded = self.commands_mask[shapes]
         layouts = list(self.layout_of)
         subsystems = []
         for s in self.plan.subsystems:
             i, width, k = s.index, (s.order + 1) * len(s.inputs), int(handed[s.index])
-            sent, n_outputs = ticks[commanded[:, i]], len(s.outputs)
+            sent, n_outputs = ticks[self.commands_mask[:, i][shapes]], len(s.outputs)
             subsystems.append(SubsystemSteps(
                 sent, _rows(self.commands[i], self.command_blocks[i], width, len(sent)), s.order + 1,
                 sent[:k] + s.ratio, _rows(self.outputs[i], self.output_blocks[i], n_outputs, k)))
