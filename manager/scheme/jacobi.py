@@ -125,7 +125,10 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             coefficients[:len(rows), inputs] = rows
         return coefficients
 
-    period, stages = _schedule(plan, local, tracked)
+    # a subsystem process's replica without correctors evaluates no bond: nothing of its run reads them (the
+    # manager's replica reports the residuals; a process, its steps' timing)
+    everyone = frozenset(range(len(subs)))
+    period, stages = _schedule(plan, local, tracked, local == everyone or bool(correctors))
     # a direct run's messages, for its tap (manager.scheme.tapped): request by request, or appended to a block's lists
     taken = (taken_for(tap, plan, pacer is not None, status is not None, stages)
              if direct is not None and tap is not None else None)
@@ -310,13 +313,13 @@ def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, 
             readers[i].commit(replies[subs[i].name], 0)
 
 
-def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tuple:
+def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int], bonds: bool = True) -> tuple:
     """What happens at each phase of the schedule, which repeats every lcm of the ratios: ``(period, phases)``, each
     phase ``(stages, bonds)``: per stage of the plan (``Plan.stages``) the local subsystems starting a step, the
     non-local sides of their bonds starting one (whose input polynomial the residual power needs: the columns
     this replica can compute are those it needs), the tracked subsystems whose replies the stage takes, their names,
     and how many base steps after the phase's start those replies' step is; then the bonds of local subsystems
-    evaluated at the phase's end.
+    evaluated at the phase's end (none without ``bonds``).
 
     Jacobi (one stage) takes a subsystem's reply at the end of its step's last phase (1 base step on); Gauss–Seidel
     takes it in the stage where the step starts (its ratio on), so that the later stages' input polynomials reach
@@ -324,7 +327,8 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
     interpolate through its whole step, and a faster one stepping first gives the slower one its newest sample."""
     subs = plan.subsystems
     period = math.lcm(*(s.ratio for s in subs))
-    partners = {side for bond in plan.bonds if {bond.force_side, bond.motion_side} & local
+    evaluated = plan.bonds if bonds else ()
+    partners = {side for bond in evaluated if {bond.force_side, bond.motion_side} & local
                 for side in (bond.force_side, bond.motion_side)} - local
     phases = []
     for phase in range(period):
@@ -340,11 +344,11 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int]) -> tup
             stages.append((tuple(s for s in members if phase % s.ratio == 0 and s.index in local),
                            tuple(s for s in members if phase % s.ratio == 0 and s.index in partners),
                            due, tuple(s.name for s in due), span))
-        bonds = tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
-                      if (phase + 1) % subs[bond.force_side].ratio == 0
-                      and (phase + 1) % subs[bond.motion_side].ratio == 0
-                      and {bond.force_side, bond.motion_side} & local)
-        phases.append((tuple(stages), bonds))
+        phase_bonds = tuple((b, bond, bond.components) for b, bond in enumerate(evaluated)
+                            if (phase + 1) % subs[bond.force_side].ratio == 0
+                            and (phase + 1) % subs[bond.motion_side].ratio == 0
+                            and {bond.force_side, bond.motion_side} & local)
+        phases.append((tuple(stages), phase_bonds))
     return period, phases
 
 
