@@ -6,8 +6,10 @@
 Per topology and n: µs per macro-step in process and over Zenoh (median over repeats of the stepping loop's
 wall time / macro-steps), the replies a subsystem process takes from the network per macro-step (largest
 and mean over the processes: its sources' replies), and the CPU time per macro-step of the subsystem
-processes together and of the manager, while the run steps (as the processes report it: start-up is left out). Every Zenoh
-run's digest is checked against the in-process one.
+processes together, of one process (mean and largest: issue 26 asks that a chain's stay the same as n grows)
+and of the manager, while the run steps (as the processes report it: start-up is left out). Every Zenoh
+run's digest is checked against the in-process one. Each row is printed (tab-separated) and, with ``--json``,
+written as soon as it is measured, so that a run that ends early keeps the rows it measured.
 
 The cost model (docs/scaling.md) is fitted from the same runs: every subsystem process's CPU time per
 macro-step against the replies it takes per macro-step, ``cpu = a + b * replies`` (least squares over
@@ -39,7 +41,7 @@ TOPOLOGIES = {"chain": mass_chain, "star": mass_star}
 def measure(scene, repeats: int) -> dict:
     """Medians over ``repeats`` of the in-process and Zenoh figures of one scene."""
     steps = scene.manager.duration_ns // scene.manager.macro_step_ns
-    inproc, zenoh, children, manager, most, mean, points = [], [], [], [], [], [], []
+    inproc, zenoh, children, manager, most, mean, points, per_process = [], [], [], [], [], [], [], []
     digest = None
     for _ in range(repeats):
         record, wall_s = execute(scene, "inproc")
@@ -48,6 +50,7 @@ def measure(scene, repeats: int) -> dict:
         result = zencosim.run(scene, "zenoh")
         reports = result.summary["timing"]["subsystems"]
         children.append(sum(report["cpu_s"] for report in reports.values()) / steps * 1e6)
+        per_process.append(max(report["cpu_s"] for report in reports.values()) / steps * 1e6)
         manager.append(result.summary["timing"]["manager_cpu_s"] / steps * 1e6)
         if result.digest != digest:
             raise SystemExit(f"{scene.name}: the Zenoh run's digest differs from the in-process one")
@@ -59,7 +62,8 @@ def measure(scene, repeats: int) -> dict:
     return {"inproc_us": statistics.median(inproc), "zenoh_us": statistics.median(zenoh),
             "replies_per_step_max": statistics.median(most), "replies_per_step_mean": statistics.median(mean),
             "subsystem_cpu_us": statistics.median(children), "manager_cpu_us": statistics.median(manager),
-            "processes": points}
+            "process_cpu_us_mean": statistics.median(children) / len(reports),
+            "process_cpu_us_max": statistics.median(per_process), "processes": points}
 
 
 def fit_cost_model(runs: dict) -> dict:
@@ -89,9 +93,11 @@ def main() -> None:
                "repeats": args.repeats, "runs": {}}
     table = Table(title=f"µs per macro-step (medians of {args.repeats}), {os.cpu_count()} CPUs, "
                         f"load {os.getloadavg()[0]:.1f}")
-    for column in ("topology", "n", "in process", "over Zenoh", "replies/step/process (max, mean)",
-                   "CPU/step: subsystems", "manager"):
+    columns = ("topology", "n", "in process", "over Zenoh", "replies/step/process (max, mean)",
+               "CPU/step: subsystems", "per process (mean, max)", "manager")
+    for column in columns:
         table.add_column(column, justify="left" if column == "topology" else "right")
+    print("\t".join(columns), flush=True)  # each row as it is measured: a long run that ends early keeps its rows
     with tempfile.TemporaryDirectory() as directory:
         for topology, write in TOPOLOGIES.items():
             for n in sizes:
@@ -99,9 +105,15 @@ def main() -> None:
                 path.write_text(write(n, duration=args.duration))
                 row = measure(zencosim.load_scene(path), args.repeats)
                 figures["runs"][f"{topology}/{n}"] = row
-                table.add_row(topology, str(n), f"{row['inproc_us']:.0f}", f"{row['zenoh_us']:.0f}",
-                              f"{row['replies_per_step_max']:.2f}, {row['replies_per_step_mean']:.2f}",
-                              f"{row['subsystem_cpu_us']:.0f}", f"{row['manager_cpu_us']:.0f}")
+                cells = (topology, str(n), f"{row['inproc_us']:.0f}", f"{row['zenoh_us']:.0f}",
+                         f"{row['replies_per_step_max']:.2f}, {row['replies_per_step_mean']:.2f}",
+                         f"{row['subsystem_cpu_us']:.0f}",
+                         f"{row['process_cpu_us_mean']:.0f}, {row['process_cpu_us_max']:.0f}",
+                         f"{row['manager_cpu_us']:.0f}")
+                table.add_row(*cells)
+                print("\t".join(cells), flush=True)
+                if args.json:
+                    Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
     model = figures["model"] = fit_cost_model(figures["runs"])
     fit = Table(title=f"cost model: CPU per process and step = {model['cpu_per_step_us']:.1f} µs + "
                       f"{model['cpu_per_reply_us']:.1f} µs per reply taken; hop latency {model['hop_latency_us']:.0f} µs")
