@@ -12,6 +12,9 @@ operation: the statements ``Subsystem.advance_values`` runs (``Subsystem.straigh
 ``δP × (ticks since the last evaluation = 1) × step`` is ``δP × step``, bit for bit). The run's arrays and
 digest are therefore the generic loop's and the message path's, bit for bit (tests/manager/test_compiled.py).
 
+Gauss–Seidel runs the same way, stage after stage: a stage's commands are made from the newest outputs, those of
+the stages before it already taken this step (``Plan.lead``), then its subsystems step.
+
 The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``) and, in a recorded run, where
 it hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps); after each, the
 block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, the
@@ -19,8 +22,8 @@ residuals and times to the status log (``StatusReport.log_steps``) and the comma
 (``TakenSteps.append_steps``): what the scheme's loop appends step by step, appended a block at a time. At the
 end the subsystems take the state the loop left (``Subsystem.took_steps``).
 
-Anything else runs the generic loop: multi-rate, polynomial inputs, Gauss–Seidel, correctors, pacing (a real-time
-run), a tap that takes messages one by one, a watched model, a subsystem that takes no straight-line step.
+Anything else runs the generic loop: multi-rate, polynomial inputs, correctors, pacing (a real-time run), a tap
+that takes messages one by one, Gauss–Seidel with a tap, a subsystem that has no step as statements.
 """
 from __future__ import annotations
 
@@ -162,7 +165,7 @@ def compiled_steps(plan: Plan, direct: SubsystemCalls, commands: bool = False) -
     caller has ruled out correctors, pacing and a tap that takes messages one by one); ``commands``: each step's row
     holds the commands too (for a tap)."""
     subs = plan.subsystems
-    if plan.sequential or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
+    if (plan.sequential and commands) or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
         return None
     texts = [direct.step_text(s, f"s{s.index}_", f"tick * {plan.base_step_ns}") for s in subs]
     if any(text is None or len(text.outputs) != len(s.outputs) for text, s in zip(texts, subs)):
@@ -189,13 +192,14 @@ def _loop_text(plan: Plan, texts: list[StepText], commands: bool) -> str:
     if energies:
         head.append(f"    {unpacked(energies)} = energies")
     body = ["stamp(perf())"]
-    for s, text in zip(subs, texts):  # every command first, from the outputs at the step's start
-        body.extend(f"{c} = {texts[source].outputs[output]}"
-                    for c, (source, output) in zip(text.coefficients, s.zero_order_sources))
-    for s, text in zip(subs, texts):
-        body.append(f"stepping = {s.index}")
-        body.extend(text.statements)
-        body.extend(f"{z} = {n}" for z, n in zip(text.state, text.new_state))
+    for stage in plan.stages:  # stage after stage (Jacobi: one), its commands from the newest outputs, then its steps
+        for i in stage:
+            body.extend(f"{c} = {texts[source].outputs[output]}"
+                        for c, (source, output) in zip(texts[i].coefficients, subs[i].zero_order_sources))
+        for i in stage:
+            body.append(f"stepping = {i}")
+            body.extend(texts[i].statements)
+            body.extend(f"{z} = {n}" for z, n in zip(texts[i].state, texts[i].new_state))
     body.append("stepping = None")
     for b, bond in enumerate(plan.bonds):
         force_side, motion_side = texts[bond.force_side], texts[bond.motion_side]
