@@ -1,13 +1,14 @@
-"""A single-rate, zero-order Jacobi run of small linear subsystems as one generated loop (issue 26).
+"""A single-rate, zero-order run whose subsystems' steps are statements, as one generated loop (issue 26).
 
-When every subsystem of an in-process run (``manager.bus.inproc.DirectCalls``) takes straight-line steps
-(``subsystems.straight_line``), all at the base macro-step with zero-order inputs each fed once, one macro-step
+When every subsystem of an in-process run (``manager.bus.inproc.DirectCalls``) has its step as statements
+(``Subsystem.step_text``: a small linear model's straight-line step, ``subsystems.straight_line``, or a
+co-simulation FMU's FMI calls), all at the base macro-step with zero-order inputs each fed once, one macro-step
 of ``manager.scheme.jacobi`` is: every subsystem's inputs are its sources' newest outputs (paper 000 §2.1, ZOH),
 each subsystem steps, its outputs are committed, and every bond's residual power and energy are evaluated
 (paper 002 Eqs. 8–9, 13). This module writes that macro-step for the scene at hand as one Python loop over float
 locals — the subsystems' step statements, their inputs read from the names that hold their sources' outputs,
 each bond's δP and δE — and appends each step's row to one list. It is the scheme's arithmetic, operation for
-operation: the statements ``Subsystem.advance_values`` runs (``Subsystem.straight_line_text``), δP as
+operation: the statements ``Subsystem.advance_values`` runs (``Subsystem.step_text``), δP as
 ``residual_power`` adds it up, δE as the scheme accumulates it (with every bond evaluated at every step, its
 ``δP × (ticks since the last evaluation = 1) × step`` is ``δP × step``, bit for bit). The run's arrays and
 digest are therefore the generic loop's and the message path's, bit for bit (tests/manager/test_compiled.py).
@@ -50,7 +51,7 @@ class CompiledSteps:
     scheme's loop."""
 
     def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText], commands: bool) -> None:
-        self.plan, self.direct, self.texts = plan, direct, texts
+        self.plan, self.direct = plan, direct
         self.width = [len(s.outputs) for s in plan.subsystems]
         self.commands = [len(s.inputs) if commands else 0 for s in plan.subsystems]  # each row's command columns
         self.output_ends = np.cumsum(self.width)
@@ -94,8 +95,9 @@ class CompiledSteps:
             first = last
             if progress is not None and last % PROGRESS_EVERY == 0:
                 progress(last)
-        for s, z, w in zip(plan.subsystems, state, inputs_at_end):
-            self.direct.took_steps(s, n_ticks, z, w)
+        if n_ticks:  # the subsystems take the state the last step left (a run of no step leaves them where they are)
+            for s, z, w in zip(plan.subsystems, state, inputs_at_end):
+                self.direct.took_steps(s, n_ticks, z, w)
         return n_ticks
 
     def _hand_over(self, first: int, rows: list[float], times: list[int], done_ns: int, readers: list[OutputReader],
