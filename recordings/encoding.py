@@ -101,6 +101,35 @@ class _GroupLayout:
         return table[:, self.gather]
 
 
+def _evenly_spaced(starts: np.ndarray, width: int) -> int | None:
+    """The distance between consecutive ``starts`` when it is one, at least ``width`` (rows of ``width`` bytes that
+    do not overlap; a batch of a run's steady exchanges, whose layout repeats); None otherwise."""
+    if len(starts) < 2:
+        return width
+    steps = np.diff(starts)
+    return int(steps[0]) if steps[0] >= width and (steps == steps[0]).all() else None
+
+
+def _rows(data: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
+    """``width`` bytes of ``data`` (uint8) from each of ``starts``, one row each: a strided view where the starts
+    are evenly spaced, else a gather."""
+    stride = _evenly_spaced(starts, width)
+    if stride is None or not len(starts):
+        return data[starts[:, None] + np.arange(width)]
+    return np.lib.stride_tricks.as_strided(data[starts[0]:], (len(starts), width), (stride, 1), writeable=False)
+
+
+def _write_rows(out: np.ndarray, starts: np.ndarray, rows: np.ndarray) -> None:
+    """Write each row of ``rows`` (uint8) into ``out`` at its start: through a strided view where the starts are
+    evenly spaced, else a scatter."""
+    width = rows.shape[1]
+    stride = _evenly_spaced(starts, width)
+    if stride is None or not len(starts):
+        out[starts[:, None] + np.arange(width)] = rows
+    else:
+        np.lib.stride_tricks.as_strided(out[starts[0]:], (len(starts), width), (stride, 1))[...] = rows
+
+
 def wire_headers(sizes: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(start, header and validity of each message) of wire messages one after the other in ``data`` (uint8),
     of ``sizes``; a message is valid as ``manager.wire.protocol.decode_header`` would accept it."""
@@ -178,9 +207,9 @@ class BatchEncoder:
                 column = np.ascontiguousarray(column)
                 table[:, start:start + column.itemsize] = column.view(np.uint8).reshape(-1, column.itemsize)
             if layout.variable > PAYLOAD_AT:
-                payload = starts[members, None] + HEADER.size + np.arange(layout.variable - PAYLOAD_AT)
-                table[:, PAYLOAD_AT:layout.variable] = data[payload]
-            out[offsets[members, None] + np.arange(layout.size)] = layout.records(table)
+                table[:, PAYLOAD_AT:layout.variable] = _rows(data, starts[members] + HEADER.size,
+                                                             layout.variable - PAYLOAD_AT)
+            _write_rows(out, offsets[members], layout.records(table))
         for i, record in error_records.items():
             out[offsets[i]:offsets[i] + len(record)] = np.frombuffer(record, dtype=np.uint8)
         kept = np.flatnonzero(valid)

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from zencosim.manager.wire.protocol import Kind, encode, encode_error
+from zencosim.recordings import encoding
 from zencosim.recordings.encoding import BatchEncoder
 from zencosim.recordings.layout import ChannelSpec
 from zencosim.recordings.schema import ChannelSchema, decode
@@ -120,3 +121,43 @@ def test_a_varint_no_64_bit_field_holds_is_a_damaged_message(varint, reason):
     # (an OverflowError there ended zencosim inspect in a traceback)
     with pytest.raises(ValueError, match=reason):
         decode(bytes([0x08]) + varint)
+
+
+@st.composite
+def batches(draw) -> tuple[list[int], list[bytes]]:
+    """Messages of the three channels of this file: a few exchanges repeated (the rows of each channel then lie
+    evenly spaced, as in a run's steady batches), or channels in any order; values of every kind."""
+    def message(channel: int, step: int) -> bytes:
+        if channel == 0:
+            return encode(Kind.OUTPUT, step, step * 1000, draw(arrays(np.float64, 3, elements=ANY_FLOAT64)))
+        if channel == 1:
+            rows = draw(st.integers(1, 3))
+            return encode(Kind.STEP, step, step * 1000, draw(arrays(np.float64, (rows, 2), elements=ANY_FLOAT64)),
+                          rows)
+        return encode(Kind.STATUS, step, step * 1000, draw(arrays(np.float64, 3, elements=ANY_FLOAT64)))
+    if draw(st.booleans()):
+        pattern = draw(st.lists(st.integers(0, 2), min_size=1, max_size=4))
+        order = pattern * draw(st.integers(1, 6))
+    else:
+        order = draw(st.lists(st.integers(0, 2), max_size=20))
+    return order, [message(channel, step) for step, channel in enumerate(order)]
+
+
+@settings(max_examples=150, deadline=None)
+@given(batches())
+def test_rows_read_and_written_through_strided_views_are_the_gathered_ones(batch):
+    """Where a group's messages lie evenly spaced in a batch and in its records, the encoder reads and writes them
+    through strided views (``recordings.encoding._rows``, ``_write_rows``): the same records, byte for byte, as the
+    gathers and scatters it uses for any other layout."""
+    order, wires = batch
+    schemas = [ChannelSchema(OUTPUTS), ChannelSchema(INPUTS), ChannelSchema(STATUS)]
+    arguments = (np.array(order, dtype=np.uint8), np.array([len(w) for w in wires], dtype=np.int64),
+                 np.arange(order.count(2), dtype=np.int64) * 10, b"".join(wires), 7, str)
+    strided = BatchEncoder(schemas, [1, 2, 3], status=2).encode(*arguments)
+    with pytest.MonkeyPatch.context() as patched:
+        patched.setattr(encoding, "_evenly_spaced", lambda starts, width: None)
+        gathered = BatchEncoder(schemas, [1, 2, 3], status=2).encode(*arguments)
+    assert strided.records == gathered.records
+    assert strided.offsets.tolist() == gathered.offsets.tolist()
+    assert strided.log_times.tolist() == gathered.log_times.tolist()
+    assert strided.channels.tolist() == gathered.channels.tolist()
