@@ -119,7 +119,7 @@ def _rows(data: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
     return np.lib.stride_tricks.as_strided(data[starts[0]:], (len(starts), width), (stride, 1), writeable=False)
 
 
-def _write_rows(out: np.ndarray, starts: np.ndarray, rows: np.ndarray) -> None:
+def write_rows(out: np.ndarray, starts: np.ndarray, rows: np.ndarray) -> None:
     """Write each row of ``rows`` (uint8) into ``out`` at its start: through a strided view where the starts are
     evenly spaced, else a scatter."""
     width = rows.shape[1]
@@ -209,7 +209,7 @@ class BatchEncoder:
             if layout.variable > PAYLOAD_AT:
                 table[:, PAYLOAD_AT:layout.variable] = _rows(data, starts[members] + HEADER.size,
                                                              layout.variable - PAYLOAD_AT)
-            _write_rows(out, offsets[members], layout.records(table))
+            write_rows(out, offsets[members], layout.records(table))
         for i, record in error_records.items():
             out[offsets[i]:offsets[i] + len(record)] = np.frombuffer(record, dtype=np.uint8)
         kept = np.flatnonzero(valid)

@@ -25,6 +25,7 @@ import numpy as np
 from zencosim.manager.scheme.tapped import StepsBlock
 from zencosim.manager.wire.protocol import HEADER_DTYPE, VERSION, Kind, command_ref
 from zencosim.manager.wire.status import Statuses
+from zencosim.recordings.encoding import write_rows
 
 STEPS_HEAD = struct.Struct("<IIII")
 
@@ -49,7 +50,11 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
     """The messages of a STEPS frame in the run's order: (channel index of each, size of each, the statuses'
     wall-clock times, the messages joined), as ``recorder_process.split_batch`` gives a BATCH frame's. ``index``:
     the channel index of each (subsystem, ``"y"`` or ``"commands"``); ``status``: the status channel's. A frame that
-    does not hold what its head says raises ValueError."""
+    does not hold what its head says raises ValueError.
+
+    Built with numpy, not message by message: each subsystem's replies and commands are one array of records each
+    (a stream), the statuses another; the exchanges' layouts name each message's stream in turn, and a stream's
+    k-th message is its k-th record, written where it goes (``encoding.write_rows``)."""
     try:
         text_bytes, m, statuses_bytes, e = STEPS_HEAD.unpack_from(frame)
         at = STEPS_HEAD.size
@@ -57,12 +62,12 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
         at += text_bytes
         stamps = np.frombuffer(frame, dtype="<i8", count=m, offset=at)
         at += 8 * m
-        statuses = frame[at:at + statuses_bytes]
+        statuses = np.frombuffer(frame, dtype=np.uint8, count=statuses_bytes, offset=at)
         at += statuses_bytes
-        order = np.frombuffer(frame, dtype="<u4", count=e, offset=at).tolist()
+        order = np.frombuffer(frame, dtype="<u4", count=e, offset=at).astype(np.intp)
         at += 4 * e
         base = int(about["base_step_ns"])
-        commands, replies = [], []
+        streams: list[np.ndarray] = []  # per subsystem its replies, then its commands (uint8 rows); the statuses last
         for commanded, rows, width, answered, n_outputs in about["subsystems"]:
             ticks = np.frombuffer(frame, dtype="<i8", count=commanded, offset=at)
             values = np.frombuffer(frame, dtype="<f8", count=commanded * width, offset=at + 8 * commanded)
@@ -70,44 +75,48 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
             steps = np.frombuffer(frame, dtype="<i8", count=answered, offset=at)
             outputs = np.frombuffer(frame, dtype="<f8", count=answered * n_outputs, offset=at + 8 * answered)
             at += answered * (8 + 8 * n_outputs)
-            sent = _messages(Kind.STEP, ticks, base, values.reshape(commanded, width), rows, 0)
+            sent = _records(Kind.STEP, ticks, base, values.reshape(commanded, width), rows, 0)
             if answered > commanded:
                 raise ValueError(f"{answered} replies to {commanded} commands")
-            references = np.array([command_ref(command) for command in sent[:answered]], dtype=np.uint32)
-            commands.append(iter(sent))
-            replies.append(iter(_messages(Kind.OUTPUT, steps, base, outputs.reshape(answered, n_outputs), 0,
-                                          references)))
+            data, size = memoryview(sent.reshape(-1)), sent.shape[1]  # each reply's reference: its command's CRC-32
+            references = np.array([command_ref(data[at:at + size]) for at in range(0, answered * size, size)],
+                                  dtype=np.uint32)
+            streams += [_records(Kind.OUTPUT, steps, base, outputs.reshape(answered, n_outputs), 0, references), sent]
         if at != len(frame) or (statuses_bytes % m if m else statuses_bytes):
             raise ValueError("its parts do not add up to its length")
-        size = statuses_bytes // m if m else 0
-        each_status = iter([statuses[start:start + size] for start in range(0, statuses_bytes, size or 1)])
+        streams.append(statuses.reshape(m, statuses_bytes // m) if m else statuses.reshape(0, 0))
         names = about["names"]
-        layouts = [([index[names[i], "y"] for i in replying], status_follows,
-                    [index[names[i], "commands"] for i in commanded], replying, commanded)
-                   for replying, status_follows, commanded in about["layouts"]]
-        channels, ordered = [], []
-        for number in order:
-            reply_channels, status_follows, command_channels, replying, commanded = layouts[number]
-            channels += reply_channels
-            ordered += [next(replies[i]) for i in replying]
-            if status_follows:
-                channels.append(status)
-                ordered.append(next(each_status))
-            channels += command_channels
-            ordered += [next(commands[i]) for i in commanded]
-    except (struct.error, ValueError, KeyError, IndexError, TypeError, StopIteration) as error:
+        layouts = [[(2 * i, index[names[i], "y"]) for i in replying] + ([(2 * len(names), status)] if follows else [])
+                   + [(2 * i + 1, index[names[i], "commands"]) for i in commanded]
+                   for replying, follows, commanded in about["layouts"]]
+        # each message's stream and channel: the entries of its exchange's layout, exchange after exchange
+        entries = np.array([entry for layout in layouts for entry in layout], dtype=np.int64).reshape(-1, 2)
+        lengths = np.array([len(layout) for layout in layouts], dtype=np.int64)
+        taken = lengths[order]
+        entry = (np.repeat((np.cumsum(lengths) - lengths)[order] - (np.cumsum(taken) - taken), taken)
+                 + np.arange(int(taken.sum())))
+        stream, channels = entries[entry, 0], entries[entry, 1]
+        sizes = np.array([rows.shape[1] for rows in streams], dtype=np.int64)[stream]
+        offsets = np.cumsum(sizes) - sizes
+        joined = np.empty(int(sizes.sum()), dtype=np.uint8)
+        for k, rows in enumerate(streams):
+            where = offsets[stream == k]
+            if len(where) > len(rows):
+                raise ValueError(f"its exchanges take {len(where)} messages of a part holding {len(rows)}")
+            if len(where):
+                write_rows(joined, where, rows[:len(where)])
+    except (struct.error, ValueError, KeyError, IndexError, TypeError) as error:
         raise ValueError(f"a STEPS frame that does not hold what its head says ({error})") from None
-    return (np.array(channels, dtype=np.uint8), np.fromiter(map(len, ordered), dtype=np.int64, count=len(ordered)),
-            stamps, b"".join(ordered))
+    return channels.astype(np.uint8), sizes, stamps, joined.tobytes()
 
 
-def _messages(kind: Kind, steps: np.ndarray, base_step_ns: int, values: np.ndarray, rows: int,
-              references: np.ndarray | int) -> list[bytes]:
-    """Messages of one kind and shape, a row of ``values`` each, as ``manager.wire.protocol.encode`` writes them."""
+def _records(kind: Kind, steps: np.ndarray, base_step_ns: int, values: np.ndarray, rows: int,
+             references: np.ndarray | int) -> np.ndarray:
+    """Messages of one kind and shape, a row of ``values`` each, as ``manager.wire.protocol.encode`` writes them:
+    one message per row of bytes."""
     records = np.zeros(len(steps), dtype=[("header", HEADER_DTYPE), ("values", "<f8", (values.shape[1],))])
     header = records["header"]
     header["version"], header["kind"], header["rows"], header["count"] = VERSION, kind, rows, values.shape[1]
     header["step"], header["time_ns"], header["ref"] = steps, steps * base_step_ns, references
     records["values"] = values
-    data, size = records.tobytes(), records.dtype.itemsize
-    return [data[at:at + size] for at in range(0, len(data), size)]
+    return records.view(np.uint8).reshape(len(steps), records.dtype.itemsize)

@@ -147,7 +147,7 @@ def batches(draw) -> tuple[list[int], list[bytes]]:
 @given(batches())
 def test_rows_read_and_written_through_strided_views_are_the_gathered_ones(batch):
     """Where a group's messages lie evenly spaced in a batch and in its records, the encoder reads and writes them
-    through strided views (``recordings.encoding._rows``, ``_write_rows``): the same records, byte for byte, as the
+    through strided views (``recordings.encoding._rows``, ``write_rows``): the same records, byte for byte, as the
     gathers and scatters it uses for any other layout."""
     order, wires = batch
     schemas = [ChannelSchema(OUTPUTS), ChannelSchema(INPUTS), ChannelSchema(STATUS)]
