@@ -110,24 +110,30 @@ def _evenly_spaced(starts: np.ndarray, width: int) -> int | None:
     return int(steps[0]) if steps[0] >= width and (steps == steps[0]).all() else None
 
 
+def _evenly_spaced_rows(buffer: np.ndarray, starts: np.ndarray, width: int, writeable: bool) -> np.ndarray | None:
+    """The ``width`` bytes of ``buffer`` (uint8) from each of ``starts`` as a strided view, one row each, where the
+    starts are evenly spaced (``_evenly_spaced``); else None."""
+    stride = _evenly_spaced(starts, width)
+    if stride is None or not len(starts):
+        return None
+    return np.lib.stride_tricks.as_strided(buffer[starts[0]:], (len(starts), width), (stride, 1), writeable=writeable)
+
+
 def _rows(data: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
     """``width`` bytes of ``data`` (uint8) from each of ``starts``, one row each: a strided view where the starts
     are evenly spaced, else a gather."""
-    stride = _evenly_spaced(starts, width)
-    if stride is None or not len(starts):
-        return data[starts[:, None] + np.arange(width)]
-    return np.lib.stride_tricks.as_strided(data[starts[0]:], (len(starts), width), (stride, 1), writeable=False)
+    view = _evenly_spaced_rows(data, starts, width, writeable=False)
+    return data[starts[:, None] + np.arange(width)] if view is None else view
 
 
 def write_rows(out: np.ndarray, starts: np.ndarray, rows: np.ndarray) -> None:
     """Write each row of ``rows`` (uint8) into ``out`` at its start: through a strided view where the starts are
     evenly spaced, else a scatter."""
-    width = rows.shape[1]
-    stride = _evenly_spaced(starts, width)
-    if stride is None or not len(starts):
-        out[starts[:, None] + np.arange(width)] = rows
+    view = _evenly_spaced_rows(out, starts, rows.shape[1], writeable=True)
+    if view is None:
+        out[starts[:, None] + np.arange(rows.shape[1])] = rows
     else:
-        np.lib.stride_tricks.as_strided(out[starts[0]:], (len(starts), width), (stride, 1))[...] = rows
+        view[...] = rows
 
 
 def wire_headers(sizes: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
