@@ -342,7 +342,8 @@ class ZenohBus:
         asked again, until ``manager.timeout`` passes with no subsystem's report arriving."""
         reports: dict[str, dict] = {}
         arrived = time.monotonic()  # when the last report came
-        while missing := [name for name in self.names if name not in reports]:
+        missing = list(self.names)
+        while missing:
             pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=self.timeout_s)
                        for name in missing}
             for name, replies in pending.items():
@@ -350,10 +351,10 @@ class ZenohBus:
                 if answers:
                     reports[name] = json.loads(answers[0].payload.to_bytes())
                     arrived = time.monotonic()
-            still = [name for name in self.names if name not in reports]
-            if still and time.monotonic() - arrived > self.timeout_s:
-                raise SubsystemFailure(still[0], "did not report the timing of its steps")
-            if still:
+            missing = [name for name in missing if name not in reports]
+            if missing and time.monotonic() - arrived > self.timeout_s:
+                raise SubsystemFailure(missing[0], "did not report the timing of its steps")
+            if missing:
                 time.sleep(0.05)
         return {name: reports[name] for name in self.names}
 

@@ -181,7 +181,8 @@ class TakenSteps:
         for blocks, rows in zip(self.command_blocks, commands):
             blocks.append(rows)
         shapes = np.zeros(count)
-        shapes[:first == 0] = np.nan
+        if first == 0 and count:  # the run's first request: of no shape
+            shapes[0] = np.nan
         self.request_blocks.append((np.arange(first, first + count), shapes))
         for blocks, rows in zip(self.output_blocks, outputs):
             blocks.append(rows)

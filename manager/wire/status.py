@@ -10,7 +10,8 @@ when a recording is verified by re-running it.
 The stepping loop does not encode the messages: as a scheme ends a step it only logs the step's figures
 (``log_residuals``, ``log_times``: two list extensions; a generated loop logs a block of steps' arrays at a
 time, ``log_steps``), and whoever taps the run takes the messages in step order (:meth:`StatusReport.take`),
-encoded many steps at once with numpy when a batch is handed over — a recording's cost on the stepping loop (docs/recording.md, Overhead).
+encoded many steps at once with numpy when a batch is handed over — a recording's cost on the stepping loop
+(docs/recording.md, Overhead).
 """
 from __future__ import annotations
 

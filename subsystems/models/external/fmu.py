@@ -370,8 +370,8 @@ class FmuCoSimulation(_FmuInstance):
         if n_y:
             t = f"({start_ns} + {micro_steps * h_ns}) * 1e-9"
             lines += [f"{p}status = {p}get_real(*{p}get_arguments)",
-                      f"if {p}status > {_WARNING}: {p}failed({self._get.__name__!r}, {p}status, {t}, "
-                      "'reading its outputs')",
+                      (f"if {p}status > {_WARNING}: {p}failed({self._get.__name__!r}, {p}status, {t}, "
+                       "'reading its outputs')"),
                       *(f"{name} = {p}y[{i}]" for i, name in enumerate(outputs))]
 
         def failed(function: str, status: int, t: float, what: str) -> None:
@@ -477,7 +477,6 @@ def open_fmu(path: Path, description: ComponentDescription, start: dict[str, flo
     """An instance of the FMU for one subsystem (see :class:`~.component.Instance`)."""
     cls = FmuCoSimulation if description.interface == "co-simulation" else FmuModelExchange
     return cls(path, description, start, inputs, outputs, instance_name)
-
 
 
 def _bare(library: ctypes.CDLL, name: str):
