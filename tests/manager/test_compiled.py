@@ -40,19 +40,23 @@ def _run(name: str, overrides: list[str], compiled: bool, monkeypatch, keep: boo
     whether the generated loop ran)."""
     ran = []
 
-    def spied(plan, direct, commands):
-        steps = compiled_steps(plan, direct, commands) if compiled else None
-        ran.append(steps is not None)
-        return steps
-
     scene = load_scene(name, overrides)
     plan, subsystems = plan_scene(scene)
     with monkeypatch.context() as patched:
-        patched.setattr(jacobi_module, "compiled_steps", spied)
+        patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, ran))
         scheme = make_scheme(scene, plan, progress=progress, keep=keep, direct=DirectCalls(plan, subsystems))
         with np.errstate(over="ignore", invalid="ignore"):
             record = run_in_process(scheme, plan, subsystems)
     return record, subsystems, ran == [True]
+
+
+def _spied(compiled: bool, ran: list[bool]):
+    """``compiled_steps`` for a run: the generated loop (``compiled``) or none, noting in ``ran`` whether one ran."""
+    def spied(plan, direct, commands):
+        steps = compiled_steps(plan, direct, commands) if compiled else None
+        ran.append(steps is not None)
+        return steps
+    return spied
 
 
 def _assert_same_run(ours, theirs) -> None:
@@ -149,16 +153,12 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
     released)."""
     seen, ran = [], []
     for compiled in (True, False):
-        def spied(plan, direct, commands, compiled=compiled):
-            steps = compiled_steps(plan, direct, commands) if compiled else None
-            ran.append(steps is not None)
-            return steps
         scene = load_scene("two_mass_damped", ["manager.duration=4.5"])  # blocks of 2,048 steps and a shorter one
         plan, subsystems = plan_scene(scene)
         status = StatusReport(plan, False)
         recorder = FramesRecorder(plan, status)
         with monkeypatch.context() as patched:
-            patched.setattr(jacobi_module, "compiled_steps", spied)
+            patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, ran))
             run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems),
                                        tap=recorder), plan, subsystems, recorder)
         recorder.flush(last=True)
@@ -204,16 +204,12 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
                                     "k = 1000.0,"))
     said, recorded, ran = [], [], []
     for compiled in (True, False):
-        def spied(plan, direct, commands, compiled=compiled):
-            steps = compiled_steps(plan, direct, commands) if compiled else None
-            ran.append(steps is not None)
-            return steps
         scene = load_scene(str(failing), [f"manager.duration={duration}"])
         plan, subsystems = plan_scene(scene)
         status = StatusReport(plan, False)
         recorder = FramesRecorder(plan, status)
         with monkeypatch.context() as patched, pytest.raises(SubsystemFailure) as failure:
-            patched.setattr(jacobi_module, "compiled_steps", spied)
+            patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, ran))
             run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems),
                                        tap=recorder), plan, subsystems, recorder)
         recorder.flush(last=True)
