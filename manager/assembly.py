@@ -13,6 +13,7 @@ from zencosim.manager.plan.run_plan import Plan, compile_plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import SubsystemCalls
 from zencosim.manager.scheme.correction import build_correctors
+from zencosim.manager.scheme.energy_step import StepLaw, energy_controlled
 from zencosim.manager.scheme.implicit import compile_joint, implicit
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.pacing import SPIN_ALONE_NS, Pacer, ThreadScheduling
@@ -77,6 +78,11 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
                   if levers.realtime_priority or levers.realtime_affinity else None)
     pacer = Pacer(plan.base_step_ns, start_ns, spin_ns, scheduling) if realtime else None
     spill = spill_for(plan.n_ticks, keep)
+    if scene.manager.step_control == "energy":
+        if realtime:
+            raise ValueError("a real-time run paces a fixed macro-step; manager.step_control = 'energy' varies it")
+        law = StepLaw(scene.manager.energy_control, plan.base_step_ns)
+        return energy_controlled(plan, law, progress, status, spill_for(law.most_points(plan.n_ticks), keep))
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,
@@ -86,8 +92,9 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
 def process_scope(scene: Scene, plan: Plan, name: str) -> tuple[frozenset[int] | None, frozenset[str]]:
     """What the process of subsystem ``name`` computes and whom it exchanges with: its ``local`` set for
     ``make_scheme`` (its own subsystem; None under the implicit scheme, whose every process follows the
-    whole joint) and the names of the processes it needs direct links to."""
+    whole joint, and with an energy-controlled step, which every bond sets) and the names of the processes it
+    needs direct links to."""
     own = plan.by_name(name).index
-    if scene.manager.scheme == "implicit":
+    if scene.manager.scheme == "implicit" or scene.manager.step_control == "energy":
         return None, frozenset(s.name for s in plan.subsystems if s.name != name)
     return frozenset({own}), frozenset(plan.subsystems[i].name for i in plan.partners(own))

@@ -36,14 +36,17 @@ class SavedState:
 
 
 class Subsystem:
-    """A model advanced by an integrator with a fixed micro-step [ns]."""
+    """A model advanced by an integrator with a fixed micro-step [ns] (``whole_steps``: every step is one micro-step,
+    whatever its length — a co-simulation component in a run whose macro-steps vary takes one doStep per macro-step,
+    as libcosim's ECCO does: ``manager.scheme.energy_step``)."""
 
-    def __init__(self, name: str, model, integrator_cls: type, micro_step_ns: int) -> None:
+    def __init__(self, name: str, model, integrator_cls: type, micro_step_ns: int, whole_steps: bool = False) -> None:
         if micro_step_ns <= 0:
             raise ValueError(f"subsystem {name}: micro_step must be positive, got {micro_step_ns} ns")
         self.name = name
         self.model = model
         self.micro_step_ns = micro_step_ns
+        self.whole_steps = whole_steps
         self._linear = _linear_dynamics(model, integrator_cls)
         z0 = model.initial_state()
         # a linear model's state is the head of s = [z, w], the vector its outputs are one product of
@@ -86,7 +89,7 @@ class Subsystem:
         if t0_ns != self.t_ns:
             raise ValueError(f"subsystem {self.name}: asked to advance from t = {t0_ns} ns but it is at {self.t_ns} ns")
         span = t1_ns - t0_ns
-        h_ns = self.micro_step_ns
+        h_ns = span if self.whole_steps and span > 0 else self.micro_step_ns
         if span <= 0 or span % h_ns:
             raise ValueError(f"subsystem {self.name}: step of {span} ns is not a positive multiple "
                              f"of the micro-step {h_ns} ns")

@@ -60,4 +60,6 @@ def build_subsystem(scene: Scene, name: str, attached: Attachments) -> Subsystem
     settings = scene.subsystems[name].settings
     model = _model(scene, name, attached)
     with _model_problems(scene, name):
-        return Subsystem(name, model, INTEGRATORS[settings.integrator], settings.micro_step_ns)
+        # with energy-controlled macro-steps a co-simulation component takes one step per macro-step (check_timing)
+        whole_steps = scene.manager.step_control == "energy" and scene.subsystems[name].traits.advances_itself
+        return Subsystem(name, model, INTEGRATORS[settings.integrator], settings.micro_step_ns, whole_steps)

@@ -211,7 +211,9 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     manager = scene.manager
     plan = Plan(tuple(plans), tuple(bonds), init_rounds, signals, manager.macro_step_ns,
                 manager.duration_ns // manager.macro_step_ns, stages(scene, plans, init_rounds))
-    reason = memory_problem(plan, plan.n_ticks, manager.duration, manager.macro_step)
+    control = manager.energy_control  # an energy-controlled run: a row per macro-step, at most one per min_step_size
+    shortest = manager.macro_step if control is None or control.min_step_size is None else control.min_step_size
+    reason = memory_problem(plan, manager.duration_ns // round(shortest * 1e9), manager.duration, shortest)
     if reason:
         raise SceneError(scene.path, [Problem("manager.duration", reason)])
     return plan

@@ -126,8 +126,8 @@ def residual_power_spikes(record, settings) -> dict[str, list[SpikeInterval]]:
     for b, bond in enumerate(record.plan.bonds):
         monitor = SpikeMonitor(settings.window, settings.threshold, settings.merge_gap)
         for first, p_res in row_blocks(record.residual_power[:, b]):
-            ticks = first + np.flatnonzero(np.isfinite(p_res))
-            ticks = ticks[ticks > 0]  # t0 carries no residual
-            monitor.add(ticks * step, p_res[ticks - first])
+            rows = first + np.flatnonzero(np.isfinite(p_res))
+            rows = rows[rows > 0]  # t0 carries no residual
+            monitor.add(record.row_ticks(first, first + len(p_res))[rows - first] * step, p_res[rows - first])
         result[bond.name] = monitor.finish()
     return result

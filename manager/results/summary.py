@@ -47,18 +47,26 @@ def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
     return float(np.sqrt(np.mean((x - x_ref) ** 2)) / span)
 
 
-def streamed_nrms(x: np.ndarray, x_ref: np.ndarray, ratio: int) -> float:
-    """:func:`nrms` of ``x`` (a sample every ``ratio`` base steps) against ``x_ref`` (a sample every base step),
-    read in blocks (``manager.scheme.window.row_blocks``): the sums of one pass, so a long run's arrays need
-    not be in memory. Equal to ``nrms(x, x_ref[::ratio])`` for arrays in memory (one block), and up to the
-    rounding of the sums for a spilled run's."""
+def streamed_nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
+    """:func:`nrms` of ``x`` against ``x_ref`` sampled where ``x`` is (``reference_samples``), both read in blocks
+    (``manager.scheme.window.row_blocks``): the sums of one pass, so a long run's arrays need not be in memory.
+    Equal to ``nrms(x, x_ref)`` for arrays in memory (one block), and up to the rounding of the sums for a
+    spilled run's."""
     squares, count, high, low = 0.0, 0, -math.inf, math.inf
     for first, values in row_blocks(x):
-        reference = read_rows(x_ref[::ratio], first, first + len(values))
+        reference = read_rows(x_ref, first, first + len(values))
         squares += float(np.sum((values - reference) ** 2))
         count += len(values)
         high, low = max(high, float(np.max(reference))), min(low, float(np.min(reference)))
     return float(np.sqrt(squares / count) / (high - low))
+
+
+def reference_samples(x_ref: np.ndarray, record: RunRecord, ratio: int) -> np.ndarray:
+    """A reference (a sample every base step) where a subsystem of ``ratio`` has its samples: every ``ratio``-th,
+    or, in an energy-controlled run, at its points (read whole: a point per macro-step)."""
+    if record.point_ticks is None:
+        return x_ref[::ratio]
+    return np.asarray(x_ref)[np.asarray(record.point_ticks)]
 
 
 def digest(record: RunRecord) -> str:
@@ -80,10 +88,10 @@ def energy_blocks(record: RunRecord) -> Iterator[tuple[int, np.ndarray, np.ndarr
     if not reporting:
         return
     columns = [record.trajectories[s.index][::period // s.ratio, s.energy_output] for s in reporting]
-    samples = record.plan.n_ticks // period + 1
+    samples = record.row_count(period)
     for first in range(0, samples, BLOCK_ROWS):
         stop = min(first + BLOCK_ROWS, samples)
-        ticks = np.arange(first, stop) * period
+        ticks = record.row_ticks(first, stop, period)
         yield first, ticks * record.plan.base_step_ns * 1e-9, sum(read_rows(c, first, stop) for c in columns)
 
 
@@ -93,7 +101,7 @@ def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray | None]:
     blocks = list(energy_blocks(record))
     if not blocks:
         period = math.lcm(*(s.ratio for s in record.plan.subsystems))
-        return np.arange(0, record.plan.n_ticks + 1, period) * record.plan.base_step_ns * 1e-9, None
+        return record.row_ticks(0, record.row_count(period), period) * record.plan.base_step_ns * 1e-9, None
     return np.concatenate([t for _, t, _ in blocks]), np.concatenate([e for _, _, e in blocks])
 
 
@@ -143,10 +151,11 @@ def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Refer
         entry = {"subsystem": sub.name, "unit": sub.outputs[output].unit}
         if reference is not None:
             ref = reference.signals[name]
-            entry["nrms"] = streamed_nrms(record.signal(name), ref, sub.ratio) if finite else None
+            ref = reference_samples(ref, record, sub.ratio)
+            entry["nrms"] = streamed_nrms(record.signal(name), ref) if finite else None
             if "monolithic" in references:
-                entry["nrms_monolithic"] = streamed_nrms(references["monolithic"].signals[name][::sub.ratio], ref,
-                                                         sub.ratio)
+                entry["nrms_monolithic"] = streamed_nrms(
+                    reference_samples(references["monolithic"].signals[name], record, sub.ratio), ref)
         signals[name] = entry
     return signals
 
@@ -155,7 +164,7 @@ def energy_balance(record: RunRecord, reference: Reference | None, finite: bool)
     """The ``energy`` entry of the summary; None when no subsystem reports its energy. ``subsystems`` names
     the ones that do, when some do not (an FMU without an energy variable)."""
     period = math.lcm(*(s.ratio for s in record.plan.subsystems))
-    envelope = EnergyEnvelope(record.plan.n_ticks // period + 1)
+    envelope = EnergyEnvelope(record.row_count(period))
     e0 = final = None
     highest, drift = -math.inf, 0.0
     for first, t, energy in energy_blocks(record):
@@ -206,7 +215,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         "bus": bus,
         "macro_step": scene.manager.macro_step,
         "duration": scene.manager.duration,
-        "steps": plan.n_ticks,
+        "steps": plan.n_ticks if record.point_ticks is None else len(record.point_ticks) - 1,
         "extrapolation": scene.manager.extrapolation,
         "reference": None if reference is None else reference.kind,
         "subsystems": {s.name: {"comm_step": s.ratio * scene.manager.macro_step,
@@ -223,7 +232,8 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         "overrides": list(scene.overrides),
         "dropped_messages": record.dropped_messages or {},  # over Zenoh: per key (manager.bus.dropped)
     }
-    discrete = discrete_verdict(scene)
+    summary["step_control"] = step_control_summary(scene, record)
+    discrete = discrete_verdict(scene) if record.point_ticks is None else None  # the analysis is of one macro-step
     summary["discrete"] = discrete
     if discrete is not None:  # a run that overflowed (initial values near 1e308) is not stable whatever ρ is
         summary["stable"] = discrete["stable"] and finite
@@ -246,6 +256,17 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     return summary
 
 
+def step_control_summary(scene: Scene, record: RunRecord) -> dict | None:
+    """An energy-controlled run's macro-steps (``manager.scheme.energy_step``): how many, the shortest, longest and
+    mean [s], and the parameters of the law; None for a run at a fixed macro-step."""
+    if record.point_ticks is None:
+        return None
+    ticks = np.asarray(record.point_ticks)
+    steps = np.diff(ticks) * record.plan.base_step_ns * 1e-9
+    return {"kind": "energy", "macro_steps": len(steps), "min_step": float(steps.min()), "max_step": float(steps.max()),
+            "mean_step": float(steps.mean()), "parameters": dataclasses.asdict(scene.manager.energy_control)}
+
+
 def first_non_finite_time(record: RunRecord) -> float | None:
     """The first time [s] at which a subsystem's output was not finite (None: every output stayed finite); each
     trajectory read in blocks (``manager.scheme.window.row_blocks``: a long run's spilled array is read from its
@@ -255,7 +276,8 @@ def first_non_finite_time(record: RunRecord) -> float | None:
         for first, rows in row_blocks(trajectory):
             bad = np.flatnonzero(~np.isfinite(rows).all(axis=1))
             if bad.size:
-                times.append(int(first + bad[0]) * sub.ratio * record.plan.base_step_ns * 1e-9)
+                row = int(first + bad[0])
+                times.append(int(record.row_ticks(row, row + 1, sub.ratio)[0]) * record.plan.base_step_ns * 1e-9)
                 break
     return min(times, default=None)
 

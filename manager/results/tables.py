@@ -74,11 +74,23 @@ class Table:
 
 
 def _columns(plan: Plan, trajectories: list[np.ndarray], residual_power: np.ndarray, residual_energy: np.ndarray,
-             last_step: int) -> dict[str, tuple]:
+             last_step: int, point_ticks: np.ndarray | None = None) -> dict[str, tuple]:
     """Every signal of a run up to base step ``last_step`` by name, as ``(unit, source, every, count, values)``:
-    a sample every ``every`` base steps, ``count`` samples, ``values`` a view of the run's arrays."""
+    a sample every ``every`` base steps, ``count`` samples, ``values`` a view of the run's arrays; with
+    ``point_ticks`` (an energy-controlled run, ``RunRecord.point_ticks``) every signal is sampled at those base
+    steps, ``every`` 0."""
     declared = Counter(port.name for sub in plan.subsystems for port in sub.outputs)
     columns = {}
+    if point_ticks is not None:
+        count = len(point_ticks)
+        for sub in plan.subsystems:
+            for j, port in enumerate(sub.outputs):
+                name = port.name if declared[port.name] == 1 else f"{sub.name}.{port.name}"
+                columns[name] = (port.unit, sub.name, 0, count, trajectories[sub.index][:, j])
+        for b, bond in enumerate(plan.bonds):
+            for prefix, unit, values in (("delta_p", "W", residual_power), ("delta_e", "J", residual_energy)):
+                columns[f"{prefix}.{bond.name}"] = (unit, bond.name, 0, count, values[:, b])
+        return columns
     for sub in plan.subsystems:
         count = last_step // sub.ratio + 1
         for j, port in enumerate(sub.outputs):
@@ -97,9 +109,11 @@ class RunSignals(Mapping):
     the run's arrays (a long run's read from its files as they are used, ``manager.scheme.window``), its
     steps made once per grid."""
 
-    def __init__(self, columns: dict[str, tuple], base_step_ns: int) -> None:
+    def __init__(self, columns: dict[str, tuple], base_step_ns: int, point_ticks: np.ndarray | None = None) -> None:
         self._columns, self._base = columns, base_step_ns
         self._steps: dict[tuple[int, int], np.ndarray] = {}
+        if point_ticks is not None:
+            self._steps[0, len(point_ticks)] = np.asarray(point_ticks)
 
     def __getitem__(self, name: str) -> Signal:
         unit, source, every, count, values = self._columns[name]
@@ -116,30 +130,34 @@ class RunSignals(Mapping):
 
 
 def run_signals(plan: Plan, trajectories: list[np.ndarray], residual_power: np.ndarray,
-                residual_energy: np.ndarray, last_step: int) -> RunSignals:
+                residual_energy: np.ndarray, last_step: int, point_ticks: np.ndarray | None = None) -> RunSignals:
     """Every signal of a run up to base step ``last_step`` (the last committed one), by name: the outputs of
-    each subsystem in scene and port order, then the residuals of each bond."""
-    return RunSignals(_columns(plan, trajectories, residual_power, residual_energy, last_step), plan.base_step_ns)
+    each subsystem in scene and port order, then the residuals of each bond; ``point_ticks`` as ``_columns``."""
+    return RunSignals(_columns(plan, trajectories, residual_power, residual_energy, last_step, point_ticks),
+                      plan.base_step_ns, point_ticks)
 
 
 def record_signals(record: RunRecord) -> RunSignals:
     """Every signal of a run's record (``run_signals``)."""
     return run_signals(record.plan, record.trajectories, record.residual_power, record.residual_energy,
-                       record.last_step)
+                       record.last_step, record.point_ticks)
 
 
 class GridTime:
     """The ``time [s]`` column of a grid, made block by block as it is read (``read_rows``): what
-    ``Signal.time`` gives, ``steps * base_step_ns / 1e9``."""
+    ``Signal.time`` gives, ``steps * base_step_ns / 1e9`` — a sample every ``every`` base steps, or (``every`` 0)
+    at the base steps ``point_ticks``."""
 
-    def __init__(self, every: int, count: int, base_step_ns: int) -> None:
-        self.every, self.count, self.base_step_ns = every, count, base_step_ns
+    def __init__(self, every: int, count: int, base_step_ns: int, point_ticks: np.ndarray | None = None) -> None:
+        self.every, self.count, self.base_step_ns, self.point_ticks = every, count, base_step_ns, point_ticks
 
     def __len__(self) -> int:
         return self.count
 
     def __getitem__(self, rows: slice) -> np.ndarray:
         start, stop, _ = rows.indices(self.count)
+        if self.point_ticks is not None:
+            return read_rows(self.point_ticks, start, stop) * self.base_step_ns / 1e9
         return np.arange(start * self.every, stop * self.every, self.every, dtype=np.int64) * self.base_step_ns / 1e9
 
 
@@ -149,12 +167,13 @@ def record_tables(record: RunRecord) -> list[Table]:
     block by block."""
     plan = record.plan
     grids: dict[tuple[int, int], tuple[int, int, dict]] = {}
-    columns = _columns(plan, record.trajectories, record.residual_power, record.residual_energy, record.last_step)
+    columns = _columns(plan, record.trajectories, record.residual_power, record.residual_energy, record.last_step,
+                       record.point_ticks)
     for name, (unit, _, every, count, values) in columns.items():
         grid = grids.setdefault((every if count > 1 else 0, count), (every, count, {}))
         grid[2][f"{name} [{unit}]"] = values
-    result = [Table(every * plan.base_step_ns if count > 1 else plan.base_step_ns,
-                    {TIME_COLUMN: GridTime(every, count, plan.base_step_ns), **columns})
+    result = [Table(every * plan.base_step_ns if count > 1 and every else plan.base_step_ns,
+                    {TIME_COLUMN: GridTime(every, count, plan.base_step_ns, record.point_ticks), **columns})
               for every, count, columns in grids.values()]
     return sorted(result, key=lambda table: table.step_ns)
 

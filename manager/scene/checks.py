@@ -85,6 +85,70 @@ def _check_gauss_seidel(manager: ManagerSettings, subsystems: dict[str, Subsyste
                              f"({', '.join(subsystems)})")
 
 
+def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],
+                       problems: Problems) -> None:
+    """What the energy-controlled macro-step (``manager.scheme.energy_step``) runs: the Jacobi scheme, single-rate,
+    zero-order inputs (a polynomial through samples at varying spacing is not built yet), no corrector, not paced,
+    at least one power bond, components that can step by varying steps; its step sizes whole multiples of
+    ``manager.macro_step`` with ``min_step_size <= step_size <= max_step_size`` (libcosim's checks)."""
+    if manager.step_control != "energy":
+        return
+    why = "with manager.step_control = 'energy'"
+    if manager.scheme != "jacobi":
+        problems.add("manager.scheme", f"expected 'jacobi' {why} (the step control runs the Jacobi scheme), "
+                     f"got {manager.scheme!r}")
+    if manager.extrapolation:
+        problems.add("manager.extrapolation", f"expected 0 {why}: an input polynomial through samples at varying "
+                     f"spacing is not built yet")
+    for fixed in ("realtime", "corrects"):
+        if getattr(manager, fixed):
+            key = "manager.realtime" if fixed == "realtime" else "manager.correction"
+            problems.add(key, f"expected it off {why}: " + ("real time paces a fixed macro-step" if fixed == "realtime"
+                         else "energy correction is derived for a fixed macro-step"))
+    if manager.compensation != "none":
+        problems.add("manager.compensation", f"expected 'none' {why}: the compensator is designed for one macro-step")
+    for coupling in couplings.values():
+        if isinstance(coupling, SignalConnection) and coupling.settings.extrapolation:
+            problems.add(f"couplings.{coupling.name}.extrapolation", f"expected 0 {why}")
+    if not any(coupling.bonds() for coupling in couplings.values()):
+        problems.add("manager.step_control", "'energy' controls the step by the residual energy of the power bonds; "
+                     "this scene has none")
+    for sub in subsystems.values():
+        if sub.settings.comm_ratio != 1:
+            problems.add(f"subsystems.{sub.name}.comm_ratio", f"expected 1 {why} (single-rate)")
+        if sub.settings.extrapolation:
+            problems.add(f"subsystems.{sub.name}.extrapolation", f"expected 0 {why}")
+        if not sub.traits.variable_step:
+            problems.add(f"subsystems.{sub.name}.fmu", f"{_component(sub)} declares a fixed communication step "
+                         f"(canHandleVariableCommunicationStepSize false): it cannot take the varying macro-steps of "
+                         f"manager.step_control = 'energy'")
+    control = manager.energy_control
+    if control is None:
+        return
+    base = manager.macro_step_ns
+    sizes = {}
+    for name in ("step_size", "min_step_size", "max_step_size"):
+        seconds = getattr(control, name)
+        if seconds is None:
+            continue
+        key = f"manager.energy_control.{name}"
+        before = len(problems)
+        _whole_ns(seconds, key, problems)
+        if len(problems) == before and round(seconds * 1e9) % base:
+            problems.add(key, f"expected a whole multiple of manager.macro_step ({manager.macro_step!r} s): every "
+                         f"macro-step is one, got {seconds!r} s")
+        sizes[name] = seconds
+    low = sizes.get("min_step_size", manager.macro_step)
+    first = sizes.get("step_size", low)
+    high = sizes.get("max_step_size")
+    if high is not None and not low <= first <= high:
+        problems.add("manager.energy_control", f"expected min_step_size <= step_size <= max_step_size, got "
+                     f"{low!r}, {first!r}, {high!r} s")
+    if control.min_change_rate > control.max_change_rate:
+        problems.add("manager.energy_control", f"expected min_change_rate <= max_change_rate, got "
+                     f"{control.min_change_rate!r} > {control.max_change_rate!r}")
+
+
 # times travel as signed 64-bit nanoseconds (docs/protocol.md): the longest time a scene can state [s]
 LONGEST_TIME_S = (2**63 - 1) * 1e-9
 
@@ -112,6 +176,8 @@ def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, S
     for sub in subsystems.values():
         key = f"subsystems.{sub.name}.micro_step"
         comm = base * sub.settings.comm_ratio
+        if manager.step_control == "energy" and sub.traits.advances_itself:
+            continue  # it takes one step per macro-step, whatever its length (manager.scheme.energy_step)
         if comm % sub.settings.micro_step_ns:
             problems.add(key, f"expected a divisor of the communication step {comm * 1e-9:g} s, "
                          f"got {sub.settings.micro_step!r} s")

@@ -22,12 +22,14 @@ from zencosim.manager.scene.checks import (
     check_couplings,
     check_names,
     check_scheme,
+    check_step_control,
     check_timing,
 )
 from zencosim.manager.scene.couplings import COUPLINGS
 from zencosim.manager.scene.overrides import apply_overrides, parse_override
 from zencosim.manager.scene.settings import (
     CorrectionSettings,
+    EnergyControlSettings,
     ImplicitSettings,
     ManagerSettings,
     OutputSettings,
@@ -213,6 +215,7 @@ def _validate(doc: dict, path: str, overrides: tuple[str, ...], problems: Proble
         if manager.compensation != "none":
             check_compensation(manager, couplings, subsystems, problems)
         check_scheme(manager, outputs, couplings, subsystems, problems)
+        check_step_control(manager, couplings, subsystems, problems)
     check_couplings(couplings, subsystems, tables, problems)
     if outputs is not None:
         signals = {s for c in couplings.values() for s in c.signals()}
@@ -281,9 +284,10 @@ def _read_couplings(tables: Any, problems: Problems) -> dict[str, Any]:
 
 
 def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
-    """``[manager]`` with its ``correction``, ``spikes`` and ``implicit`` sub-tables (``implicit``: with
-    scheme "implicit" only, defaults when absent)."""
-    parts = ("correction", "spikes", "implicit")
+    """``[manager]`` with its ``correction``, ``spikes``, ``implicit`` and ``energy_control`` sub-tables
+    (``implicit``: with scheme "implicit" only, defaults when absent; ``energy_control``: with step_control
+    "energy" only)."""
+    parts = ("correction", "spikes", "implicit", "energy_control")
     manager = read_table(ManagerSettings, table, "manager", problems, skip=parts)
     if manager is None:
         return None
@@ -295,4 +299,10 @@ def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
         settings["implicit"] = read_table(ImplicitSettings, table.get("implicit", {}), "manager.implicit", problems)
     elif "implicit" in table:
         problems.add("manager.implicit", f"only with manager.scheme = 'implicit', got {manager.scheme!r}")
+    if manager.step_control == "energy":
+        settings["energy_control"] = read_table(EnergyControlSettings, table.get("energy_control", {}),
+                                                "manager.energy_control", problems)
+    elif "energy_control" in table:
+        problems.add("manager.energy_control", f"only with manager.step_control = 'energy', got "
+                     f"{manager.step_control!r}")
     return dataclasses.replace(manager, **{k: v for k, v in settings.items() if v is not None})

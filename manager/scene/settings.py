@@ -65,6 +65,30 @@ class ImplicitSettings:
 
 
 @dataclass(frozen=True)
+class EnergyControlSettings:
+    """The ``[manager.energy_control]`` table, with ``manager.step_control = "energy"``: the macro-step adapted
+    from the bonds' residual energy by a PI law — libcosim's ``ecco_algorithm`` (Sadjina & Pedersen 2020, the
+    ECCO method), its parameters under its names (``manager.scheme.energy_step`` gives the law).
+
+    Every macro-step is a whole multiple of ``manager.macro_step`` (the subsystems' micro-steps divide it), so
+    are ``step_size`` (the first step), ``min_step_size`` and ``max_step_size``. Defaults: libcosimpy's
+    ``EccoParams`` where they make a working controller, its README's change rates (libcosimpy's 0.01 … 0.2
+    would only ever shrink the step).
+    """
+
+    max_step_size: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
+    step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # the first [s]; None: min_step_size
+    min_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: manager.macro_step
+    safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.0, exclusive_minimum=True))
+    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # of the step, per step
+    max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=0.0, exclusive_minimum=True))
+    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0))  # residual energy per step [J]
+    rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0))
+    p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0))
+    i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0))
+
+
+@dataclass(frozen=True)
 class ManagerSettings:
     """The ``[manager]`` table: how the run is orchestrated."""
 
@@ -86,6 +110,9 @@ class ManagerSettings:
     spikes: SpikeSettings = SpikeSettings()  # [manager.spikes]
     compensation: Literal["none", "eigenstructure"] = "none"  # paper 000 compensator (docs/compensation.md)
     implicit: ImplicitSettings | None = None  # [manager.implicit], with scheme = "implicit"
+    # "energy": the macro-step adapts to the bonds' residual energy ([manager.energy_control]); "fixed": macro_step
+    step_control: Literal["fixed", "energy"] = "fixed"
+    energy_control: EnergyControlSettings | None = None  # [manager.energy_control], with step_control = "energy"
 
     @property
     def corrects(self) -> bool:

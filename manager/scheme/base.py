@@ -14,7 +14,7 @@ from typing import Protocol, Sequence
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
-from zencosim.manager.scheme.window import RowWindow, Spill
+from zencosim.manager.scheme.window import RowWindow, Spill, read_rows
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode
 from zencosim.subsystems.straight_line import StepText
 
@@ -106,7 +106,7 @@ class SubsystemCalls(Protocol):
 
 @dataclass
 class RunRecord:
-    """What one run produced, on the base macro-step grid."""
+    """What one run produced, on the base macro-step grid (an energy-controlled run: at its ``point_ticks``)."""
 
     plan: Plan
     trajectories: list[np.ndarray]  # per subsystem: outputs at its communication points (a long run's: mapped files,
@@ -121,6 +121,9 @@ class RunRecord:
     reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.bus.timing)
     manager_cpu_s: float | None = None  # over Zenoh: the manager's CPU time [s] while the run stepped
     dropped_messages: dict[str, dict] | None = None  # over Zenoh: messages dropped per key (manager.bus.dropped.merge)
+    # an energy-controlled run (manager.scheme.energy_step): the base step of each communication point, which are the
+    # rows of every trajectory and of the residual arrays; None: a row per base step (a subsystem's: per ratio)
+    point_ticks: np.ndarray | None = None
 
     @property
     def last_step(self) -> int:
@@ -130,6 +133,17 @@ class RunRecord:
             return self.plan.n_ticks
         diverged = self.implicit.diverged_at
         return diverged + 1 if self.implicit.corrector_runs[diverged] > 0 else diverged
+
+    def row_count(self, every: int = 1) -> int:
+        """The rows of an array sampled every ``every`` base steps (a subsystem's trajectory: its ratio; the residuals
+        1), or of every array of an energy-controlled run (one per point)."""
+        return len(self.point_ticks) if self.point_ticks is not None else self.plan.n_ticks // every + 1
+
+    def row_ticks(self, first: int, stop: int, every: int = 1) -> np.ndarray:
+        """The base steps of rows ``first … stop - 1`` of such an array (``row_count``)."""
+        if self.point_ticks is not None:
+            return read_rows(self.point_ticks, first, stop)
+        return np.arange(first, stop, dtype=np.int64) * every
 
     def signal(self, name: str) -> np.ndarray:
         """The trajectory of output ``name`` at its subsystem's communication points."""
@@ -170,8 +184,12 @@ class OutputReader:
 
     def commit(self, data: bytes, step: int) -> None:
         """Take ``sub``'s reply for ``step`` (a named error when it is not one)."""
+        self.commit_row(data, step, step // self.sub.ratio)
+
+    def commit_row(self, data: bytes, step: int, row: int) -> None:
+        """``commit`` into row ``row`` of the trajectory (a run whose points are not evenly spaced:
+        ``manager.scheme.energy_step``)."""
         check_output(data, self.sub, step)
-        row = step // self.sub.ratio
         window = self.window
         if row >= window.end:
             window.advance(row)

@@ -1,8 +1,10 @@
-"""The wire protocol: a fixed 24-byte header and little-endian float64 values. Nothing executes on decode.
+"""The wire protocol: a fixed 32-byte header and little-endian float64 values. Nothing executes on decode.
 
 Header (little endian): version u8, kind u8, rows u16 (rows of a polynomial payload, else 0),
 count u32 (number of float64 values; for ERROR the number of UTF-8 bytes), step i64 (index of the
-communication point on the base macro-step grid), time i64 [ns]. The same ``encode``/``decode`` run
+communication point on the base macro-step grid), time i64 [ns], ref u32 (a reply: the CRC-32 of the command it
+answers; a STEP: its length in base macro-steps, 0 for the subsystem's communication step — an energy-controlled
+run's steps vary: ``manager.scheme.energy_step``), 4 bytes of padding. The same ``encode``/``decode`` run
 over Zenoh and by the in-process implicit scheme (the in-process Jacobi scheme hands arrays, and encodes for a
 recording's tap only: ``manager.bus.inproc``).
 """
@@ -52,7 +54,7 @@ class Message(NamedTuple):  # a tuple: built for every message a subsystem takes
     step: int
     time_ns: int
     rows: int
-    ref: int  # replies: CRC-32 of the command answered
+    ref: int  # replies: CRC-32 of the command answered; STEP: its length in base steps (0: the communication step)
     values: np.ndarray  # read-only view of the payload
 
     def text(self) -> str:

@@ -50,6 +50,7 @@ class ModelTraits:
     can_save_state: bool  # can be saved and restored (rollback of the implicit scheme)
     can_project: bool  # can take the projection step of a rigid joint (paper 003 Eq. 30)
     advances_itself: bool  # a co-simulation component: no zencosim integrator, no state derivative
+    variable_step: bool = True  # can step by macro-steps of varying length (FMI canHandleVariableCommunicationStepSize)
 
     @property
     def default_integrator(self) -> str:
@@ -64,4 +65,5 @@ def model_traits(cls: type, spec) -> ModelTraits:
     source = cls.traits(spec) if hasattr(cls, "traits") else cls
     return ModelTraits(source.second_order, source.point_dimension, source.coupling_roles, source.provides_force,
                        source.starts_at_rest, hasattr(cls, "rest_state"), getattr(source, "can_save_state", True),
-                       getattr(source, "can_project", hasattr(cls, "project")), getattr(source, "advances_itself", False))
+                       getattr(source, "can_project", hasattr(cls, "project")), getattr(source, "advances_itself", False),
+                       getattr(source, "variable_step", True))

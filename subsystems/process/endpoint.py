@@ -40,6 +40,7 @@ class SubsystemEndpoint:
     def __init__(self, subsystem: Subsystem, ratio: int, base_step_ns: int) -> None:
         self.subsystem = subsystem
         self.ratio = ratio
+        self.base_step_ns = base_step_ns
         self.comm_step_ns = ratio * base_step_ns
         self.n_inputs = len(subsystem.inputs)
         self.saved: tuple[int, SavedState] | None = None  # (step, state): SAVE replaces the previous one
@@ -53,9 +54,9 @@ class SubsystemEndpoint:
         step, time_ns, ref = -1, -1, command_ref(data)
         try:
             if len(data) == self._zero_order_size:  # perhaps a zero-order STEP: its values as floats, no array
-                version, kind, rows, count, step, time_ns, _ = HEADER.unpack_from(data)
+                version, kind, rows, count, step, time_ns, span = HEADER.unpack_from(data)
                 if version == VERSION and kind == Kind.STEP and rows == 1 and count == self.n_inputs:
-                    return self._zero_order_step(step, time_ns, self._unpack_inputs(data, HEADER.size), ref)
+                    return self._zero_order_step(step, time_ns, self._unpack_inputs(data, HEADER.size), ref, span)
                 step, time_ns = -1, -1
             message = decode(data, "manager")
             step, time_ns = message.step, message.time_ns
@@ -66,14 +67,17 @@ class SubsystemEndpoint:
                 raise
             return encode_error(step, time_ns, reason, ref)
 
-    def _zero_order_step(self, step: int, time_ns: int, inputs: tuple[float, ...], ref: int) -> bytes:
+    def _zero_order_step(self, step: int, time_ns: int, inputs: tuple[float, ...], ref: int, span: int) -> bytes:
         """A STEP's reply as ``_dispatch`` gives it, its one row of inputs taken as floats
         (``Subsystem.advance_values``): the same outputs, the same bytes."""
-        t1 = time_ns + self.comm_step_ns
+        if span:
+            due, t1 = step + span, time_ns + span * self.base_step_ns
+        else:
+            due, t1 = step + self.ratio, time_ns + self.comm_step_ns
         y = self.subsystem.advance_values(time_ns, t1, list(inputs))
         if type(y) is not list:
-            return encode(Kind.OUTPUT, step + self.ratio, t1, y, ref=ref)
-        return HEADER.pack(VERSION, Kind.OUTPUT, 0, len(y), step + self.ratio, t1, ref) + self._pack_outputs(*y)
+            return encode(Kind.OUTPUT, due, t1, y, ref=ref)
+        return HEADER.pack(VERSION, Kind.OUTPUT, 0, len(y), due, t1, ref) + self._pack_outputs(*y)
 
     def _inputs(self, message) -> InputPolynomial:
         rows = message.rows
@@ -85,10 +89,11 @@ class SubsystemEndpoint:
     def _dispatch(self, message, ref: int) -> bytes:
         sub = self.subsystem
         kind = message.kind
-        if kind == Kind.STEP:
-            t1 = message.time_ns + self.comm_step_ns
+        if kind == Kind.STEP:  # its length: the header's last field in base steps (0: the communication step)
+            span = message.ref or self.ratio
+            t1 = message.time_ns + span * self.base_step_ns
             y = sub.advance(message.time_ns, t1, self._inputs(message))
-            return encode(Kind.OUTPUT, message.step + self.ratio, t1, y, ref=ref)
+            return encode(Kind.OUTPUT, message.step + span, t1, y, ref=ref)
         if kind == Kind.INIT:
             if message.time_ns != sub.t_ns:
                 raise ProtocolError(f"subsystem {sub.name}: INIT at t = {message.time_ns} ns, but it is at {sub.t_ns} ns")

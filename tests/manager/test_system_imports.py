@@ -301,10 +301,52 @@ def test_osp_refuses_an_unknown_algorithm(osp_dir):
     text = osp_system(algorithm="jacobiWithRollback")
     key = f"Algorithm (line {line(text, '<Algorithm>')})"
     assert osp_refusal(osp_dir, text) == {key: "unknown algorithm 'jacobiWithRollback'; expected fixedStep"}
-    problems = osp_refusal(osp_dir, osp_system(algorithm="ecco"))
-    assert problems[key].startswith("algorithm 'ecco' (energy-controlled adaptive step size) is not supported yet: "
-                                    "zencosim steps at a fixed macro step; run it at its base step with "
-                                    "--set manager.algorithm=fixed")
+
+
+ECCO = """
+  <EccoConfiguration>
+    <SafetyFactor>0.99</SafetyFactor>
+    <StepSize>0.0001</StepSize>
+    <MinimumStepSize>0.00001</MinimumStepSize>
+    <MaximumStepSize>0.01</MaximumStepSize>
+    <MinimumChangeRate>0.2</MinimumChangeRate>
+    <MaximumChangeRate>1.5</MaximumChangeRate>
+    <ProportionalGain>0.2</ProportionalGain>
+    <IntegralGain>0.15</IntegralGain>
+    <RelativeTolerance>1e-6</RelativeTolerance>
+    <AbsoluteTolerance>1e-5</AbsoluteTolerance>
+  </EccoConfiguration>"""
+
+
+def ecco_system(configuration: str = ECCO) -> str:
+    return osp_system(algorithm="ecco").replace("</OspSystemStructure>", configuration + "\n</OspSystemStructure>")
+
+
+def test_osp_ecco_imports_as_the_energy_controlled_step_with_its_parameters(osp_dir):
+    """libcosim's EccoConfiguration (the README of libcosimpy's example) maps name for name; the macro-step is
+    libcosim's resolution, 1 ns, and every simulator takes one step per macro-step whatever its stepSize."""
+    document, notes = osp_import(osp_dir, ecco_system())
+    manager = document["manager"]
+    assert manager["step_control"] == "energy" and manager["macro_step"] == 1e-9
+    assert manager["energy_control"] == {
+        "safety_factor": 0.99, "step_size": 0.0001, "min_step_size": 0.00001, "max_step_size": 0.01,
+        "min_change_rate": 0.2, "max_change_rate": 1.5, "p_gain": 0.2, "i_gain": 0.15, "rel_tolerance": 1e-6,
+        "abs_tolerance": 1e-5}
+    assert all("comm_ratio" not in table for table in document["subsystems"].values())
+    assert any(note.startswith("manager.step_control = 'energy': the ecco algorithm") for note in notes)
+
+
+def test_osp_ecco_without_its_parameters_is_refused_as_libcosim_refuses_it(osp_dir):
+    text = osp_system(algorithm="ecco")
+    key = f"Algorithm (line {line(text, '<Algorithm>')})"
+    assert osp_refusal(osp_dir, text)[key].startswith("algorithm 'ecco' needs an EccoConfiguration element")
+    text = ecco_system(ECCO.replace("    <IntegralGain>0.15</IntegralGain>\n", "").replace(
+        "<SafetyFactor>0.99</SafetyFactor>", "<SafetyFactor>high</SafetyFactor><Gain>1</Gain>"))
+    problems = osp_refusal(osp_dir, text)
+    assert problems[f"EccoConfiguration (line {line(text, '<EccoConfiguration>')})"].startswith(
+        "no IntegralGain: libcosim's ecco algorithm needs every parameter")
+    assert problems[f"Gain (line {line(text, '<Gain>')})"].startswith("unknown element; expected one of SafetyFactor")
+    assert f"SafetyFactor (line {line(text, '<SafetyFactor>')})" in problems
 
 
 def test_osp_ecco_runs_at_its_base_step_when_the_user_asks_for_the_fixed_step_algorithm(osp_dir):

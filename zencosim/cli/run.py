@@ -23,8 +23,10 @@ DIVERGED = 3  # exit status of a run whose values did not stay finite, or that -
 
 
 def _print_summary(summary: dict) -> None:
-    table = Table(title=f"{summary['scene']} on the {summary['bus']} bus: {summary['steps']} macro-steps of "
-                        f"{summary['macro_step']:g} s")
+    control = summary.get("step_control")
+    steps = (f"{summary['macro_step']:g} s" if control is None else
+             f"{control['min_step']:g} … {control['max_step']:g} s, energy-controlled (mean {control['mean_step']:g} s)")
+    table = Table(title=f"{summary['scene']} on the {summary['bus']} bus: {summary['steps']} macro-steps of {steps}")
     table.add_column("quantity")
     table.add_column("value", justify="right")
 

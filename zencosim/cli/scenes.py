@@ -34,7 +34,11 @@ def cmd_check(args: argparse.Namespace) -> int:
         out.print(escape(f"  mapped: {note}"), highlight=False)
     bonds = [f"{c.name}" + (f" ({c.settings.domain})" if c.settings.domain != "translational" else "")
              for c in scene.couplings.values() if c.kind == "force_displacement"]
-    out.print(f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s, scheme {scene.manager.scheme}, "
+    control = scene.manager.energy_control
+    steps = (f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s" if control is None else
+             f"energy-controlled macro-steps of {control.min_step_size or scene.manager.macro_step:g} … "
+             f"{control.max_step_size:g} s (whole multiples of {scene.manager.macro_step:g} s)")
+    out.print(f"{steps}, scheme {scene.manager.scheme}, "
               f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(bonds) or 'none'}")
     signals = [c for c in scene.couplings.values() if c.kind == "signal"]
     if signals:

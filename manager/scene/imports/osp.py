@@ -67,6 +67,12 @@ from zencosim.subsystems.params import Problems
 ROOT_ELEMENTS = ("StartTime", "EndTime", "BaseStepSize", "Algorithm", "Simulators", "Functions", "Connections",
                  "EccoConfiguration", "Description")
 LIBCOSIM_BASE_STEP = 0.1  # [s] libcosim's BaseStepSize when the file gives none
+ECCO_QUANTUM = 1e-9  # [s] an ecco system's manager.macro_step: libcosim counts a step in whole nanoseconds
+ECCO_PARAMETERS = {  # EccoConfiguration's elements (libcosim's osp_config_parser) -> [manager.energy_control]
+    "SafetyFactor": "safety_factor", "StepSize": "step_size", "MinimumStepSize": "min_step_size",
+    "MaximumStepSize": "max_step_size", "MinimumChangeRate": "min_change_rate", "MaximumChangeRate": "max_change_rate",
+    "ProportionalGain": "p_gain", "IntegralGain": "i_gain", "RelativeTolerance": "rel_tolerance",
+    "AbsoluteTolerance": "abs_tolerance"}
 GROUP_QUANTITIES = {  # OSP-IS groups of one quantity (effort, flow, displacement of each domain)
     "Force": "force", "LinearVelocity": "velocity", "LinearDisplacement": "displacement",
     "Torque": "torque", "AngularVelocity": "angular_velocity", "AngularDisplacement": "angle",
@@ -182,6 +188,7 @@ class _Import:
         self.ports: list[_Port] = []
         self.parsed: dict[Path, _ModelDescription] = {}
         self.failed: set[str] = set()  # simulators that could not be read
+        self.energy_control: dict[str, float] | None = None  # an ecco system's [manager.energy_control]
 
     def run(self) -> tuple[dict, list[str]]:
         try:
@@ -212,6 +219,13 @@ class _Import:
                 self._connection(element)
         bonds, signals = self._bonds()
         components = list(self.components.values())
+        if self.energy_control is not None:  # libcosim's ECCO steps every simulator by the step it sets
+            for component in components:
+                component.step = ECCO_QUANTUM
+            self.notes.append(f"manager.step_control = 'energy': the ecco algorithm, its parameters from "
+                              f"EccoConfiguration (docs/system-imports.md); manager.macro_step = {ECCO_QUANTUM!r} s, "
+                              "libcosim's resolution of a step; every simulator takes one step per macro-step, "
+                              "whatever its stepSize, as libcosim's ECCO steps them")
         if base_step is not None:
             set_timing(base_step, "BaseStepSize", components, self.problems)
         duration = None
@@ -227,7 +241,31 @@ class _Import:
             description += f": {elements['Description'][0].text.strip()}"
         document = build_document(name or self.path.stem, description, base_step, duration, components, bonds,
                                   self.notes, signals)
+        if self.energy_control is not None:
+            document["manager"].update(step_control="energy", energy_control=self.energy_control)
         return document, self.notes
+
+    def _ecco(self, elements: dict, key: str) -> dict[str, float] | None:
+        """[manager.energy_control] from the EccoConfiguration, which needs every parameter (libcosim's rule)."""
+        if "EccoConfiguration" not in elements:
+            self.problems.add(key, "algorithm 'ecco' needs an EccoConfiguration element with its parameters "
+                                   f"({', '.join(ECCO_PARAMETERS)}), as libcosim does")
+            return None
+        configuration = elements["EccoConfiguration"][0]
+        given = {local(child): child for child in children(configuration)}
+        control = {}
+        for element_name, parameter in ECCO_PARAMETERS.items():
+            if element_name not in given:
+                self.problems.add(where(configuration), f"no {element_name}: libcosim's ecco algorithm needs every "
+                                                        f"parameter ({', '.join(ECCO_PARAMETERS)})")
+                continue
+            value = number(given[element_name].text, where(given[element_name]), element_name, self.problems)
+            if value is not None:
+                control[parameter] = value
+        for element_name in given.keys() - ECCO_PARAMETERS.keys():
+            self.problems.add(where(given[element_name]), f"unknown element; expected one of "
+                                                          f"{', '.join(ECCO_PARAMETERS)}")
+        return control
 
     def _refuse(self, key: str, reason: str) -> SceneError:
         self.problems.add(key, reason)
@@ -276,10 +314,8 @@ class _Import:
                                   "step, as asked (manager.algorithm = 'fixed')")
                 algorithm = "fixedStep"
             elif algorithm.lower() == "ecco":
-                self.problems.add(key, "algorithm 'ecco' (energy-controlled adaptive step size) is not supported yet: "
-                                       "zencosim steps at a fixed macro step; run it at its base step with "
-                                       "--set manager.algorithm=fixed (zencosim monitors, and can correct, the "
-                                       "energy of the power bonds: manager.correction)")
+                self.energy_control = self._ecco(elements, key)
+                base_step = ECCO_QUANTUM
             elif algorithm.lower() != "fixedstep":
                 self.problems.add(key, f"unknown algorithm {algorithm!r}; expected fixedStep")
         if "EccoConfiguration" in elements and algorithm.lower() == "fixedstep":
@@ -323,7 +359,7 @@ class _Import:
             return
         self.failed.discard(raw_name)
         name = scene_name(raw_name, {c.name for c in self.components.values()}, "the simulator", self.notes)
-        if element.get("stepSize") is None:
+        if element.get("stepSize") is None and self.energy_control is None:
             self.notes.append(f"subsystems.{name}.micro_step = {step!r} s: {key} gives no stepSize; the base step, as "
                               "libcosim steps it")
         component = Component(name, key, fmu, document_path(fmu_path, self.directory), step)

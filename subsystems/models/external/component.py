@@ -66,6 +66,7 @@ class ComponentDescription:
     can_save_state: bool  # FMI canGetAndSetFMUstate; ODE components always (zencosim holds z)
     second_order: bool = False  # ODE: z = [q, q̇] and the component gives accelerations (n_dof)
     identity: tuple[tuple[str, str], ...] = ()  # what identifies the component's file (FMU: guid, sha256)
+    variable_step: bool = True  # FMI canHandleVariableCommunicationStepSize (co-simulation); ODE components always
 
     @property
     def inputs(self) -> tuple[str, ...]:

@@ -95,8 +95,9 @@ def describe_fmu(path: Path, interface: str | None) -> ComponentDescription:
                                      maximum=math.inf if high is None else high)
     kind = f"FMI {model.fmiVersion} {'Co-Simulation' if chosen == 'co-simulation' else 'Model Exchange'}"
     can_save = chosen == "model-exchange" or bool(capability.canGetAndSetFMUstate)
+    variable_step = chosen == "model-exchange" or bool(capability.canHandleVariableCommunicationStepSize)
     return ComponentDescription(kind, "ode" if chosen == "model-exchange" else "co-simulation", variables, can_save,
-                                identity=(("guid", model.guid), ("sha256", _sha256(path))))
+                                identity=(("guid", model.guid), ("sha256", _sha256(path))), variable_step=variable_step)
 
 
 def _model_description(path: Path):

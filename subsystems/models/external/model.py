@@ -90,6 +90,10 @@ class ExternalSpec:
         return self.description.can_save_state
 
     @property
+    def variable_step(self) -> bool:
+        return self.description.variable_step
+
+    @property
     def point_dimension(self) -> int:
         dimensions = {m.dimension for m in self.point_maps.values()}
         return dimensions.pop() if len(dimensions) == 1 else 1

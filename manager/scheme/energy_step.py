@@ -1,0 +1,162 @@
+"""The energy-controlled macro-step: Jacobi steps whose length a PI law sets from the bonds' residual energy.
+
+This is the ECCO method (S. Sadjina, E. Pedersen, "Energy conservation and coupling error reduction in
+non-iterative co-simulations", Engineering with Computers 36, 2020) as libcosim's ``ecco_algorithm`` implements
+it (libcosim 0.11, ``adjust_step_size``), with its parameters under its names ([manager.energy_control],
+``EnergyControlSettings``). Like ``manager.scheme.jacobi`` the scheme is a generator of :class:`Exchange`
+requests, so both buses run the same arithmetic; every process of a run over Zenoh follows every subsystem
+(the step length depends on every bond), as the implicit scheme's do.
+
+One macro-step [t_k, t_k + H_k]: every subsystem gets its inputs held at the sources' outputs at t_k (zero-order),
+steps by H_k (the STEP command's length, ``manager.wire.protocol``), and the manager evaluates the residual power
+δP_b of every bond at t_k + H_k (``manager.scheme.residual``, paper 002 Eq. 9: for zero-order inputs
+|δP_b| = |P_a − P_b|, the difference of the powers input × output of libcosim's two sides) and
+its residual energy ΔE_b = δP_b H_k. After every step from the second on (libcosim's, as it does):
+
+    ε = sqrt( (1/B) Σ_b ( |δP_b| H / (abs_tolerance + rel_tolerance · max_b |δP_b| H) )² )
+    ε = 0 or ε_prev = 0:  H unchanged, ε_prev ← ε          (ε_prev starts at 1)
+    else:                 g = clamp(safety_factor · ε^(−i_gain − p_gain) · ε_prev^(p_gain), min_change_rate,
+                                    max_change_rate),  ε_prev ← ε,
+                          H ← clamp(g H, min_step_size, max_step_size)
+
+``rel_tolerance`` multiplies the largest residual energy of the step, not the energy a bond exchanged: that is
+libcosim's law, kept so that a system imported from OSP steps as it does there. H is counted in whole
+nanoseconds, g H truncated to them, as libcosim does; the macro-step taken is H truncated to a whole multiple of
+``manager.macro_step`` (the subsystems' micro-steps divide it), and the residual energy is that of the step taken:
+with a macro-step of 1 ns, libcosim's arithmetic. The last step is cut to end at the duration.
+
+The record holds one row per communication point (``RunRecord.point_ticks``: the base step of each).
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable, Generator
+
+import numpy as np
+
+from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
+from zencosim.manager.scene.settings import EnergyControlSettings
+from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Exchange, OutputReader, RunRecord
+from zencosim.manager.scheme.jacobi import _bond_residual_power, _initial_outputs
+from zencosim.manager.scheme.pacing import Releases
+from zencosim.manager.scheme.window import RowWindow, Spill
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind
+from zencosim.manager.wire.status import StatusReport
+
+
+class StepLaw:
+    """The PI law of the module text: the step it sets, ``step_ns`` (libcosim's, whole nanoseconds), and the
+    macro-step taken, ``ticks`` (that step truncated to whole base steps of ``base_step_ns``: the law itself goes on
+    from the step it set, so that a rate below 2 can lengthen a step of one base step)."""
+
+    def __init__(self, control: EnergyControlSettings, base_step_ns: int) -> None:
+        self.control = control
+        self.base_step_ns = base_step_ns
+        self.min_ns = base_step_ns if control.min_step_size is None else round(control.min_step_size * 1e9)
+        self.max_ns = round(control.max_step_size * 1e9)
+        self.step_ns = self.min_ns if control.step_size is None else round(control.step_size * 1e9)
+        self.previous_error = 1.0
+
+    def most_points(self, n_ticks: int) -> int:
+        """The most communication points a run of ``n_ticks`` base steps can have: every step the shortest, the last
+        one cut, and t_0."""
+        return n_ticks // (self.min_ns // self.base_step_ns) + 2
+
+    @property
+    def ticks(self) -> int:
+        """The next macro-step [base steps]."""
+        return self.step_ns // self.base_step_ns
+
+    def adjust(self, residual_power: list[float], start_ns: int, taken_ns: int) -> None:
+        """Set the next step after one of ``taken_ns`` from ``start_ns`` whose bonds had ``residual_power`` [W] at
+        its end."""
+        c = self.control
+        dt = (start_ns + taken_ns) / 1e9 - start_ns / 1e9  # libcosim's to_double_duration(step, start)
+        magnitudes = [abs(p) for p in residual_power]
+        energy_level = max(magnitudes) * dt
+        mean_square = 0.0
+        for magnitude in magnitudes:
+            ratio = magnitude * dt / (c.abs_tolerance + c.rel_tolerance * energy_level)
+            mean_square += ratio * ratio
+        error = math.sqrt(mean_square / len(magnitudes))
+        if error == 0 or self.previous_error == 0:
+            self.previous_error = error
+            return
+        gain = c.safety_factor * error ** (-c.i_gain - c.p_gain) * self.previous_error ** c.p_gain
+        gain = min(max(gain, c.min_change_rate), c.max_change_rate)
+        self.previous_error = error
+        step = (start_ns + self.step_ns) / 1e9 - start_ns / 1e9
+        self.step_ns = min(max(int(gain * step * 1e9), self.min_ns), self.max_ns)  # to_duration truncates to ns
+
+
+def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] | None = None,
+                      status: StatusReport | None = None, spill: Spill | None = None
+                      ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+    """Run the whole co-simulation at the macro-steps ``law`` sets (a fresh one); yields :class:`Exchange` requests, returns the
+    :class:`RunRecord` (a row per communication point). ``progress`` is called with the base step reached about
+    every ``PROGRESS_EVERY`` macro-steps; ``status`` and ``spill`` as in ``manager.scheme.jacobi``."""
+    subs, base, end = plan.subsystems, plan.base_step_ns, plan.n_ticks
+    points = law.most_points(end)
+    readers = [OutputReader(s, points, spill) for s in subs]
+    n_bonds = len(plan.bonds)
+    p_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS, spill, "residual-power")
+    e_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS, spill, "residual-energy")
+    ticks = RowWindow(points, None, np.int64, 0, 1, spill, "point-ticks")
+    p_window.array[0], e_window.array[0], ticks.array[0] = 0.0, 0.0, 0
+    releases = Releases(points - 1, None, spill)
+    energy = [0.0] * n_bonds
+    names = tuple(s.name for s in subs)
+    everyone = frozenset(range(len(subs)))
+    sources = [tuple((readers[f.source], list(f.outputs), list(f.inputs)) for f in s.feeds) for s in subs]
+
+    def held_inputs(s: SubsystemPlan, tick: int = 0, stepping: bool = True) -> np.ndarray:
+        """``s``'s inputs held at its sources' newest outputs (at t_0, ``stepping`` False: their first row, as
+        ``_initial_outputs`` asks), one row."""
+        values = np.zeros((1, len(s.inputs)))
+        for reader, outputs, inputs in sources[s.index]:
+            values[0, inputs] = np.asarray(reader.newest if stepping else reader.window.array[0])[outputs]
+        return values
+
+    yield from _initial_outputs(plan, readers, held_inputs, everyone, everyone, None, None)
+
+    tick, point, step_status = 0, 0, None
+    step_s = base * 1e-9
+    while tick < end:
+        taken = min(law.ticks, end - tick)
+        start_ns = tick * base
+        sent = []
+        sends = {}
+        for s in subs:
+            values = held_inputs(s, tick)
+            sent.append((tick, values.tolist()))
+            sends[s.name] = HEADER.pack(VERSION, Kind.STEP, 1, len(s.inputs), tick, start_ns, taken) + \
+                values.astype("<f8").tobytes()
+        released_ns = releases.release(point)
+        due = tick + taken
+        replies = yield Exchange(sends, names, step_status, due)
+        point += 1
+        for s in subs:
+            readers[s.index].commit_row(replies[s.name], due, point)
+        ticks.put(point, due)
+        residual_power = []
+        for b, bond in enumerate(plan.bonds):
+            delta_p = _bond_residual_power(readers, sent, bond, bond.components, due, step_s)
+            energy[b] += delta_p * taken * step_s
+            residual_power.append(delta_p)
+        p_window.put(point, residual_power)
+        e_window.put(point, energy)
+        if status is not None:
+            status.log_residuals(residual_power + energy)
+            status.log_times((due, released_ns, time.perf_counter_ns(), 0))
+            step_status = due
+        if point >= 2:
+            law.adjust(residual_power, start_ns, taken * base)
+        tick = due
+        if progress is not None and point % PROGRESS_EVERY == 0:
+            progress(tick)
+    if step_status is not None:
+        yield Exchange({}, (), step_status)
+    rows = point + 1
+    return RunRecord(plan, [reader.window.finish(rows) for reader in readers], p_window.finish(rows),
+                     e_window.finish(rows), *releases.finish(point), 0, point_ticks=ticks.finish(rows))

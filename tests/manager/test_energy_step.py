@@ -1,0 +1,171 @@
+"""The energy-controlled macro-step (manager.step_control = "energy", manager.scheme.energy_step; issue 27).
+
+Its law is libcosim's ECCO: tests/interop/test_ecco.py runs the same OSP file in both and compares every step.
+Here: the limits of the law over generated settings, what it does on a decaying transient, the record's time
+grid in the summary and the tables, the same digest over Zenoh, the wire's step length, and the scenes refused.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import zencosim
+from zencosim.manager.wire.protocol import Kind, decode, encode
+from zencosim.subsystems.process.endpoint import SubsystemEndpoint
+
+QUANTUM = 1e-4  # [s] manager.macro_step: every macro-step a whole multiple of it
+FINE = {"manager.macro_step": QUANTUM, "subsystems.S1.micro_step": QUANTUM, "subsystems.S2.micro_step": QUANTUM,
+        "manager.step_control": "energy"}
+
+
+def energy_scene(duration: float = 0.5, **control) -> zencosim.Scene:
+    """two_mass_damped at energy-controlled macro-steps (``control``: [manager.energy_control])."""
+    control.setdefault("max_step_size", 0.01)
+    overrides = {**FINE, "manager.duration": duration,
+                 **{f"manager.energy_control.{key}": value for key, value in control.items()}}
+    return zencosim.load_scene("two_mass_damped", overrides)
+
+
+def steps_of(result) -> np.ndarray:
+    """The macro-steps a run took [base steps of QUANTUM]."""
+    return np.diff(np.asarray(result.record.point_ticks))
+
+
+multiples = st.integers(min_value=1, max_value=40)
+
+
+@settings(max_examples=12, deadline=None)
+@given(low=multiples, extra=multiples, first=st.floats(0.0, 1.0), huge=st.booleans())
+def test_the_step_stays_within_its_limits_and_reaches_the_one_its_tolerance_asks_for(low, extra, first, huge):
+    """A tolerance no residual reaches (1e12 J) takes the step to max_step_size and keeps it there; one every
+    residual exceeds (1e-12 J) takes it to min_step_size; never past either."""
+    high = low + extra
+    start = low + round(first * extra)
+    tolerance = 1e12 if huge else 1e-12
+    result = zencosim.run(energy_scene(0.3, min_step_size=low * QUANTUM, max_step_size=high * QUANTUM,
+                                       step_size=start * QUANTUM, abs_tolerance=tolerance, rel_tolerance=0.0))
+    steps = steps_of(result)
+    assert steps[:-1].min() >= low and steps.max() <= high  # the last one may be cut to end at the duration
+    assert steps[0] == steps[1] == start  # the law first acts after the second step, as libcosim's
+    assert steps[-2] == (high if huge else low)
+    assert np.asarray(result.record.point_ticks)[-1] * QUANTUM == pytest.approx(0.3)
+
+
+def test_the_step_shrinks_in_a_transient_and_grows_as_it_decays():
+    """Strong damping: from a long first step the law shortens the step while the residual energy is large and
+    lengthens it, up to its limit, as the motion dies out; the run ends exactly at its duration."""
+    damped = {"subsystems.S1.effects.c1.damping": 5.0, "subsystems.S2.effects.c2.damping": 5.0}
+    scene = zencosim.load_scene(energy_scene().path, {**FINE, **damped, "manager.duration": 4.0,
+                                                      "manager.energy_control.max_step_size": 0.02,
+                                                      "manager.energy_control.step_size": 0.01,
+                                                      "manager.energy_control.abs_tolerance": 1e-3})
+    result = zencosim.run(scene)
+    steps = steps_of(result)
+    shortest = int(np.argmin(steps))
+    assert steps[shortest] <= steps[0] // 10 and shortest < len(steps) // 4
+    assert steps[-2] == 200 and steps.max() == 200  # 0.02 s, max_step_size
+    # rates within [0.2, 1.5] of the law's step, which the step taken is truncated from (less than a base step)
+    before, after = steps[1:-2], steps[2:-1]
+    assert np.all(after >= np.floor(0.2 * before)) and np.all(after <= 1.5 * (before + 1))
+    assert result.signal("x2").time[-1] == pytest.approx(4.0, abs=0)
+    summary = result.summary
+    assert summary["steps"] == len(steps)
+    control = summary["step_control"]
+    assert control["kind"] == "energy" and control["macro_steps"] == len(steps)
+    assert control["min_step"] == pytest.approx(steps.min() * QUANTUM) and control["max_step"] == pytest.approx(0.02)
+    assert summary["discrete"] is None  # the exact analysis is of one fixed macro-step
+
+
+def test_the_tables_and_the_nrms_take_each_point_at_its_time(tmp_path):
+    """The table's time column is the points' times; the NRMS compares each point with the reference at its
+    time: a reference read on the base grid row by row instead would be far off once the steps lengthen."""
+    result = zencosim.run(energy_scene(1.0, abs_tolerance=1.0))
+    ticks = np.asarray(result.record.point_ticks)
+    (path,) = result.write(tmp_path / "out.csv")
+    with open(path) as file:
+        rows = list(csv.reader(file))
+    times = np.array([float(row[0]) for row in rows[1:]])
+    assert rows[0][0] == "time [s]" and np.array_equal(times, ticks * round(QUANTUM * 1e9) / 1e9)
+    from zencosim.manager.results.reference import analytic_reference
+    reference = analytic_reference(result.scene).signals["x2"]
+    x2 = result.signal("x2").values
+    expected = np.sqrt(np.mean((x2 - reference[ticks]) ** 2)) / (reference[ticks].max() - reference[ticks].min())
+    assert result.summary["signals"]["x2"]["nrms"] == pytest.approx(expected, rel=1e-12)
+    assert result.summary["signals"]["x2"]["nrms"] < 0.02
+
+
+@pytest.mark.slow
+@pytest.mark.multiprocess
+def test_over_zenoh_the_run_is_the_in_process_one():
+    """Every process follows every bond, so the steps — and the digest — are the same."""
+    scene = energy_scene(0.3, abs_tolerance=1.0)
+    inproc, zenoh = zencosim.run(scene), zencosim.run(scene, bus="zenoh")
+    assert zenoh.digest == inproc.digest
+    assert np.array_equal(np.asarray(zenoh.record.point_ticks), np.asarray(inproc.record.point_ticks))
+    assert len(set(steps_of(inproc))) > 3  # the steps did vary
+
+
+def test_a_step_command_carries_its_length_in_base_steps():
+    """ref of a STEP: its length in base steps (0: the communication step); the reply's step and time follow it,
+    on the zero-order fast path (one row) and through the decoded path (a second row, of zeros) alike."""
+    from zencosim.manager.assembly import plan_scene
+
+    scene = energy_scene()
+    plan, _ = plan_scene(scene)
+    s2, base = plan.by_name("S2"), plan.base_step_ns
+
+    def reply(rows: int, span: int) -> tuple:
+        endpoint = SubsystemEndpoint(plan_scene(scene)[1]["S2"], s2.ratio, base)  # a fresh subsystem at t = 0
+        values = np.zeros((rows, len(s2.inputs)))
+        values[0] = 1.0
+        message = decode(endpoint.handle(encode(Kind.STEP, 0, 0, values, rows, ref=span)), "S2")
+        return message.kind, message.step, message.time_ns, message.values.tolist()
+
+    assert reply(1, 7)[:3] == (Kind.OUTPUT, 7, 7 * base)
+    assert reply(1, 0)[:3] == (Kind.OUTPUT, 1, base)
+    assert reply(2, 7) == reply(1, 7)
+    assert reply(1, 7)[3] != reply(1, 0)[3]
+
+
+@pytest.mark.parametrize("overrides, key, reason", [
+    ({"manager.scheme": "gauss-seidel"}, "manager.scheme", "expected 'jacobi' with manager.step_control = 'energy'"),
+    ({"manager.extrapolation": 1}, "manager.extrapolation", "expected 0 with manager.step_control = 'energy'"),
+    ({"subsystems.S2.comm_ratio": 2}, "subsystems.S2.comm_ratio", "expected 1 with manager.step_control"),
+    ({"manager.correction.enabled": True}, "manager.correction", "energy correction is derived for a fixed"),
+    ({"manager.compensation": "eigenstructure"}, "manager.compensation", "expected 'none'"),
+    ({"manager.realtime": True}, "manager.realtime", "real time paces a fixed macro-step"),
+    ({"manager.energy_control.max_step_size": 0.00105}, "manager.energy_control.max_step_size",
+     "expected a whole multiple of manager.macro_step"),
+    ({"manager.energy_control.step_size": 0.02}, "manager.energy_control",
+     "expected min_step_size <= step_size <= max_step_size"),
+    ({"manager.energy_control.min_change_rate": 2.0}, "manager.energy_control", "expected min_change_rate <="),
+])
+def test_what_the_energy_controlled_step_does_not_run_is_refused_by_name(overrides, key, reason):
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene("two_mass_damped", {**FINE, "manager.energy_control.max_step_size": 0.01, **overrides})
+    found = {p.key: p.reason for p in caught.value.problems}
+    assert key in found and reason in found[key], found
+
+
+def test_the_energy_control_table_needs_its_step_control_and_its_maximum():
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene("two_mass_damped", {"manager.energy_control.max_step_size": 0.01})
+    assert [p.key for p in caught.value.problems] == ["manager.energy_control"]
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene("two_mass_damped", FINE)
+    assert "manager.energy_control.max_step_size" in {p.key for p in caught.value.problems}
+
+
+def test_a_scene_without_a_power_bond_has_nothing_to_control_the_step_by(tmp_path):
+    text = Path(energy_scene().path).read_text()
+    text = text[:text.index("[couplings.c]")].replace('signals = ["x2", "fc"]', "signals = []")
+    path = tmp_path / "free.toml"
+    path.write_text(text)
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene(path, {**FINE, "manager.energy_control.max_step_size": 0.01})
+    assert {p.key: p.reason for p in caught.value.problems}["manager.step_control"].endswith("this scene has none")
