@@ -5,8 +5,8 @@ The committed output of a subsystem at a communication point is the last OUTPUT 
 point (the implicit scheme's predictor and derivative runs come before its corrector); rows run up to
 the last macro-step whose status was recorded, which is the last step the run committed. The residual
 power and energy of a bond are the status's ``delta_p.<bond>`` and ``delta_e.<bond>`` (0 at the start,
-as in the run). The grid of each signal comes from the recording's own scene, so the tables equal
-those of the run that was recorded, bit for bit.
+as in the run). The grid of each signal comes from the recording's own scene (an energy-controlled run's: t_0
+and the step of every status), so the tables equal those of the run that was recorded, bit for bit.
 """
 from __future__ import annotations
 
@@ -29,23 +29,32 @@ def recorded_signals(recording: Recording) -> dict[str, Signal]:
         raise RecordingError(f"{recording.path}: channels {', '.join(missing)} are missing; its scene has "
                              f"{', '.join(needed)}")
     last_step = recording.last_step()
+    status = recording.channels[STATUS_TOPIC]
+    point_ticks = None
+    if recording.scene().manager.step_control == "energy":  # a row per point: t_0 and every status's step
+        point_ticks = np.array([0, *(message.step for message in status.messages)], dtype=np.int64)
+        rows = {int(tick): row for row, tick in enumerate(point_ticks)}
     trajectories = []
     for sub in plan.subsystems:
         names = recording.channels[f"{sub.name}/y"].spec.names
         if list(names) != [port.name for port in sub.outputs]:  # another subsystem's replies, or another model's
             raise RecordingError(f"{recording.path}: channel {sub.name}/y holds {', '.join(names)}; its scene's "
                                  f"{sub.name} has {', '.join(p.name for p in sub.outputs)}{recording.damage_note()}")
-        outputs = np.full((plan.n_ticks // sub.ratio + 1, len(sub.outputs)), np.nan)
+        count = plan.n_ticks // sub.ratio + 1 if point_ticks is None else len(point_ticks)
+        outputs = np.full((count, len(sub.outputs)), np.nan)
         for message in recording.channels[f"{sub.name}/y"].messages:
             if message.kind == Kind.OUTPUT and message.step <= last_step:
-                outputs[message.step // sub.ratio] = message.values
+                row = message.step // sub.ratio if point_ticks is None else rows.get(message.step)
+                if row is not None:
+                    outputs[row] = message.values
         trajectories.append(outputs)
-    residual = {prefix: np.full((plan.n_ticks + 1, len(plan.bonds)), np.nan) for prefix in ("delta_p", "delta_e")}
+    count = plan.n_ticks + 1 if point_ticks is None else len(point_ticks)
+    residual = {prefix: np.full((count, len(plan.bonds)), np.nan) for prefix in ("delta_p", "delta_e")}
     for prefix, values in residual.items():
         values[0] = 0.0
-    status = recording.channels[STATUS_TOPIC]
     columns = {name: i for i, name in enumerate(status.spec.names)}
-    for message in status.messages:
+    for number, message in enumerate(status.messages, start=1):
+        row = message.step if point_ticks is None else number
         for prefix, values in residual.items():
-            values[message.step] = [message.values[columns[f"{prefix}.{bond.name}"]] for bond in plan.bonds]
-    return run_signals(plan, trajectories, residual["delta_p"], residual["delta_e"], last_step)
+            values[row] = [message.values[columns[f"{prefix}.{bond.name}"]] for bond in plan.bonds]
+    return run_signals(plan, trajectories, residual["delta_p"], residual["delta_e"], last_step, point_ticks)

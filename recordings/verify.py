@@ -7,9 +7,9 @@ difference stops the re-run and is reported with its channel, step, value name a
 recording that ends early (a failed or interrupted run) is compared up to its last message; one with no
 message to compare never passes (it verifies nothing).
 
-The re-run is planned for no more macro-steps than the recording holds statuses (plus one), so what
-it allocates is bounded by the file's size (``recordings.mcap_read`` bounds what the file may hold),
-never by the duration its scene claims. A verification passes only when the file is intact as well
+The re-run is planned for no more macro-steps than the recording holds statuses (plus one; an energy-controlled
+run, whose steps vary: up to its last status), so what it allocates is bounded by the file's size
+(``recordings.mcap_read`` bounds what the file may hold), never by the duration its scene claims. A verification passes only when the file is intact as well
 (``Recording.intact``: read to its end, every CRC, count and digest checked): a damaged or cut-off
 file never passes, whatever its messages.
 """
@@ -149,14 +149,19 @@ def _cut_to(scene: Scene, steps: int) -> Scene:
 
 def verify(recording: Recording) -> Verification:
     """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run."""
-    held = len(recording.channels[STATUS_TOPIC].messages) if STATUS_TOPIC in recording.channels else 0
-    scene = _cut_to(recording.scene(), held + 1)
+    statuses = recording.channels[STATUS_TOPIC].messages if STATUS_TOPIC in recording.channels else []
+    scene = recording.scene()
+    # energy-controlled steps vary: the re-run ends at the last status recorded (its base step), which it reaches by
+    # the same steps; at a fixed step it is planned for the statuses held, plus one
+    energy = scene.manager.step_control == "energy"
+    held = max(1, max((message.step for message in statuses), default=0)) if energy else len(statuses) + 1
+    scene = _cut_to(scene, held)
     try:
         plan, subsystems = plan_scene(scene)
     except (ValueError, TypeError, KeyError, AttributeError, IndexError, ArithmeticError, RecursionError) as error:
         raise RecordingError(f"{recording.path}: its scene cannot be planned ({type(error).__name__}: {error})"
                              f"{recording.damage_note()}") from None
-    plan = replace(plan, n_ticks=min(plan.n_ticks, held + 1))  # the re-run ends once it has passed the recording
+    plan = replace(plan, n_ticks=min(plan.n_ticks, held))  # the re-run ends once it has passed the recording
     status = StatusReport(plan, realtime=False)
     expected = {spec.topic: spec for spec in channel_specs(plan, status)}
     if set(expected) != set(recording.channels):

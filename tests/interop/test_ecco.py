@@ -88,3 +88,24 @@ def test_the_summary_reports_the_steps_it_took(runs):
     assert control["macro_steps"] == ours.summary["steps"] == len(steps)
     assert (control["min_step"], control["max_step"]) == (steps.min(), steps.max())
     assert control["parameters"]["abs_tolerance"] == 1.0 and control["parameters"]["max_step_size"] == 0.01
+
+
+def test_an_fmu_that_steps_at_a_fixed_size_is_refused_by_name(system, tmp_path):
+    """canHandleVariableCommunicationStepSize="false": the FMU cannot take the varying macro-steps."""
+    import zipfile
+
+    directory = tmp_path / "fixed"
+    shutil.copytree(system.parent, directory)
+    fmu = directory / "mass2.fmu"
+    with zipfile.ZipFile(system.parent / "mass2.fmu") as source, zipfile.ZipFile(fmu, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'canHandleVariableCommunicationStepSize="true"',
+                                    b'canHandleVariableCommunicationStepSize="false"')
+            target.writestr(item, data)
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene(directory / "OspSystemStructure.xml")
+    assert {p.key: p.reason for p in caught.value.problems} == {
+        "subsystems.mass2.fmu": "FMU mass2.fmu declares a fixed communication step (canHandleVariableCommunicationStepSize "
+                                "false): it cannot take the varying macro-steps of manager.step_control = 'energy'"}

@@ -99,6 +99,23 @@ def test_the_tables_and_the_nrms_take_each_point_at_its_time(tmp_path):
     assert result.summary["signals"]["x2"]["nrms"] < 0.02
 
 
+def test_a_recorded_run_verifies_and_reads_back_as_it_ran(tmp_path):
+    """The recording's re-run takes the same steps (verify: every message bit for bit, up to its last status), and
+    its signals are the run's at the same times."""
+    from zencosim.recordings.reader import read_recording
+    from zencosim.recordings.verify import verify
+
+    path = tmp_path / "energy.mcap"
+    result = zencosim.run(energy_scene(0.3, abs_tolerance=1.0), record=path)
+    assert len(set(steps_of(result))) > 3
+    checked = verify(read_recording(path))
+    assert checked.passed and checked.last_step == round(0.3 / QUANTUM)
+    recorded = zencosim.load_recording(path)
+    for name in ("x2", "fc", "delta_p.c", "delta_e.c"):
+        assert np.array_equal(recorded.signal(name).time, result.signal(name).time), name
+        assert np.array_equal(recorded.signal(name).values, result.signal(name).values), name
+
+
 @pytest.mark.slow
 @pytest.mark.multiprocess
 def test_over_zenoh_the_run_is_the_in_process_one():
