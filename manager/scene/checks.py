@@ -88,18 +88,15 @@ def _check_gauss_seidel(manager: ManagerSettings, subsystems: dict[str, Subsyste
 def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],
                        problems: Problems) -> None:
     """What the energy-controlled macro-step (``manager.scheme.energy_step``) runs: the Jacobi scheme, single-rate,
-    zero-order inputs (a polynomial through samples at varying spacing is not built yet), no corrector, not paced,
-    at least one power bond, components that can step by varying steps; its step sizes whole multiples of
-    ``manager.macro_step`` with ``min_step_size <= step_size <= max_step_size`` (libcosim's checks)."""
+    no corrector, not paced, at least one power bond, components that can step by varying steps; its step sizes
+    whole multiples of ``manager.macro_step`` with ``min_step_size <= step_size <= max_step_size`` (libcosim's
+    checks)."""
     if manager.step_control != "energy":
         return
     why = "with manager.step_control = 'energy'"
     if manager.scheme != "jacobi":
         problems.add("manager.scheme", f"expected 'jacobi' {why} (the step control runs the Jacobi scheme), "
                      f"got {manager.scheme!r}")
-    if manager.extrapolation:
-        problems.add("manager.extrapolation", f"expected 0 {why}: an input polynomial through samples at varying "
-                     f"spacing is not built yet")
     for fixed in ("realtime", "corrects"):
         if getattr(manager, fixed):
             key = "manager.realtime" if fixed == "realtime" else "manager.correction"
@@ -107,17 +104,12 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
                          else "energy correction is derived for a fixed macro-step"))
     if manager.compensation != "none":
         problems.add("manager.compensation", f"expected 'none' {why}: the compensator is designed for one macro-step")
-    for coupling in couplings.values():
-        if isinstance(coupling, SignalConnection) and coupling.settings.extrapolation:
-            problems.add(f"couplings.{coupling.name}.extrapolation", f"expected 0 {why}")
     if not any(coupling.bonds() for coupling in couplings.values()):
         problems.add("manager.step_control", "'energy' controls the step by the residual energy of the power bonds; "
                      "this scene has none")
     for sub in subsystems.values():
         if sub.settings.comm_ratio != 1:
             problems.add(f"subsystems.{sub.name}.comm_ratio", f"expected 1 {why} (single-rate)")
-        if sub.settings.extrapolation:
-            problems.add(f"subsystems.{sub.name}.extrapolation", f"expected 0 {why}")
         if not sub.traits.variable_step:
             problems.add(f"subsystems.{sub.name}.fmu", f"{_component(sub)} declares a fixed communication step "
                          f"(canHandleVariableCommunicationStepSize false): it cannot take the varying macro-steps of "

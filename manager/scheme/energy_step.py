@@ -7,11 +7,12 @@ it (libcosim 0.11, ``adjust_step_size``), with its parameters under its names ([
 requests, so both buses run the same arithmetic; every process of a run over Zenoh follows every subsystem
 (the step length depends on every bond), as the implicit scheme's do.
 
-One macro-step [t_k, t_k + H_k]: every subsystem gets its inputs held at the sources' outputs at t_k (zero-order),
-steps by H_k (the STEP command's length, ``manager.wire.protocol``), and the manager evaluates the residual power
-δP_b of every bond at t_k + H_k (``manager.scheme.residual``, paper 002 Eq. 9: for zero-order inputs
-|δP_b| = |P_a − P_b|, the difference of the powers input × output of libcosim's two sides) and
-its residual energy ΔE_b = δP_b H_k. After every step from the second on (libcosim's, as it does):
+One macro-step [t_k, t_k + H_k]: every subsystem gets, per input, the Lagrange polynomial of its order through
+its source's newest points at their times (paper 002 Fig. 5 at varying spacing; zero-order: the outputs at t_k,
+as libcosim holds them), steps by H_k (the STEP command's length, ``manager.wire.protocol``), and the manager
+evaluates the residual power δP_b of every bond at t_k + H_k (``manager.scheme.residual``, paper 002 Eq. 9: for
+zero-order inputs |δP_b| = |P_a − P_b|, the difference of the powers input × output of libcosim's two sides) and
+its residual energy ΔE_b = δP_b H_k. At a constant step this is ``manager.scheme.jacobi``'s step, bit for bit. After every step from the second on (libcosim's, as it does):
 
     ε = sqrt( (1/B) Σ_b ( |δP_b| H / (abs_tolerance + rel_tolerance · max_b |δP_b| H) )² )
     ε = 0 or ε_prev = 0:  H unchanged, ε_prev ← ε          (ε_prev starts at 1)
@@ -38,10 +39,11 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scene.settings import EnergyControlSettings
 from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Exchange, OutputReader, RunRecord
+from zencosim.manager.scheme.extrapolation import lagrange_matrix
 from zencosim.manager.scheme.jacobi import _bond_residual_power, _initial_outputs
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.window import RowWindow, Spill
-from zencosim.manager.wire.protocol import HEADER, VERSION, Kind
+from zencosim.manager.wire.protocol import Kind, encode
 from zencosim.manager.wire.status import StatusReport
 
 
@@ -102,25 +104,38 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
     n_bonds = len(plan.bonds)
     p_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS, spill, "residual-power")
     e_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS, spill, "residual-energy")
-    ticks = RowWindow(points, None, np.int64, 0, 1, spill, "point-ticks")
+    ticks = RowWindow(points, None, np.int64, 0, HISTORY_ROWS, spill, "point-ticks")
     p_window.array[0], e_window.array[0], ticks.array[0] = 0.0, 0.0, 0
     releases = Releases(points - 1, None, spill)
     energy = [0.0] * n_bonds
     names = tuple(s.name for s in subs)
     everyone = frozenset(range(len(subs)))
-    sources = [tuple((readers[f.source], list(f.outputs), list(f.inputs)) for f in s.feeds) for s in subs]
+    sources = [tuple((readers[f.source], list(f.outputs), list(f.inputs), f.order) for f in s.feeds) for s in subs]
 
-    def held_inputs(s: SubsystemPlan, tick: int = 0, stepping: bool = True) -> np.ndarray:
-        """``s``'s inputs held at its sources' newest outputs (at t_0, ``stepping`` False: their first row, as
-        ``_initial_outputs`` asks), one row."""
-        values = np.zeros((1, len(s.inputs)))
-        for reader, outputs, inputs in sources[s.index]:
-            values[0, inputs] = np.asarray(reader.newest if stepping else reader.window.array[0])[outputs]
-        return values
+    def input_polynomial(s: SubsystemPlan, tick: int = 0, stepping: bool = True) -> np.ndarray:
+        """``s``'s input polynomial over its step from ``tick`` (the newest point): per feed, the Lagrange polynomial
+        of its order through its source's newest samples at their times (fewer at the start of the run); at t_0
+        (``stepping`` False, as ``_initial_outputs`` asks) the sources' first rows."""
+        coefficients = np.zeros((s.order + 1, len(s.inputs)))
+        for reader, outputs, inputs, order in sources[s.index]:
+            window = reader.window
+            if not stepping:
+                coefficients[0, inputs] = window.array[0, outputs]
+                continue
+            samples = min(order, point) + 1
+            first = point - samples + 1
+            rows = window.array[first - window.offset:point + 1 - window.offset, outputs]
+            if samples == 1:
+                coefficients[0, inputs] = rows[0]
+                continue
+            times = tuple((int(ticks.row(j)) - tick) * base * 1e-9 for j in range(first, point + 1))
+            coefficients[:samples, inputs] = lagrange_matrix(times).dot(rows)
+        return coefficients
 
-    yield from _initial_outputs(plan, readers, held_inputs, everyone, everyone, None, None)
+    point = 0
+    yield from _initial_outputs(plan, readers, input_polynomial, everyone, everyone, None, None)
 
-    tick, point, step_status = 0, 0, None
+    tick, step_status = 0, None
     step_s = base * 1e-9
     while tick < end:
         taken = min(law.ticks, end - tick)
@@ -128,10 +143,9 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
         sent = []
         sends = {}
         for s in subs:
-            values = held_inputs(s, tick)
-            sent.append((tick, values.tolist()))
-            sends[s.name] = HEADER.pack(VERSION, Kind.STEP, 1, len(s.inputs), tick, start_ns, taken) + \
-                values.astype("<f8").tobytes()
+            coefficients = input_polynomial(s, tick)
+            sent.append((tick, coefficients.tolist()))
+            sends[s.name] = encode(Kind.STEP, tick, start_ns, coefficients, s.order + 1, ref=taken)
         released_ns = releases.release(point)
         due = tick + taken
         replies = yield Exchange(sends, names, step_status, due)
@@ -140,9 +154,10 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
             readers[s.index].commit_row(replies[s.name], due, point)
         ticks.put(point, due)
         residual_power = []
+        taken_s = taken * base * 1e-9  # as the Jacobi scheme's step: one at a fixed step (tests/manager/test_energy_step)
         for b, bond in enumerate(plan.bonds):
             delta_p = _bond_residual_power(readers, sent, bond, bond.components, due, step_s)
-            energy[b] += delta_p * taken * step_s
+            energy[b] += delta_p * taken_s
             residual_power.append(delta_p)
         p_window.put(point, residual_power)
         e_window.put(point, energy)
