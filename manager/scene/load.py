@@ -285,8 +285,8 @@ def _read_couplings(tables: Any, problems: Problems) -> dict[str, Any]:
 
 def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
     """``[manager]`` with its ``correction``, ``spikes``, ``implicit`` and ``energy_control`` sub-tables
-    (``implicit``: with scheme "implicit" only, defaults when absent; ``energy_control``: with step_control
-    "energy" only)."""
+    (``implicit``: with scheme "implicit" only, defaults when absent; ``energy_control``: required with
+    step_control "energy", not used without)."""
     parts = ("correction", "spikes", "implicit", "energy_control")
     manager = read_table(ManagerSettings, table, "manager", problems, skip=parts)
     if manager is None:
@@ -299,10 +299,7 @@ def _read_manager(table: Any, problems: Problems) -> ManagerSettings | None:
         settings["implicit"] = read_table(ImplicitSettings, table.get("implicit", {}), "manager.implicit", problems)
     elif "implicit" in table:
         problems.add("manager.implicit", f"only with manager.scheme = 'implicit', got {manager.scheme!r}")
-    if manager.step_control == "energy":
+    if manager.step_control == "energy" or "energy_control" in table:  # unused at a fixed step (a study varies it)
         settings["energy_control"] = read_table(EnergyControlSettings, table.get("energy_control", {}),
                                                 "manager.energy_control", problems)
-    elif "energy_control" in table:
-        problems.add("manager.energy_control", f"only with manager.step_control = 'energy', got "
-                     f"{manager.step_control!r}")
     return dataclasses.replace(manager, **{k: v for k, v in settings.items() if v is not None})

@@ -36,7 +36,9 @@ from zencosim.manager.scheme.base import Exchange, SubsystemFailure
 def predicted_stability(scene: Scene) -> tuple[bool | None, float | None]:
     """``zencosim analyze``'s verdict and spectral radius for the scene as it runs (compensated when it asks
     for the compensator, ``run_scheme``); ``(None, None)`` where there is none (not linear, energy correction);
-    ``(False, None)`` when the compensator cannot be designed."""
+    ``(False, None)`` when the compensator cannot be designed; ``(None, None)`` for an energy-controlled step."""
+    if scene.manager.step_control == "energy":  # the analysis is of one fixed macro-step
+        return None, None
     try:
         scheme = run_scheme(scene)
     except SceneError:
@@ -80,6 +82,8 @@ def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> d
         reason = str(error.problems[0]) if isinstance(error, SceneError) else str(error)
         return {**row, "stable": False, "stable_run": None, "failed": reason, "reference": None,
                 "nrms": {}, "energy_error": None, "digest": None, "inproc": None}
+    if summary["step_control"] is not None:  # energy-controlled: the macro-steps it took
+        row["steps"] = summary["steps"]
     return {**row,
             "stable": summary["stable"] if predicted is None else predicted,
             "stable_run": summary["stable"],

@@ -22,10 +22,10 @@ import pytest
 pytest.importorskip("libcosimpy")
 pytest.importorskip("fmpy")
 
-import zencosim  # noqa: E402
-from tests.interop.libcosim_oracle import run_osp  # noqa: E402
-from tests.interop.measures import AGREEMENT, largest_difference, zencosim_signals  # noqa: E402
-from tests.interop.peer_pair import write_system  # noqa: E402
+import zencosim
+from tests.interop.libcosim_oracle import run_osp
+from tests.interop.measures import AGREEMENT, largest_difference, zencosim_signals
+from tests.interop.peer_pair import write_system
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="building the FMUs needs gcc")
 

@@ -191,13 +191,28 @@ def test_what_the_energy_controlled_step_does_not_run_is_refused_by_name(overrid
     assert key in found and reason in found[key], found
 
 
-def test_the_energy_control_table_needs_its_step_control_and_its_maximum():
-    with pytest.raises(zencosim.SceneError) as caught:
-        zencosim.load_scene("two_mass_damped", {"manager.energy_control.max_step_size": 0.01})
-    assert [p.key for p in caught.value.problems] == ["manager.energy_control"]
+def test_the_energy_control_table_needs_its_maximum_and_waits_unused_at_a_fixed_step():
+    fixed = zencosim.load_scene("two_mass_damped", {"manager.energy_control.max_step_size": 0.01})
+    assert fixed.manager.step_control == "fixed" and zencosim.run(fixed).summary["step_control"] is None
     with pytest.raises(zencosim.SceneError) as caught:
         zencosim.load_scene("two_mass_damped", FINE)
     assert "manager.energy_control.max_step_size" in {p.key for p in caught.value.problems}
+
+
+def test_a_study_varies_the_step_control_like_any_other_key(tmp_path):
+    """``--vary manager.step_control=fixed,energy``: the energy-controlled point counts the steps it took and has
+    no predicted verdict (the exact analysis is of one fixed step)."""
+    from zencosim.manager.study.grid import merge_axes, parse_axis
+    from zencosim.manager.study.study import StudyOptions, run_study
+
+    scene = zencosim.load_scene("two_mass_damped", {"manager.duration": 1.0, "manager.energy_control.max_step_size": 0.01,
+                                                    "manager.energy_control.abs_tolerance": 1.0})
+    axes = merge_axes([parse_axis("manager.macro_step=1e-3"), parse_axis("manager.step_control=fixed,energy")])
+    study = run_study(scene, axes, StudyOptions(repeats=1, zenoh="none"), str(tmp_path))
+    points = {p["values"]["manager.step_control"]: p for p in study["points"]}
+    assert points["fixed"]["steps"] == 1000 and points["fixed"]["stable_predicted"] is True
+    assert 100 < points["energy"]["steps"] < 1000 and points["energy"]["stable_predicted"] is None
+    assert points["energy"]["nrms"]["x2"] is not None
 
 
 def test_a_scene_without_a_power_bond_has_nothing_to_control_the_step_by(tmp_path):
