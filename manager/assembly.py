@@ -82,7 +82,8 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
         if realtime:
             raise ValueError("a real-time run paces a fixed macro-step; manager.step_control = 'energy' varies it")
         law = StepLaw(scene.manager.energy_control, plan.base_step_ns)
-        return energy_controlled(plan, law, progress, status, spill_for(law.most_points(plan.n_ticks), keep))
+        return energy_controlled(plan, law, progress, status, spill_for(law.most_points(plan.n_ticks), keep),
+                                 direct if tap is None and status is None else None)
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,

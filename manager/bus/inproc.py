@@ -52,18 +52,20 @@ class DirectCalls:
         except (Exception, SystemExit, KeyboardInterrupt) as error:
             raise self.failure(s, 0, error) from None
 
-    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
+    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float], span: int = 0
+             ) -> list[float] | np.ndarray:
         # initial's body over advance_values, written out: the stepping loop's path, with no further call in between
         i = s.index
         t0_ns = tick * self.base_step_ns
+        t1_ns = t0_ns + (span * self.base_step_ns if span else self.comm_step_ns[i])
         mark = self.marks[i]
         try:
             if mark is None:
-                return self.advance[i](t0_ns, t0_ns + self.comm_step_ns[i], coefficients)
+                return self.advance[i](t0_ns, t1_ns, coefficients)
             with self.watch.marking(mark, STEPPING, t0_ns):
-                return self.advance[i](t0_ns, t0_ns + self.comm_step_ns[i], coefficients)
+                return self.advance[i](t0_ns, t1_ns, coefficients)
         except (Exception, SystemExit, KeyboardInterrupt) as error:
-            raise self.failure(s, tick + s.ratio, error) from None
+            raise self.failure(s, tick + (span or s.ratio), error) from None
 
     def step_text(self, s: SubsystemPlan, prefix: str, start_ns: str) -> StepText | None:
         """``s``'s zero-order step as statements (``Subsystem.step_text``), or None; in a watched run, a model that is

@@ -84,9 +84,11 @@ class SubsystemCalls(Protocol):
     def initial(self, s: SubsystemPlan, w0: np.ndarray) -> np.ndarray:
         """``s``'s outputs at t_0 with the input values ``w0`` (an INIT command's)."""
 
-    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float]) -> list[float] | np.ndarray:
+    def step(self, s: SubsystemPlan, tick: int, coefficients: np.ndarray | list[float], span: int = 0
+             ) -> list[float] | np.ndarray:
         """``s``'s outputs at the end of its step from base step ``tick`` over the input polynomial ``coefficients``
-        (a STEP command's), both as ``Subsystem.advance_values`` takes and gives them."""
+        (a STEP command's), both as ``Subsystem.advance_values`` takes and gives them; ``span``: the step's length in
+        base steps (0: its communication step; as a STEP's header field)."""
 
     def step_text(self, s: SubsystemPlan, prefix: str, start_ns: str) -> StepText | None:
         """``s``'s zero-order step as statements over names prefixed ``prefix``, its start [ns] the expression
@@ -182,14 +184,13 @@ class OutputReader:
         self.newest: Sequence[float] = ()  # the values of the newest reply
         self.newest_bytes = b""  # the newest reply, header and values
 
-    def commit(self, data: bytes, step: int) -> None:
-        """Take ``sub``'s reply for ``step`` (a named error when it is not one)."""
-        self.commit_row(data, step, step // self.sub.ratio)
-
-    def commit_row(self, data: bytes, step: int, row: int) -> None:
-        """``commit`` into row ``row`` of the trajectory (a run whose points are not evenly spaced:
+    def commit(self, data: bytes, step: int, row: int | None = None) -> None:
+        """Take ``sub``'s reply for ``step`` (a named error when it is not one) into row ``row`` of its trajectory
+        (None: the row of ``step`` on its communication grid; a run whose points are not evenly spaced names it:
         ``manager.scheme.energy_step``)."""
         check_output(data, self.sub, step)
+        if row is None:
+            row = step // self.sub.ratio
         window = self.window
         if row >= window.end:
             window.advance(row)
@@ -198,17 +199,18 @@ class OutputReader:
         self.newest = self._unpack(data, HEADER.size)
         self.newest_bytes = data
 
-    def commit_values(self, y: list[float] | np.ndarray, step: int) -> None:
+    def commit_values(self, y: list[float] | np.ndarray, step: int, row: int | None = None) -> None:
         """Take ``sub``'s outputs for ``step`` as this process computed them (the scheme calling the subsystem
         itself: ``manager.bus.inproc.DirectCalls``; floats or an array): the values ``commit`` takes from their
-        reply, without the bytes."""
+        reply, without the bytes, into row ``row`` as ``commit`` takes it."""
         if type(y) is not list:
             if y.shape != self.window.row_shape:
                 raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {y.size}")
             y = y.tolist()
         elif len(y) != len(self.sub.outputs):  # a straight-line step's: always its model's outputs
             raise ProtocolError(f"subsystem {self.sub.name}: expected {len(self.sub.outputs)} outputs, got {len(y)}")
-        row = step // self.sub.ratio
+        if row is None:
+            row = step // self.sub.ratio
         window = self.window
         if row >= window.end:
             window.advance(row)

@@ -38,7 +38,14 @@ import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scene.settings import EnergyControlSettings
-from zencosim.manager.scheme.base import HISTORY_ROWS, PROGRESS_EVERY, Exchange, OutputReader, RunRecord
+from zencosim.manager.scheme.base import (
+    HISTORY_ROWS,
+    PROGRESS_EVERY,
+    Exchange,
+    OutputReader,
+    RunRecord,
+    SubsystemCalls,
+)
 from zencosim.manager.scheme.extrapolation import lagrange_matrix
 from zencosim.manager.scheme.jacobi import _bond_residual_power, _initial_outputs
 from zencosim.manager.scheme.pacing import Releases
@@ -93,11 +100,13 @@ class StepLaw:
 
 
 def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] | None = None,
-                      status: StatusReport | None = None, spill: Spill | None = None
-                      ) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+                      status: StatusReport | None = None, spill: Spill | None = None,
+                      direct: SubsystemCalls | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation at the macro-steps ``law`` sets (a fresh one); yields :class:`Exchange` requests, returns the
     :class:`RunRecord` (a row per communication point). ``progress`` is called with the base step reached about
-    every ``PROGRESS_EVERY`` macro-steps; ``status`` and ``spill`` as in ``manager.scheme.jacobi``."""
+    every ``PROGRESS_EVERY`` macro-steps; ``status`` and ``spill`` as in ``manager.scheme.jacobi``; ``direct``: the
+    subsystems of an unrecorded in-process run, which the scheme then calls itself with the values the commands
+    would carry (``manager.bus.inproc.DirectCalls``), yielding nothing."""
     subs, base, end = plan.subsystems, plan.base_step_ns, plan.n_ticks
     points = law.most_points(end)
     readers = [OutputReader(s, points, spill) for s in subs]
@@ -111,6 +120,10 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
     names = tuple(s.name for s in subs)
     everyone = frozenset(range(len(subs)))
     sources = [tuple((readers[f.source], list(f.outputs), list(f.inputs), f.order) for f in s.feeds) for s in subs]
+    # zero-order inputs each fed once: per input, where its value lies in its source's newest outputs
+    held = [None if s.order or s.zero_order_sources is None else
+            tuple((readers[source], output) for source, output in s.zero_order_sources) for s in subs]
+    bonds = [(b, bond, bond.components) for b, bond in enumerate(plan.bonds)]
 
     def input_polynomial(s: SubsystemPlan, tick: int = 0, stepping: bool = True) -> np.ndarray:
         """``s``'s input polynomial over its step from ``tick`` (the newest point): per feed, the Lagrange polynomial
@@ -133,30 +146,35 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
         return coefficients
 
     point = 0
-    yield from _initial_outputs(plan, readers, input_polynomial, everyone, everyone, None, None)
+    yield from _initial_outputs(plan, readers, input_polynomial, everyone, everyone, direct, None)
 
     tick, step_status = 0, None
     step_s = base * 1e-9
     while tick < end:
         taken = min(law.ticks, end - tick)
         start_ns = tick * base
-        sent = []
-        sends = {}
-        for s in subs:
-            coefficients = input_polynomial(s, tick)
-            sent.append((tick, coefficients.tolist()))
-            sends[s.name] = encode(Kind.STEP, tick, start_ns, coefficients, s.order + 1, ref=taken)
+        # every polynomial from the outputs at t_k (Jacobi); a zero-order one as its values, the sources' newest floats
+        polynomials = [[[reader.newest[output] for reader, output in held[s.index]]] if held[s.index] is not None
+                       else input_polynomial(s, tick).tolist() for s in subs]
+        sent = [(tick, rows) for rows in polynomials]
         released_ns = releases.release(point)
         due = tick + taken
-        replies = yield Exchange(sends, names, step_status, due)
         point += 1
-        for s in subs:
-            readers[s.index].commit_row(replies[s.name], due, point)
+        if direct is None:
+            replies = yield Exchange({s.name: encode(Kind.STEP, tick, start_ns, np.array(rows), s.order + 1, ref=taken)
+                                      for s, rows in zip(subs, polynomials)}, names, step_status, due)
+            for s in subs:
+                readers[s.index].commit(replies[s.name], due, point)
+        else:  # the values a STEP would carry: a zero-order one's as floats, as the endpoint takes them
+            outputs = [direct.step(s, tick, rows[0] if s.order == 0 else np.array(rows), taken)
+                       for s, rows in zip(subs, polynomials)]
+            for s, y in zip(subs, outputs):
+                readers[s.index].commit_values(y, due, point)
         ticks.put(point, due)
         residual_power = []
         taken_s = taken * base * 1e-9  # as the Jacobi scheme's step: one at a fixed step (tests/manager/test_energy_step)
-        for b, bond in enumerate(plan.bonds):
-            delta_p = _bond_residual_power(readers, sent, bond, bond.components, due, step_s)
+        for b, bond, components in bonds:
+            delta_p = _bond_residual_power(readers, sent, bond, components, due, step_s)
             energy[b] += delta_p * taken_s
             residual_power.append(delta_p)
         p_window.put(point, residual_power)
