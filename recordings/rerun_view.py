@@ -8,7 +8,8 @@ Entities, one per series, grouped by quantity so that a panel never holds two un
 ``/<quantity>/<subsystem>/<signal>`` for every output (and every received input: the value of its
 polynomial at the start of each step), e.g. ``/positions/S2/x2``, ``/forces/S2/fc*``;
 ``/residual_power/<bond>`` and ``/residual_energy/<bond>`` (and any other per-bond status field,
-``/<field>/<bond>``); ``/step_timing/<field>`` [µs] and ``/wall_time`` [s]. Each series is named
+``/<field>/<bond>``); ``/step_timing/<field>`` [µs] and ``/wall_time`` [s]; with an energy-controlled step,
+``/macro_step`` [ms], the length of each macro-step (docs/step-control.md). Each series is named
 with its unit (``S2 x2 [m]``), has a colour per subsystem (lighter for what it receives) and a
 static ``unit``; a value that is NaN (a multi-rate bond where it is not evaluated) is left out, so the
 line has no gaps. The mechanism is under ``/mechanism`` (``recordings.mechanism``), the flagged
@@ -39,6 +40,7 @@ QUANTITIES = {  # unit → entity root, panel title: one panel per quantity and 
 STATUS_QUANTITIES = {"delta_p": ("residual_power", "residual power δP"), "delta_e": ("residual_energy",
                                                                                       "residual energy δE")}
 STEP_TIMING = ("step_timing", "step timing")  # the measured per-step durations, shown in µs
+MACRO_STEP = ("macro_step", "macro-step")  # an energy-controlled run's: each status's time minus the one before, in ms
 WALL_TIME = ("wall_time", "wall time")
 PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
            (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
@@ -121,16 +123,26 @@ class RunView:
         self._labelled: set[str] = set()
         self.extent: np.ndarray | None = None  # [x min, x max, y min, y max] of the mechanism so far [m]
         self.timing_p99 = 0.0  # the highest 99th percentile of a step-timing series in a fed batch so far [µs]
+        # an energy-controlled run's macro-steps (manager.scheme.energy_step): a series of their lengths, from the
+        # status times; the time of the last status fed (t_0 before the first)
+        varying = scene is not None and scene.manager.step_control == "energy"
+        self.macro_step = Series(_path(MACRO_STEP[0]), MACRO_STEP[0], f"{MACRO_STEP[1]} [ms]", f"{MACRO_STEP[1]} [ms]",
+                                 "ms", PALETTE[0], -1, 1e-6) if varying else None
+        self._last_status_ns = 0
+        self._macro_steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
     def start(self) -> None:
         """Log each series' name, colour and unit (static); call once the stream's sinks are set."""
-        for series in (s for group in self.series.values() for s in group):
+        every = [s for group in self.series.values() for s in group] + [self.macro_step] * (self.macro_step is not None)
+        for series in every:
             self.stream.log(series.entity, rr.SeriesLines(colors=[series.color], names=[series.label], widths=[1.5]),
                             rr.AnyValues(unit=series.unit), static=True)
 
     def panels(self) -> dict[str, str]:
         """Entity root → panel title, in the order of :data:`QUANTITIES` then the status's."""
         found = {s.root: s.panel for group in self.series.values() for s in group}
+        if self.macro_step is not None:
+            found[MACRO_STEP[0]] = self.macro_step.panel
         order = [q[0] for q in QUANTITIES.values()] + [q[0] for q in STATUS_QUANTITIES.values()] + [STEP_TIMING[0],
                                                                                                      WALL_TIME[0]]
         return dict(sorted(found.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order)))
@@ -149,6 +161,9 @@ class RunView:
             if series.root == STEP_TIMING[0] and np.isfinite(values[:, series.column]).any():
                 p99 = np.nanpercentile(values[:, series.column], 99) * series.scale
                 self.timing_p99 = max(self.timing_p99, float(p99))
+        if spec.role == "status" and self.macro_step is not None:
+            self._macro_steps.append((steps, times, np.diff(times, prepend=self._last_status_ns)))
+            self._last_status_ns = int(times[-1])
         if spec.role == "status":
             for j, name in enumerate(spec.names):
                 if name.startswith("delta_p."):
@@ -171,6 +186,11 @@ class RunView:
                 self.stream.send_columns(series.entity, indexes=self._indexes(steps[kept], times[kept]),
                                          columns=rr.Scalars.columns(scalars=column[kept] * series.scale))
         self._columns = {}
+        if self._macro_steps:
+            steps, times, lengths = (np.concatenate(column) for column in zip(*self._macro_steps))
+            self.stream.send_columns(self.macro_step.entity, indexes=self._indexes(steps, times),
+                                     columns=rr.Scalars.columns(scalars=lengths * self.macro_step.scale))
+            self._macro_steps = []
         self._send_shapes()
 
     @staticmethod

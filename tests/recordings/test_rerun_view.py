@@ -167,3 +167,22 @@ def test_replay_spawn_without_a_viewer_says_why_and_exits_2(replayed, tmp_path):
     assert result.returncode == 2, result.stderr
     assert "no display for a Rerun viewer" in result.stderr and "--rrd FILE" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_an_energy_controlled_run_shows_the_length_of_each_macro_step(tmp_path):
+    """``/macro_step`` [ms]: each status's time minus the one before, at that status's step and time."""
+    from rerun.chunk import RrdReader
+    mcap, rrd = tmp_path / "energy.mcap", tmp_path / "energy.rrd"
+    fine = {f"subsystems.{name}.micro_step": 1e-4 for name in ("S1", "S2")}
+    scene = zencosim.load_scene("two_mass_damped", {**fine, "manager.macro_step": 1e-4, "manager.duration": 0.5,
+                                                    "manager.step_control": "energy",
+                                                    "manager.energy_control.max_step_size": 0.01,
+                                                    "manager.energy_control.abs_tolerance": 1.0})
+    ticks = np.asarray(zencosim.run(scene, record=mcap).record.point_ticks)
+    result = _zencosim("replay", str(mcap), "--rrd", str(rrd))
+    assert result.returncode == 0, result.stderr
+    data = _columns(RrdReader(rrd).stream())
+    assert _values(data["/macro_step"], "SeriesLines:names") == [["macro-step [ms]"]]
+    steps, times, lengths = _scalars(data["/macro_step"])
+    assert steps == ticks[1:].tolist() and times == (ticks[1:] * 100_000).tolist()
+    assert np.array_equal(lengths, np.diff(ticks * 100_000) * 1e-6) and len(set(lengths.tolist())) > 3
