@@ -47,7 +47,7 @@ from zencosim.manager.scheme.base import (
     SubsystemCalls,
 )
 from zencosim.manager.scheme.extrapolation import lagrange_matrix
-from zencosim.manager.scheme.jacobi import _bond_residual_power, _initial_outputs
+from zencosim.manager.scheme.jacobi import bond_residual_power, initial_outputs
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import Kind, encode
@@ -102,8 +102,8 @@ class StepLaw:
 def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] | None = None,
                       status: StatusReport | None = None, spill: Spill | None = None,
                       direct: SubsystemCalls | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
-    """Run the whole co-simulation at the macro-steps ``law`` sets (a fresh one); yields :class:`Exchange` requests, returns the
-    :class:`RunRecord` (a row per communication point). ``progress`` is called with the base step reached about
+    """Run the whole co-simulation at the macro-steps ``law`` sets (a fresh one); yields :class:`Exchange` requests,
+    returns the :class:`RunRecord` (a row per communication point). ``progress`` is called with the base step reached about
     every ``PROGRESS_EVERY`` macro-steps; ``status`` and ``spill`` as in ``manager.scheme.jacobi``; ``direct``: the
     subsystems of an unrecorded in-process run, which the scheme then calls itself with the values the commands
     would carry (``manager.bus.inproc.DirectCalls``), yielding nothing."""
@@ -128,7 +128,7 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
     def input_polynomial(s: SubsystemPlan, tick: int = 0, stepping: bool = True) -> np.ndarray:
         """``s``'s input polynomial over its step from ``tick`` (the newest point): per feed, the Lagrange polynomial
         of its order through its source's newest samples at their times (fewer at the start of the run); at t_0
-        (``stepping`` False, as ``_initial_outputs`` asks) the sources' first rows."""
+        (``stepping`` False, as ``initial_outputs`` asks) the sources' first rows."""
         coefficients = np.zeros((s.order + 1, len(s.inputs)))
         for reader, outputs, inputs, order in sources[s.index]:
             window = reader.window
@@ -146,7 +146,7 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
         return coefficients
 
     point = 0
-    yield from _initial_outputs(plan, readers, input_polynomial, everyone, everyone, direct, None)
+    yield from initial_outputs(plan, readers, input_polynomial, everyone, everyone, direct, None)
 
     tick, step_status = 0, None
     step_s = base * 1e-9
@@ -174,7 +174,7 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
         residual_power = []
         taken_s = taken * base * 1e-9  # as the Jacobi scheme's step: one at a fixed step (tests/manager/test_energy_step)
         for b, bond, components in bonds:
-            delta_p = _bond_residual_power(readers, sent, bond, components, due, step_s)
+            delta_p = bond_residual_power(readers, sent, bond, components, due, step_s)
             energy[b] += delta_p * taken_s
             residual_power.append(delta_p)
         p_window.put(point, residual_power)

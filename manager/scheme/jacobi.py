@@ -136,7 +136,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     if block is not None:
         block_ticks, block_shapes, block_commands, block_outputs = block.ticks, block.shapes, block.commands, \
             block.outputs
-    yield from _initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
+    yield from initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     if block is not None:
         block.start()
     n_stages = len(plan.stages)
@@ -228,7 +228,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
             if some_bonds_idle[phase]:
                 residuals = [math.nan] * (2 * n_bonds)
             for b, bond, components in stages[phase][1]:
-                delta_p = _bond_residual_power(readers, sent, bond, components, next_tick, step_s)
+                delta_p = bond_residual_power(readers, sent, bond, components, next_tick, step_s)
                 p_res[row, b] = residuals[b] = delta_p
                 e_res[row, b] = last_bond_energy[b] = residuals[n_bonds + b] = (
                     last_bond_energy[b] + delta_p * (next_tick - last_bond_tick[b]) * step_s)
@@ -279,7 +279,7 @@ def _gathered_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tup
     return None if sources is None else tuple((readers[source], output) for source, output in sources)
 
 
-def _initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
+def initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, local: frozenset[int],
                      tracked: frozenset[int], direct: SubsystemCalls | None, taken: Taken | TakenSteps | None
                      ) -> Generator[Exchange, dict[str, bytes], None]:
     """The outputs at t_0, round by round as the plan orders them (``manager.plan.run_plan._init_rounds``):
@@ -352,7 +352,7 @@ def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int], bonds:
     return period, phases
 
 
-def _bond_residual_power(readers: list[OutputReader], sent: list, bond, components, tick: int, step_s: float) -> float:
+def bond_residual_power(readers: list[OutputReader], sent: list, bond, components, tick: int, step_s: float) -> float:
     """δP of ``bond`` at ``tick`` (paper 002 Eqs. 8–9) from both sides' committed outputs and the input
     polynomials they received; a vector bond's residual power is the dot product: the sum over its components."""
     f_start, f_coefficients = sent[bond.force_side]
