@@ -1,11 +1,13 @@
 """What the energy-controlled macro-step buys against the best fixed step, on every bundled benchmark it runs.
 
-    python benchmarks/bench_step_control.py [--scenes two_mass_damped,...] [--orders 0,1] [--json FILE]
+    python benchmarks/bench_step_control.py [--scenes two_mass_damped,...] [--orders 0,1]
+        [--methods jacobi,gauss-seidel,energy] [--json FILE]
 
 Per scene, with a quantum q = the scene's macro-step / 10 (every subsystem integrating at micro-step q in every
 run, so that both methods integrate alike and differ in their coupling only), for each extrapolation order:
 
-* fixed: manager.macro_step H = q × 1, 2, 3, 4, 5, 6, 8, 10, 15, 20, 30, 50, 100;
+* fixed, Jacobi and Gauss–Seidel (manager.scheme, its default order): manager.macro_step H = q × 1, 2, 3, 4, 5, 6,
+  8, 10, 15, 20, 30, 50, 100;
 * energy: manager.step_control = "energy", macro_step q, min_step_size q, max_step_size 100 q, first step q,
   rel_tolerance 0 and abs_tolerance 10^(k/2) J for k = -12 … 6 (docs/step-control.md).
 
@@ -13,7 +15,7 @@ Each run in process: its macro-steps (the exchanges: one command and one reply p
 and its error, the largest NRMS over the scene's output signals against the scene's reference computed once on
 the q grid (sampled at each run's points). Reported per scene: for NRMS <= 1 % and <= 0.1 %, the fewest
 exchanges and the CPU time of each method's cheapest run that meets it (over the orders), and the ratio
-fixed / energy; the largest fixed step whose run stayed bounded (NRMS < 1). Scenes the energy control refuses (multi-rate, FOH/SOH,
+fixed Jacobi / energy; the largest fixed step whose run stayed bounded (NRMS < 1), per scheme and order. Scenes the energy control refuses (multi-rate, FOH/SOH,
 the implicit scheme) are listed with the reason.
 """
 from __future__ import annotations
@@ -67,7 +69,7 @@ def cheapest(points: list[dict], target: float) -> dict | None:
     return min(meeting, key=lambda p: p["exchanges"]) if meeting else None
 
 
-def study(name: str, orders: tuple[int, ...]) -> dict:
+def study(name: str, orders: tuple[int, ...], methods: tuple[str, ...]) -> dict:
     base = zencosim.load_scene(name)
     quantum = base.manager.macro_step / 10
     quantum_ns = round(quantum * 1e9)
@@ -84,60 +86,62 @@ def study(name: str, orders: tuple[int, ...]) -> dict:
     reference = found.get("analytic") or found.get("solve_ivp")
     if reference is None:
         return {"refused": reason or "no reference"}
-    fixed, energy, largest_stable = [], [], {}
+    points = {method: [] for method in methods}
+    largest_stable = {}
     for order in orders:
         extrapolation = {"manager.extrapolation": order}
-        for multiple in FIXED:
-            try:
-                scene = zencosim.load_scene(name, {**overrides(base, quantum), **extrapolation,
-                                                   "manager.macro_step": multiple * quantum})
-            except zencosim.SceneError:
-                continue  # the duration is no whole number of these steps
-            point = {"order": order, "macro_step": multiple * quantum, **run(scene, reference, quantum_ns)}
-            fixed.append(point)
-            if math.isfinite(point["nrms"]) and point["nrms"] < 1:
-                largest_stable[order] = point["macro_step"]
-            print(f"{name}\tfixed, order {order}\t{point['macro_step']:g}\t{point['exchanges']}\t{point['nrms']:.3g}\t"
-                  f"{point['cpu_s']:.2f}", flush=True)
+        for scheme in [m for m in methods if m != "energy"]:
+            for multiple in FIXED:
+                try:
+                    scene = zencosim.load_scene(name, {**overrides(base, quantum), **extrapolation,
+                                                       "manager.scheme": scheme, "manager.macro_step": multiple * quantum})
+                except zencosim.SceneError:
+                    continue  # the duration is no whole number of these steps
+                point = {"order": order, "macro_step": multiple * quantum, **run(scene, reference, quantum_ns)}
+                points[scheme].append(point)
+                if math.isfinite(point["nrms"]) and point["nrms"] < 1:
+                    largest_stable[f"{scheme}, order {order}"] = point["macro_step"]
+                print(f"{name}\t{scheme}, order {order}\t{point['macro_step']:g}\t{point['exchanges']}\t"
+                      f"{point['nrms']:.3g}\t{point['cpu_s']:.2f}", flush=True)
+        if "energy" not in methods:
+            continue
         for tolerance in TOLERANCES:
             scene = zencosim.load_scene(name, {**fine, **energy_keys, **extrapolation,
                                                "manager.energy_control.abs_tolerance": tolerance})
             point = {"order": order, "abs_tolerance": tolerance, **run(scene, reference, quantum_ns)}
-            energy.append(point)
+            points["energy"].append(point)
             print(f"{name}\tenergy, order {order}\t{tolerance:g}\t{point['exchanges']}\t{point['nrms']:.3g}\t"
                   f"{point['cpu_s']:.2f}", flush=True)
-    answers = {}
-    for target in TARGETS:
-        best_fixed, best_energy = cheapest(fixed, target), cheapest(energy, target)
-        answers[f"{target:g}"] = {
-            "fixed": best_fixed, "energy": best_energy,
-            "exchanges_fixed_over_energy": (best_fixed["exchanges"] / best_energy["exchanges"]
-                                            if best_fixed and best_energy else None)}
-    return {"quantum": quantum, "fixed": fixed, "energy": energy, "answers": answers,
-            "largest_stable_fixed_step": largest_stable}
+    answers = {f"{target:g}": {method: cheapest(found, target) for method, found in points.items()}
+               for target in TARGETS}
+    return {"quantum": quantum, "points": points, "answers": answers, "largest_stable_fixed_step": largest_stable}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", default=",".join(zencosim.bundled_scenes()))
     parser.add_argument("--orders", default="0,1", help="extrapolation orders (default 0,1)")
+    parser.add_argument("--methods", default="jacobi,gauss-seidel,energy",
+                        help="of jacobi, gauss-seidel (fixed steps) and energy (default: all three)")
     parser.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     args = parser.parse_args()
     orders = tuple(int(order) for order in args.orders.split(","))
     print("scene\tmethod\tstep or tolerance\texchanges\tNRMS\tCPU [s]")
-    report = {name: study(name, orders) for name in args.scenes.split(",")}
-    print("\nscene\ttarget\tfixed: exchanges (step, CPU s)\tenergy: exchanges (tolerance, CPU s)\tfixed / energy")
+    methods = tuple(args.methods.split(","))
+    report = {name: study(name, orders, methods) for name in args.scenes.split(",")}
+    print("\nscene\ttarget\t" + "\t".join(f"{m}: exchanges (step or tolerance, order, CPU s)" for m in methods))
     for name, result in report.items():
         if "refused" in result:
             print(f"{name}\trefused: {result['refused']}")
             continue
         for target, answer in result["answers"].items():
-            f, e = answer["fixed"], answer["energy"]
-            fixed_text = f"{f['exchanges']} ({f['macro_step']:g} s, order {f['order']}, {f['cpu_s']:.2f})" if f else "none"
-            energy_text = (f"{e['exchanges']} ({e['abs_tolerance']:.3g} J, order {e['order']}, {e['cpu_s']:.2f})" if e
-                           else "none")
-            ratio = answer["exchanges_fixed_over_energy"]
-            print(f"{name}\t{target}\t{fixed_text}\t{energy_text}\t{'' if ratio is None else f'{ratio:.2f}'}")
+            cells = []
+            for method in methods:
+                p = answer[method]
+                setting = "" if p is None else (f"{p['abs_tolerance']:.3g} J" if "abs_tolerance" in p
+                                                else f"{p['macro_step']:g} s")
+                cells.append("none" if p is None else f"{p['exchanges']} ({setting}, {p['order']}, {p['cpu_s']:.2f})")
+            print(f"{name}\t{target}\t" + "\t".join(cells))
     if args.json:
         with open(args.json, "w") as out:
             json.dump(report, out, indent=2)
