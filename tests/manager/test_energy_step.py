@@ -81,6 +81,17 @@ def test_the_step_shrinks_in_a_transient_and_grows_as_it_decays():
     assert summary["discrete"] is None  # the exact analysis is of one fixed macro-step
 
 
+def test_a_diverging_run_ends_with_its_verdict_not_an_error():
+    """A coupling far too stiff for the step: the residuals overflow to NaN, the law keeps the step, and the run
+    completes with its divergence in the summary."""
+    scene = zencosim.load_scene("two_mass_damped", {"manager.step_control": "energy", "manager.duration": 10.0,
+                                                    "manager.energy_control.max_step_size": 0.002,
+                                                    "couplings.c.effects.kc.stiffness": 1e7})
+    result = zencosim.run(scene)
+    assert result.summary["diverged"] and result.summary["diverged_at_s"] < 10.0
+    assert np.asarray(result.record.point_ticks)[-1] == 10_000
+
+
 def test_the_tables_and_the_nrms_take_each_point_at_its_time(tmp_path):
     """The table's time column is the points' times; the NRMS compares each point with the reference at its
     time: a reference read on the base grid row by row instead would be far off once the steps lengthen."""
@@ -224,3 +235,14 @@ def test_a_scene_without_a_power_bond_has_nothing_to_control_the_step_by(tmp_pat
     with pytest.raises(zencosim.SceneError) as caught:
         zencosim.load_scene(path, {**FINE, "manager.energy_control.max_step_size": 0.01})
     assert {p.key: p.reason for p in caught.value.problems}["manager.step_control"].endswith("this scene has none")
+
+
+def test_the_command_line_refuses_real_time_with_a_varying_step():
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-m", "zencosim", "run", "two_mass_damped", "--realtime",
+                             "--set", "manager.step_control=energy", "--set", "manager.energy_control.max_step_size=0.01"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "--realtime paces a fixed macro-step; manager.step_control = 'energy' varies it" in result.stderr

@@ -128,6 +128,9 @@ def cmd_run(args: argparse.Namespace) -> int:
                   if given] + given_security_options(args)
     if args.bus != "zenoh" and zenoh_only:
         raise UsageError(f"{', '.join(zenoh_only)} configure the Zenoh bus: add --bus zenoh")
+    if args.realtime and scene.manager.step_control == "energy":
+        raise UsageError("--realtime paces a fixed macro-step; manager.step_control = 'energy' varies it "
+                         "(docs/step-control.md)")
     # every file the run writes is checked before it starts
     summary_path = check_output_file(args.summary, "summary") if args.summary else None
     out_path = check_table_path(args.out) if args.out else None
