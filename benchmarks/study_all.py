@@ -226,7 +226,11 @@ def main() -> int:
         "machine). Re-run it to measure again (`--cache` keeps measured points: delete it for fresh timings).", "",
         "| scene | answer for NRMS ≤ 1 % |", "| --- | --- |", *answers, "",
         "A method is named by its varied settings (`extrapolation=1, compensation=eigenstructure, "
-        "correction.enabled=false`); a dash: the method never meets the target in the grid.", ""]
+        "correction.enabled=false`); a dash: the method never meets the target in the grid.", "",
+        "Fixed Jacobi against Gauss–Seidel and the energy-controlled macro-step (ECCO), in macro-steps and CPU for "
+        "NRMS ≤ 1 % and 0.1 % on every benchmark the step control runs: "
+        "[step-control.md](step-control.md#against-the-best-fixed-step) (`python benchmarks/bench_step_control.py`).",
+        ""]
     (args.out / "accuracy-cost.md").write_text("\n".join(header + sections))
     print(f"study_all: {len(names)} scenes in {wall:.0f} s; wrote {args.out / 'accuracy-cost.md'}")
     return 0

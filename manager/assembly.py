@@ -5,6 +5,7 @@ the run plan, and the scheme generator with the correctors the scene asks for.
 """
 from __future__ import annotations
 
+import math
 from contextlib import AbstractContextManager, nullcontext
 from typing import Callable
 
@@ -81,7 +82,7 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     if scene.manager.step_control == "energy":
         if realtime:
             raise ValueError("a real-time run paces a fixed macro-step; manager.step_control = 'energy' varies it")
-        law = StepLaw(scene.manager.energy_control, plan.base_step_ns)
+        law = StepLaw(scene.manager.energy_control, plan.base_step_ns, math.lcm(*(s.ratio for s in plan.subsystems)))
         return energy_controlled(plan, law, progress, status, spill_for(law.most_points(plan.n_ticks), keep),
                                  direct if tap is None and status is None else None)
     if scene.manager.scheme == "implicit":

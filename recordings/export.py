@@ -40,13 +40,13 @@ def recorded_signals(recording: Recording) -> dict[str, Signal]:
         if list(names) != [port.name for port in sub.outputs]:  # another subsystem's replies, or another model's
             raise RecordingError(f"{recording.path}: channel {sub.name}/y holds {', '.join(names)}; its scene's "
                                  f"{sub.name} has {', '.join(p.name for p in sub.outputs)}{recording.damage_note()}")
-        count = plan.n_ticks // sub.ratio + 1 if point_ticks is None else len(point_ticks)
+        count = (plan.n_ticks if point_ticks is None else len(point_ticks) - 1) // sub.ratio + 1
         outputs = np.full((count, len(sub.outputs)), np.nan)
         for message in recording.channels[f"{sub.name}/y"].messages:
             if message.kind == Kind.OUTPUT and message.step <= last_step:
-                row = message.step // sub.ratio if point_ticks is None else rows.get(message.step)
-                if row is not None:
-                    outputs[row] = message.values
+                point = message.step if point_ticks is None else rows.get(message.step)
+                if point is not None and point % sub.ratio == 0:
+                    outputs[point // sub.ratio] = message.values
         trajectories.append(outputs)
     count = plan.n_ticks + 1 if point_ticks is None else len(point_ticks)
     residual = {prefix: np.full((count, len(plan.bonds)), np.nan) for prefix in ("delta_p", "delta_e")}

@@ -63,10 +63,10 @@ def streamed_nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
 
 def reference_samples(x_ref: np.ndarray, record: RunRecord, ratio: int) -> np.ndarray:
     """A reference (a sample every base step) where a subsystem of ``ratio`` has its samples: every ``ratio``-th,
-    or, in an energy-controlled run, at its points (read whole: a point per macro-step)."""
+    or, in an energy-controlled run, at every ``ratio``-th of its points (read whole: a point per macro-step)."""
     if record.point_ticks is None:
         return x_ref[::ratio]
-    return np.asarray(x_ref)[np.asarray(record.point_ticks)]
+    return np.asarray(x_ref)[np.asarray(record.point_ticks[::ratio])]
 
 
 def digest(record: RunRecord) -> str:

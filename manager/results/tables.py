@@ -77,30 +77,21 @@ def _columns(plan: Plan, trajectories: list[np.ndarray], residual_power: np.ndar
              last_step: int, point_ticks: np.ndarray | None = None) -> dict[str, tuple]:
     """Every signal of a run up to base step ``last_step`` by name, as ``(unit, source, every, count, values)``:
     a sample every ``every`` base steps, ``count`` samples, ``values`` a view of the run's arrays; with
-    ``point_ticks`` (an energy-controlled run, ``RunRecord.point_ticks``) every signal is sampled at those base
-    steps, ``every`` 0."""
+    ``point_ticks`` (an energy-controlled run, ``RunRecord.point_ticks``) a sample every ``every`` of its points,
+    up to its last."""
     declared = Counter(port.name for sub in plan.subsystems for port in sub.outputs)
+    last = last_step if point_ticks is None else len(point_ticks) - 1  # the last point, in base steps or points
     columns = {}
-    if point_ticks is not None:
-        count = len(point_ticks)
-        for sub in plan.subsystems:
-            for j, port in enumerate(sub.outputs):
-                name = port.name if declared[port.name] == 1 else f"{sub.name}.{port.name}"
-                columns[name] = (port.unit, sub.name, 0, count, trajectories[sub.index][:, j])
-        for b, bond in enumerate(plan.bonds):
-            for prefix, unit, values in (("delta_p", "W", residual_power), ("delta_e", "J", residual_energy)):
-                columns[f"{prefix}.{bond.name}"] = (unit, bond.name, 0, count, values[:, b])
-        return columns
     for sub in plan.subsystems:
-        count = last_step // sub.ratio + 1
+        count = last // sub.ratio + 1
         for j, port in enumerate(sub.outputs):
             name = port.name if declared[port.name] == 1 else f"{sub.name}.{port.name}"
             columns[name] = (port.unit, sub.name, sub.ratio, count, trajectories[sub.index][:count, j])
     for b, bond in enumerate(plan.bonds):
         period = math.lcm(plan.subsystems[bond.force_side].ratio, plan.subsystems[bond.motion_side].ratio)
         for prefix, unit, values in (("delta_p", "W", residual_power), ("delta_e", "J", residual_energy)):
-            columns[f"{prefix}.{bond.name}"] = (unit, bond.name, period, last_step // period + 1,
-                                                values[:last_step + 1:period, b])
+            columns[f"{prefix}.{bond.name}"] = (unit, bond.name, period, last // period + 1,
+                                                values[:last + 1:period, b])
     return columns
 
 
@@ -110,16 +101,15 @@ class RunSignals(Mapping):
     steps made once per grid."""
 
     def __init__(self, columns: dict[str, tuple], base_step_ns: int, point_ticks: np.ndarray | None = None) -> None:
-        self._columns, self._base = columns, base_step_ns
+        self._columns, self._base, self._points = columns, base_step_ns, point_ticks
         self._steps: dict[tuple[int, int], np.ndarray] = {}
-        if point_ticks is not None:
-            self._steps[0, len(point_ticks)] = np.asarray(point_ticks)
 
     def __getitem__(self, name: str) -> Signal:
         unit, source, every, count, values = self._columns[name]
         steps = self._steps.get((every, count))
         if steps is None:
-            steps = self._steps[every, count] = np.arange(0, count * every, every, dtype=np.int64)
+            steps = self._steps[every, count] = (np.arange(0, count * every, every, dtype=np.int64)
+                                                 if self._points is None else np.asarray(self._points[::every][:count]))
         return Signal(name, unit, source, steps, values, self._base)
 
     def __iter__(self) -> Iterator[str]:
@@ -145,8 +135,8 @@ def record_signals(record: RunRecord) -> RunSignals:
 
 class GridTime:
     """The ``time [s]`` column of a grid, made block by block as it is read (``read_rows``): what
-    ``Signal.time`` gives, ``steps * base_step_ns / 1e9`` — a sample every ``every`` base steps, or (``every`` 0)
-    at the base steps ``point_ticks``."""
+    ``Signal.time`` gives, ``steps * base_step_ns / 1e9`` — a sample every ``every`` base steps, or every ``every``
+    of the points at the base steps ``point_ticks``."""
 
     def __init__(self, every: int, count: int, base_step_ns: int, point_ticks: np.ndarray | None = None) -> None:
         self.every, self.count, self.base_step_ns, self.point_ticks = every, count, base_step_ns, point_ticks
@@ -157,7 +147,7 @@ class GridTime:
     def __getitem__(self, rows: slice) -> np.ndarray:
         start, stop, _ = rows.indices(self.count)
         if self.point_ticks is not None:
-            return read_rows(self.point_ticks, start, stop) * self.base_step_ns / 1e9
+            return read_rows(self.point_ticks[::self.every], start, stop) * self.base_step_ns / 1e9
         return np.arange(start * self.every, stop * self.every, self.every, dtype=np.int64) * self.base_step_ns / 1e9
 
 
@@ -172,7 +162,7 @@ def record_tables(record: RunRecord) -> list[Table]:
     for name, (unit, _, every, count, values) in columns.items():
         grid = grids.setdefault((every if count > 1 else 0, count), (every, count, {}))
         grid[2][f"{name} [{unit}]"] = values
-    result = [Table(every * plan.base_step_ns if count > 1 and every else plan.base_step_ns,
+    result = [Table(every * plan.base_step_ns if count > 1 else plan.base_step_ns,
                     {TIME_COLUMN: GridTime(every, count, plan.base_step_ns, record.point_ticks), **columns})
               for every, count, columns in grids.values()]
     return sorted(result, key=lambda table: table.step_ns)

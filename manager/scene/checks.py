@@ -87,8 +87,8 @@ def _check_gauss_seidel(manager: ManagerSettings, subsystems: dict[str, Subsyste
 
 def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: dict[str, SubsystemScene],
                        problems: Problems) -> None:
-    """What the energy-controlled macro-step (``manager.scheme.energy_step``) runs: the Jacobi scheme, single-rate,
-    no corrector, not paced, at least one power bond, components that can step by varying steps; its step sizes
+    """What the energy-controlled macro-step (``manager.scheme.energy_step``) runs: the Jacobi scheme, no corrector,
+    not paced, at least one power bond, components that can step by varying steps; its step sizes
     whole multiples of ``manager.macro_step`` with ``min_step_size <= step_size <= max_step_size`` (libcosim's
     checks)."""
     if manager.step_control != "energy":
@@ -108,8 +108,6 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
         problems.add("manager.step_control", "'energy' controls the step by the residual energy of the power bonds; "
                      "this scene has none")
     for sub in subsystems.values():
-        if sub.settings.comm_ratio != 1:
-            problems.add(f"subsystems.{sub.name}.comm_ratio", f"expected 1 {why} (single-rate)")
         if not sub.traits.variable_step:
             problems.add(f"subsystems.{sub.name}.fmu", f"{_component(sub)} declares a fixed communication step "
                          f"(canHandleVariableCommunicationStepSize false): it cannot take the varying macro-steps of "

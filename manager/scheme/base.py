@@ -123,8 +123,8 @@ class RunRecord:
     reported_timing: dict[str, dict] | None = None  # over Zenoh: each subsystem's step timing (manager.bus.timing)
     manager_cpu_s: float | None = None  # over Zenoh: the manager's CPU time [s] while the run stepped
     dropped_messages: dict[str, dict] | None = None  # over Zenoh: messages dropped per key (manager.bus.dropped.merge)
-    # an energy-controlled run (manager.scheme.energy_step): the base step of each communication point, which are the
-    # rows of every trajectory and of the residual arrays; None: a row per base step (a subsystem's: per ratio)
+    # an energy-controlled run (manager.scheme.energy_step): the base step of each of its points, which are the rows of
+    # the residual arrays (a subsystem's trajectory: every ratio-th point); None: a point per base step
     point_ticks: np.ndarray | None = None
 
     @property
@@ -137,14 +137,15 @@ class RunRecord:
         return diverged + 1 if self.implicit.corrector_runs[diverged] > 0 else diverged
 
     def row_count(self, every: int = 1) -> int:
-        """The rows of an array sampled every ``every`` base steps (a subsystem's trajectory: its ratio; the residuals
-        1), or of every array of an energy-controlled run (one per point)."""
-        return len(self.point_ticks) if self.point_ticks is not None else self.plan.n_ticks // every + 1
+        """The rows of an array sampled every ``every`` base steps (a subsystem's trajectory: its ratio; the residuals:
+        1) — of an energy-controlled run, every ``every`` points."""
+        points = self.plan.n_ticks if self.point_ticks is None else len(self.point_ticks) - 1
+        return points // every + 1
 
     def row_ticks(self, first: int, stop: int, every: int = 1) -> np.ndarray:
         """The base steps of rows ``first … stop - 1`` of such an array (``row_count``)."""
         if self.point_ticks is not None:
-            return read_rows(self.point_ticks, first, stop)
+            return read_rows(self.point_ticks[::every], first, stop)
         return np.arange(first, stop, dtype=np.int64) * every
 
     def signal(self, name: str) -> np.ndarray:

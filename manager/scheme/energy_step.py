@@ -26,7 +26,13 @@ nanoseconds, g H truncated to them, as libcosim does; the macro-step taken is H 
 ``manager.macro_step`` (the subsystems' micro-steps divide it), and the residual energy is that of the step taken:
 with a macro-step of 1 ns, libcosim's arithmetic. The last step is cut to end at the duration.
 
-The record holds one row per communication point (``RunRecord.point_ticks``: the base step of each).
+Multi-rate: the law sets the length of the schedule's period (the lcm of the ratios) once per period, from the
+residuals at its end, where every bond is evaluated; the period's points are evenly spaced and each subsystem steps
+``ratio`` of them at a time, as in ``manager.scheme.jacobi`` (whose run it is, bit for bit, at a constant step).
+``min_step_size``, ``step_size`` and ``max_step_size`` bound the points' spacing.
+
+The record holds one row per point (``RunRecord.point_ticks``: the base step of each; a subsystem's trajectory, one
+per ``ratio`` points).
 """
 from __future__ import annotations
 
@@ -59,23 +65,25 @@ class StepLaw:
     macro-step taken, ``ticks`` (that step truncated to whole base steps of ``base_step_ns``: the law itself goes on
     from the step it set, so that a rate below 2 can lengthen a step of one base step)."""
 
-    def __init__(self, control: EnergyControlSettings, base_step_ns: int) -> None:
+    def __init__(self, control: EnergyControlSettings, base_step_ns: int, period: int = 1) -> None:
         self.control = control
         self.base_step_ns = base_step_ns
-        self.min_ns = base_step_ns if control.min_step_size is None else round(control.min_step_size * 1e9)
-        self.max_ns = round(control.max_step_size * 1e9)
-        self.step_ns = self.min_ns if control.step_size is None else round(control.step_size * 1e9)
+        self.period = period
+        low = base_step_ns if control.min_step_size is None else round(control.min_step_size * 1e9)
+        self.min_ns = period * low
+        self.max_ns = period * round(control.max_step_size * 1e9)
+        self.step_ns = period * (low if control.step_size is None else round(control.step_size * 1e9))
         self.previous_error = 1.0
 
     def most_points(self, n_ticks: int) -> int:
-        """The most communication points a run of ``n_ticks`` base steps can have: every step the shortest, the last
-        one cut, and t_0."""
-        return n_ticks // (self.min_ns // self.base_step_ns) + 2
+        """The most points a run of ``n_ticks`` base steps can have: every period the shortest, the last one cut,
+        and t_0."""
+        return n_ticks // (self.min_ns // (self.base_step_ns * self.period)) + self.period + 1
 
     @property
     def ticks(self) -> int:
-        """The next macro-step [base steps]."""
-        return self.step_ns // self.base_step_ns
+        """The next period [base steps]: a whole number of the period's points."""
+        return self.step_ns // (self.base_step_ns * self.period) * self.period
 
     def adjust(self, residual_power: list[float], start_ns: int, taken_ns: int) -> None:
         """Set the next step after one of ``taken_ns`` from ``start_ns`` whose bonds had ``residual_power`` [W] at
@@ -108,88 +116,108 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
     subsystems of an unrecorded in-process run, which the scheme then calls itself with the values the commands
     would carry (``manager.bus.inproc.DirectCalls``), yielding nothing."""
     subs, base, end = plan.subsystems, plan.base_step_ns, plan.n_ticks
+    period = law.period
     points = law.most_points(end)
-    readers = [OutputReader(s, points, spill) for s in subs]
+    readers = [OutputReader(s, (points - 1) // s.ratio + 1, spill) for s in subs]
     n_bonds = len(plan.bonds)
-    p_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS, spill, "residual-power")
-    e_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS, spill, "residual-energy")
-    ticks = RowWindow(points, None, np.int64, 0, HISTORY_ROWS, spill, "point-ticks")
+    p_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS + period, spill, "residual-power")
+    e_window = RowWindow(points, n_bonds, float, np.nan, HISTORY_ROWS + period, spill, "residual-energy")
+    ticks = RowWindow(points, None, np.int64, 0, HISTORY_ROWS * period, spill, "point-ticks")
     p_window.array[0], e_window.array[0], ticks.array[0] = 0.0, 0.0, 0
     releases = Releases(points - 1, None, spill)
     energy = [0.0] * n_bonds
-    names = tuple(s.name for s in subs)
+    last_bond_point = [0] * n_bonds
     everyone = frozenset(range(len(subs)))
-    sources = [tuple((readers[f.source], list(f.outputs), list(f.inputs), f.order) for f in s.feeds) for s in subs]
+    sources = [tuple((readers[f.source], subs[f.source].ratio, list(f.outputs), list(f.inputs), f.order)
+                     for f in s.feeds) for s in subs]
     # zero-order inputs each fed once: per input, where its value lies in its source's newest outputs
     held = [None if s.order or s.zero_order_sources is None else
             tuple((readers[source], output) for source, output in s.zero_order_sources) for s in subs]
-    bonds = [(b, bond, bond.components) for b, bond in enumerate(plan.bonds)]
+    # per phase of the schedule (manager.scheme.jacobi's): who starts a step, whose replies are due at its end and
+    # their names, the bonds evaluated there (both sides communicate)
+    phases = [(tuple(s for s in subs if phase % s.ratio == 0), due, tuple(s.name for s in due),
+               tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
+                     if (phase + 1) % subs[bond.force_side].ratio == 0 and (phase + 1) % subs[bond.motion_side].ratio == 0))
+              for phase in range(period)
+              for due in [tuple(s for s in subs if (phase + 1) % s.ratio == 0)]]
+    sent: list[tuple[int, list] | None] = [None] * len(subs)  # per subsystem: (start tick, polynomial rows)
+    computed: list = [None] * len(subs)  # direct: the outputs each subsystem's step computed
 
     def input_polynomial(s: SubsystemPlan, tick: int = 0, stepping: bool = True) -> np.ndarray:
-        """``s``'s input polynomial over its step from ``tick`` (the newest point): per feed, the Lagrange polynomial
-        of its order through its source's newest samples at their times (fewer at the start of the run); at t_0
-        (``stepping`` False, as ``initial_outputs`` asks) the sources' first rows."""
+        """``s``'s input polynomial over its step from ``tick`` (base point ``point``): per feed, the Lagrange
+        polynomial of its order through its source's newest samples at or before it, at their times (fewer at the
+        start of the run); at t_0 (``stepping`` False, as ``initial_outputs`` asks) the sources' first rows."""
         coefficients = np.zeros((s.order + 1, len(s.inputs)))
-        for reader, outputs, inputs, order in sources[s.index]:
+        for reader, ratio, outputs, inputs, order in sources[s.index]:
             window = reader.window
             if not stepping:
                 coefficients[0, inputs] = window.array[0, outputs]
                 continue
-            samples = min(order, point) + 1
-            first = point - samples + 1
-            rows = window.array[first - window.offset:point + 1 - window.offset, outputs]
+            newest = point // ratio
+            samples = min(order, newest) + 1
+            first = newest - samples + 1
+            rows = window.array[first - window.offset:newest + 1 - window.offset, outputs]
             if samples == 1:
                 coefficients[0, inputs] = rows[0]
                 continue
-            times = tuple((int(ticks.row(j)) - tick) * base * 1e-9 for j in range(first, point + 1))
+            times = tuple((int(ticks.row(j * ratio)) - tick) * base * 1e-9 for j in range(first, newest + 1))
             coefficients[:samples, inputs] = lagrange_matrix(times).dot(rows)
         return coefficients
 
     point = 0
     yield from initial_outputs(plan, readers, input_polynomial, everyone, everyone, direct, None)
 
-    tick, step_status = 0, None
+    tick, step_status, periods = 0, None, 0
     step_s = base * 1e-9
     while tick < end:
-        taken = min(law.ticks, end - tick)
-        start_ns = tick * base
-        # every polynomial from the outputs at t_k (Jacobi); a zero-order one as its values, the sources' newest floats
-        polynomials = [[[reader.newest[output] for reader, output in held[s.index]]] if held[s.index] is not None
-                       else input_polynomial(s, tick).tolist() for s in subs]
-        sent = [(tick, rows) for rows in polynomials]
-        released_ns = releases.release(point)
-        due = tick + taken
-        point += 1
-        if direct is None:
-            replies = yield Exchange({s.name: encode(Kind.STEP, tick, start_ns, np.array(rows), s.order + 1, ref=taken)
-                                      for s, rows in zip(subs, polynomials)}, names, step_status, due)
-            for s in subs:
-                readers[s.index].commit(replies[s.name], due, point)
-        else:  # the values a STEP would carry: a zero-order one's as floats, as the endpoint takes them
-            outputs = [direct.step(s, tick, rows[0] if s.order == 0 else np.array(rows), taken)
-                       for s, rows in zip(subs, polynomials)]
-            for s, y in zip(subs, outputs):
-                readers[s.index].commit_values(y, due, point)
-        ticks.put(point, due)
-        residual_power = []
-        taken_s = taken * base * 1e-9  # as the Jacobi scheme's step: one at a fixed step (tests/manager/test_energy_step)
-        for b, bond, components in bonds:
-            delta_p = bond_residual_power(readers, sent, bond, components, due, step_s)
-            energy[b] += delta_p * taken_s
-            residual_power.append(delta_p)
-        p_window.put(point, residual_power)
-        e_window.put(point, energy)
-        if status is not None:
-            status.log_residuals(residual_power + energy)
-            status.log_times((due, released_ns, time.perf_counter_ns(), 0))
-            step_status = due
-        if point >= 2:
-            law.adjust(residual_power, start_ns, taken * base)
-        tick = due
-        if progress is not None and point % PROGRESS_EVERY == 0:
-            progress(tick)
+        length = min(law.ticks, end - tick)  # the period's base steps: a whole number of its points'
+        spacing = length // period  # base steps between two points of this period
+        spacing_s = spacing * base * 1e-9  # as the Jacobi scheme's step: one at a fixed step (tests/manager/test_energy_step)
+        period_start_ns = tick * base
+        for starting, due, due_names, evaluated in phases:
+            # every polynomial from the outputs at or before the step's start (Jacobi); a zero-order one as its
+            # values, the sources' newest floats
+            for s in starting:
+                sent[s.index] = (tick, [[reader.newest[output] for reader, output in held[s.index]]]
+                                 if held[s.index] is not None else input_polynomial(s, tick).tolist())
+            released_ns = releases.release(point)
+            due_tick = tick + spacing
+            point += 1
+            if direct is None:
+                replies = yield Exchange({s.name: encode(Kind.STEP, tick, tick * base, np.array(sent[s.index][1]),
+                                                         s.order + 1, ref=s.ratio * spacing) for s in starting},
+                                         due_names, step_status, due_tick)
+                for s in due:
+                    readers[s.index].commit(replies[s.name], due_tick, point // s.ratio)
+            else:  # the values a STEP would carry: a zero-order one's as floats, as the endpoint takes them
+                for s in starting:
+                    rows = sent[s.index][1]
+                    computed[s.index] = direct.step(s, tick, rows[0] if s.order == 0 else np.array(rows),
+                                                    s.ratio * spacing)
+                for s in due:
+                    readers[s.index].commit_values(computed[s.index], due_tick, point // s.ratio)
+            ticks.put(point, due_tick)
+            residual_power, residual_energy = [math.nan] * n_bonds, [math.nan] * n_bonds
+            for b, bond, components in evaluated:
+                delta_p = bond_residual_power(readers, sent, bond, components, due_tick, step_s)
+                energy[b] += delta_p * (point - last_bond_point[b]) * spacing_s
+                last_bond_point[b] = point
+                residual_power[b], residual_energy[b] = delta_p, energy[b]
+            p_window.put(point, residual_power)
+            e_window.put(point, residual_energy)
+            if status is not None:
+                status.log_residuals(residual_power + residual_energy)
+                status.log_times((due_tick, released_ns, time.perf_counter_ns(), 0))
+                step_status = due_tick
+            tick = due_tick
+            if progress is not None and point % PROGRESS_EVERY == 0:
+                progress(tick)
+        periods += 1
+        if periods >= 2:  # at the period's end every bond was evaluated
+            law.adjust(residual_power, period_start_ns, length * base)
     if step_status is not None:
         yield Exchange({}, (), step_status)
     rows = point + 1
-    return RunRecord(plan, [reader.window.finish(rows) for reader in readers], p_window.finish(rows),
-                     e_window.finish(rows), *releases.finish(point), 0, point_ticks=ticks.finish(rows))
+    return RunRecord(plan, [reader.window.finish((rows - 1) // s.ratio + 1) for s, reader in zip(subs, readers)],
+                     p_window.finish(rows), e_window.finish(rows), *releases.finish(point), 0,
+                     point_ticks=ticks.finish(rows))
