@@ -283,3 +283,15 @@ def test_the_command_line_refuses_real_time_with_a_varying_step():
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "--realtime paces a fixed macro-step; manager.step_control = 'energy' varies it" in result.stderr
+
+
+def test_analyze_says_which_fixed_step_it_analyses():
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-m", "zencosim", "analyze", "two_mass_damped",
+                             "--set", "manager.step_control=energy", "--set", "manager.energy_control.max_step_size=0.01"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert ("this is the scheme at a fixed macro-step of 0.001 s; the run varies it up to 0.01 s"
+            in " ".join(result.stderr.split()))

@@ -8,7 +8,7 @@ import json
 from rich.markup import escape
 from rich.table import Table
 
-from zencosim.cli.console import UsageError, add_scene_arguments, examples, out, say
+from zencosim.cli.console import UsageError, add_scene_arguments, examples, out, say, warn
 from zencosim.extras import require
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
@@ -81,8 +81,14 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     plot_path = check_output_file(args.plot, "pole map", (".png",)) if args.plot else None
     if plot_path:
         require("plots", f"the pole map {plot_path}")
-    result = analyze_scene(load_scene(args.scene, args.overrides), args.architecture)
+    scene = load_scene(args.scene, args.overrides)
+    result = analyze_scene(scene, args.architecture)
     _print_analysis(result)
+    control = scene.manager.energy_control
+    if scene.manager.step_control == "energy":  # the analysis is of one fixed macro-step: say which
+        warn(f"manager.step_control = 'energy': this is the scheme at a fixed macro-step of "
+             f"{scene.manager.macro_step:g} s; the run varies it up to {control.max_step_size:g} s (analyse that "
+             f"one with --set manager.macro_step={control.max_step_size:g} --set manager.step_control=fixed)")
     if json_path:
         json_path.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
     if plot_path:
