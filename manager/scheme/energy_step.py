@@ -52,7 +52,7 @@ from zencosim.manager.scheme.base import (
     RunRecord,
     SubsystemCalls,
 )
-from zencosim.manager.scheme.extrapolation import lagrange_matrix
+from zencosim.manager.scheme.extrapolation import sample_matrix
 from zencosim.manager.scheme.jacobi import bond_residual_power, initial_outputs
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.window import RowWindow, Spill
@@ -160,8 +160,8 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
             if samples == 1:
                 coefficients[0, inputs] = rows[0]
                 continue
-            times = tuple((int(ticks.row(j * ratio)) - tick) * base * 1e-9 for j in range(first, newest + 1))
-            coefficients[:samples, inputs] = lagrange_matrix(times).dot(rows)
+            offsets = tuple((int(ticks.row(j * ratio)) - tick) * base for j in range(first, newest + 1))
+            coefficients[:samples, inputs] = sample_matrix(offsets).dot(rows)
         return coefficients
 
     point = 0

@@ -25,6 +25,14 @@ def lagrange_matrix(sample_times: tuple[float, ...]) -> np.ndarray:
     return basis_coefficients(np.asarray(sample_times, dtype=np.float64)).T
 
 
+@lru_cache(maxsize=1024)
+def sample_matrix(offsets_ns: tuple[int, ...]) -> np.ndarray:
+    """``lagrange_matrix`` of samples ``offsets_ns`` [ns] from the start of the receiver's step (zero or negative,
+    oldest first): the samples of a run whose steps vary (``manager.scheme.energy_step``), which repeats a few
+    spacings. Cached, as ``extrapolation_matrix``, whose matrices it equals for evenly spaced samples."""
+    return lagrange_matrix(tuple(offset * 1e-9 for offset in offsets_ns))
+
+
 @lru_cache(maxsize=256)
 def extrapolation_matrix(points: int, sample_step_ns: int, offset_ns: int) -> np.ndarray:
     """``lagrange_matrix`` for ``points`` samples spaced ``sample_step_ns`` apart, the newest ``offset_ns``
