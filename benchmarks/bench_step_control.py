@@ -1,10 +1,11 @@
 """What the energy-controlled macro-step buys against the best fixed step, on every bundled benchmark it runs.
 
     python benchmarks/bench_step_control.py [--scenes two_mass_damped,...] [--orders 0,1]
-        [--methods jacobi,gauss-seidel,energy] [--json FILE]
+        [--methods jacobi,gauss-seidel,energy] [--divisor 10] [--json FILE]
 
-Per scene, with a quantum q = the scene's macro-step / 10 (every subsystem integrating at micro-step q in every
-run, so that both methods integrate alike and differ in their coupling only), for each extrapolation order:
+Per scene, with a quantum q = the scene's macro-step / ``--divisor`` (every subsystem integrating at micro-step
+q × its comm_ratio in every run, so that the methods integrate alike and differ in their coupling only), for each
+extrapolation order:
 
 * fixed, Jacobi and Gauss–Seidel (manager.scheme, its default order): manager.macro_step H = q × 1, 2, 3, 4, 5, 6,
   8, 10, 15, 20, 30, 50, 100;
@@ -37,8 +38,8 @@ TARGETS = (1e-2, 1e-3)
 
 
 def overrides(scene, quantum: float) -> dict:
-    """Every subsystem at micro-step ``quantum``."""
-    return {f"subsystems.{name}.micro_step": quantum for name in scene.subsystems}
+    """Every subsystem at micro-step ``quantum`` × its communication ratio."""
+    return {f"subsystems.{name}.micro_step": quantum * sub.settings.comm_ratio for name, sub in scene.subsystems.items()}
 
 
 def error(scene, record, reference, quantum_ticks: np.ndarray) -> float:
@@ -69,9 +70,9 @@ def cheapest(points: list[dict], target: float) -> dict | None:
     return min(meeting, key=lambda p: p["exchanges"]) if meeting else None
 
 
-def study(name: str, orders: tuple[int, ...], methods: tuple[str, ...]) -> dict:
+def study(name: str, orders: tuple[int, ...], methods: tuple[str, ...], divisor: int) -> dict:
     base = zencosim.load_scene(name)
-    quantum = base.manager.macro_step / 10
+    quantum = base.manager.macro_step / divisor
     quantum_ns = round(quantum * 1e9)
     fine = {**overrides(base, quantum), "manager.macro_step": quantum}
     energy_keys = {"manager.step_control": "energy", "manager.energy_control.min_step_size": quantum,
@@ -123,12 +124,13 @@ def main() -> None:
     parser.add_argument("--orders", default="0,1", help="extrapolation orders (default 0,1)")
     parser.add_argument("--methods", default="jacobi,gauss-seidel,energy",
                         help="of jacobi, gauss-seidel (fixed steps) and energy (default: all three)")
+    parser.add_argument("--divisor", type=int, default=10, help="the quantum: the scene's macro-step over this")
     parser.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     args = parser.parse_args()
     orders = tuple(int(order) for order in args.orders.split(","))
     print("scene\tmethod\tstep or tolerance\texchanges\tNRMS\tCPU [s]")
     methods = tuple(args.methods.split(","))
-    report = {name: study(name, orders, methods) for name in args.scenes.split(",")}
+    report = {name: study(name, orders, methods, args.divisor) for name in args.scenes.split(",")}
     print("\nscene\ttarget\t" + "\t".join(f"{m}: exchanges (step or tolerance, order, CPU s)" for m in methods))
     for name, result in report.items():
         if "refused" in result:
