@@ -81,6 +81,21 @@ def test_the_step_shrinks_in_a_transient_and_grows_as_it_decays():
     assert summary["discrete"] is None  # the exact analysis is of one fixed macro-step
 
 
+def test_the_step_shortens_as_the_forcing_quickens():
+    """two_mass_chirp starts at rest and is forced by a chirp from 1 to 10 Hz: the step starts long (no residual at
+    rest: the law keeps its step) and shortens as the forcing's frequency rises, within its limits."""
+    fine = {f"subsystems.{name}.micro_step": QUANTUM for name in ("S1", "S2")}
+    result = zencosim.run(zencosim.load_scene("two_mass_chirp", {
+        **fine, "manager.macro_step": QUANTUM, "manager.step_control": "energy", "manager.energy_control.step_size": 0.01,
+        "manager.energy_control.max_step_size": 0.01, "manager.energy_control.abs_tolerance": 1e-5,
+        "manager.energy_control.rel_tolerance": 0.0}))
+    times = np.asarray(result.record.point_ticks) * QUANTUM
+    steps = np.diff(times)
+    first, late = steps[times[:-1] < 1.0], steps[(times[:-1] >= 8.0) & (times[:-1] < 9.0)]
+    assert steps[0] == pytest.approx(0.01) and first.mean() > 10 * late.mean()  # ~7.8 ms against ~0.37 ms
+    assert steps.min() >= QUANTUM * (1 - 1e-9) and steps.max() <= 0.01 * (1 + 1e-9)
+
+
 def test_a_diverging_run_ends_with_its_verdict_not_an_error():
     """A coupling far too stiff for the step: the residuals overflow to NaN, the law keeps the step, and the run
     completes with its divergence in the summary."""
