@@ -81,6 +81,10 @@ class Replica:
         self.request: Exchange | None = None
         self.result: RunRecord | None = None
         self.steps_done = 0
+        # the subsystems the request awaits whose next reply has not passed the screen yet: each reply is looked at
+        # once, when it arrives or when a request awaits it, so a step costs a look per reply, not per reply and
+        # subsystem awaited (a star of many subsystems: the manager's replica)
+        self._missing: set[str] = set()
 
     @property
     def finished(self) -> bool:
@@ -90,7 +94,7 @@ class Replica:
         """Subsystems whose reply the scheme waits for now."""
         if self.request is None:
             return []
-        return [name for name in self.request.awaits if not self.replies[name]]
+        return [name for name in self.request.awaits if name in self._missing]
 
     def start(self) -> None:
         try:
@@ -99,13 +103,16 @@ class Replica:
             self.result = done.value
             return
         self._execute(None)
-        self._advance()
+        self._await()
 
     def deliver(self, name: str, reply: bytes) -> None:
         """A reply of subsystem ``name`` from the network."""
         self.replies[name].append(reply)
-        if self.request is not None:
-            self._advance()
+        missing = self._missing
+        if name in missing and self._ready(name):
+            missing.discard(name)
+            if not missing:
+                self._advance()
 
     def run(self) -> RunRecord:
         """Run to the end when every subsystem is local (the in-process bus)."""
@@ -129,11 +136,32 @@ class Replica:
                     self.publish(name, reply)
                 self.replies[name].append(reply)
 
+    def _ready(self, name: str) -> bool:
+        """Whether subsystem ``name``'s next reply may be taken: there is one, and (from the network, ``on_drop``
+        given) the replies at the head of its queue that fail :meth:`fault` are dropped first."""
+        queue = self.replies[name]
+        if self.on_drop is None or name in self.local:
+            return bool(queue)
+        while queue:
+            reason = self.fault(name, queue[0])
+            if reason is None:
+                return True
+            queue.popleft()
+            self.on_drop(name, reason)
+        return False
+
+    def _await(self) -> None:
+        """Look at the replies the request awaits (every queue, so that waiting_for() names the right ones); hand them
+        to the scheme when they are all there."""
+        self._missing = {name for name in self.request.awaits if not self._ready(name)}
+        if not self._missing:
+            self._advance()
+
     def _advance(self) -> None:
+        """Hand the scheme the replies its request awaits, every one there and screened, and go on while the next
+        request's are there too (the replies of local subsystems are there at once)."""
         screened = self.on_drop is not None
-        ready = _Screened(self) if screened else self.replies
-        # a list, not a generator: every awaited queue is screened, so that waiting_for() names the right ones
-        while all([ready[name] for name in self.request.awaits]):
+        while True:
             replies = {name: self.replies[name].popleft() for name in self.request.awaits}
             if screened:
                 for name in replies:
@@ -149,6 +177,9 @@ class Replica:
                 return
             self.steps_done += 1
             self._execute(replies)
+            self._missing = {name for name in self.request.awaits if not self._ready(name)}
+            if self._missing:
+                return
 
     def fault(self, name: str, reply: bytes) -> str | None:
         """Why the scheme must not take ``reply``, the next of subsystem ``name`` from the network (None: it may)."""
@@ -167,24 +198,3 @@ class Replica:
         elif self.request.step is not None and step != self.request.step and kind != Kind.ERROR:
             return f"a {kind.name} for step {step}; the scheme awaits step {self.request.step}"
         return None
-
-
-class _Screened:
-    """``replica.replies`` whose head replies that fail :meth:`Replica.fault` are dropped (``on_drop``) when
-    looked at: ``screened[name]`` is true once subsystem ``name``'s next reply may be taken."""
-
-    def __init__(self, replica: Replica) -> None:
-        self.replica = replica
-
-    def __getitem__(self, name: str) -> bool:
-        replica = self.replica
-        queue = replica.replies[name]
-        if name in replica.local:
-            return bool(queue)
-        while queue:
-            reason = replica.fault(name, queue[0])
-            if reason is None:
-                return True
-            queue.popleft()
-            replica.on_drop(name, reason)
-        return False

@@ -191,6 +191,25 @@ def test_stray_garbled_and_replayed_replies_are_dropped_and_the_run_is_bit_ident
     assert s2.result.trajectories[1].tobytes() == reference.trajectories[1].tobytes()
 
 
+def test_a_replica_looks_at_each_reply_from_the_network_once(tmp_path):
+    """A star of 9: the manager's replica awaits 9 replies a step; each is screened once (on arrival, or when a
+    request awaits it), not once per reply that arrives after it (a step's screening grew with n² before)."""
+    from zencosim.scenes.topologies import mass_star
+
+    path = tmp_path / "star9.toml"
+    path.write_text(mass_star(9, 0.02))
+    plan, local = _endpoints(load_scene(str(path)))
+    genuine = _published(plan, local)
+    manager = Replica(jacobi(plan), [s.name for s in plan.subsystems], on_drop=lambda name, reason: None)
+    looked = []
+    fault = manager.fault
+    manager.fault = lambda name, reply: looked.append(name) or fault(name, reply)
+    manager.start()
+    for name, reply in genuine:
+        manager.deliver(name, reply)
+    assert manager.finished and len(looked) == len(genuine)
+
+
 def load_plan_with_other_extrapolation():
     # the same scene but first-order extrapolation: from the second step on, the commands differ
     plan, _ = _endpoints(load_scene("two_mass_damped", ["manager.duration=0.01", "manager.extrapolation=1"]))
