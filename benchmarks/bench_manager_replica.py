@@ -1,0 +1,106 @@
+"""Instructions per macro-step of the manager's replica over Zenoh, without Zenoh, counted by valgrind.
+
+    python benchmarks/bench_manager_replica.py [--scenes two_mass_damped,star17,star33]
+
+Over Zenoh the manager follows the run with a replica of the scheme that computes every command and takes every
+reply from the network, screening each (``manager.scheme.replica``). Here the replies of a run are made first, by
+the subsystem processes' replicas in one thread (``replicas.py``'s way), and written to a file; then a fresh
+process feeds them to the manager's replica under ``valgrind --tool=cachegrind``, for runs ``STEPS`` apart, and
+the difference over the steps is the count (start-up and imports cancel; as bench_instructions.py: one BLAS
+thread, fixed string hashes). ``starN`` is the star of N masses of ``zencosim.scenes.topologies``: its hub's
+fan-in, and the manager's, is N − 1. Needs valgrind.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import pickle
+import re
+import subprocess
+import sys
+import tempfile
+from collections import deque
+from pathlib import Path
+
+STEPS = (500, 2500)
+
+FEED = """
+import pickle, sys
+from zencosim.manager.assembly import make_scheme, plan_scene
+from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.replica import Replica
+reference, overrides, replies = pickle.load(open(sys.argv[1], "rb"))
+plan, _ = plan_scene(load_scene(reference, overrides))
+manager = Replica(make_scheme(load_scene(reference, overrides), plan), [s.name for s in plan.subsystems],
+                  on_drop=lambda name, reason: None)
+manager.start()
+for name, reply in replies:
+    manager.deliver(name, reply)
+assert manager.finished
+"""
+
+
+def scene_of(name: str, steps: int, folder: Path) -> tuple[str, list[str]]:
+    """The scene (a bundled name or a written star) and its overrides for a run of ``steps`` 1 ms steps."""
+    from zencosim.scenes.topologies import mass_star
+    if name.startswith("star"):
+        path = folder / f"{name}_{steps}.toml"
+        path.write_text(mass_star(int(name[4:]), steps * 1e-3))
+        return str(path), []
+    return name, [f"manager.duration={steps / 1000!r}"]
+
+
+def replies_of(reference: str, overrides: list[str]) -> list[tuple[str, bytes]]:
+    """Every reply the subsystem processes of a run publish, in the order published."""
+    from zencosim.manager.assembly import make_scheme, plan_scene, process_scope
+    from zencosim.manager.bus.inproc import endpoints
+    from zencosim.manager.scene.load import load_scene
+    from zencosim.manager.scheme.replica import Replica
+    scene = load_scene(reference, overrides)
+    replicas, published, replies = {}, deque(), []
+    for name in scene.subsystems:
+        plan, subsystems = plan_scene(scene)
+        scope, _ = process_scope(scene, plan, name)
+        tracked = [plan.subsystems[i].name for i in sorted(plan.tracked(scope))]
+        replicas[name] = Replica(make_scheme(scene, plan, local=scope), tracked, endpoints(plan, subsystems, [name]),
+                                 lambda sender, reply: published.append((sender, reply)), on_drop=lambda n, r: None)
+    for replica in replicas.values():
+        replica.start()
+    while published:
+        sender, reply = published.popleft()
+        replies.append((sender, reply))
+        for name, replica in replicas.items():
+            if name != sender and sender in replica.replies:
+                replica.deliver(sender, reply)
+    return replies
+
+
+def instructions(script: Path, replies: Path) -> int:
+    env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1"}
+    result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
+                             sys.executable, str(script), str(replies)], capture_output=True, text=True, env=env,
+                            check=True)
+    return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", default="two_mass_damped,star17,star33")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="zencosim-manager-") as temporary:
+        folder = Path(temporary)
+        script = folder / "feed.py"
+        script.write_text(FEED)
+        for name in args.scenes.split(","):
+            counts = []
+            for steps in STEPS:
+                reference, overrides = scene_of(name, steps, folder)
+                path = folder / f"{name}_{steps}.pkl"
+                path.write_bytes(pickle.dumps((reference, overrides, replies_of(reference, overrides))))
+                counts.append(instructions(script, path))
+            per_step = (counts[1] - counts[0]) / (STEPS[1] - STEPS[0])
+            print(f"{name:20s} {per_step:12,.0f} instructions per macro-step of the manager's replica", flush=True)
+
+
+if __name__ == "__main__":
+    main()
