@@ -4,7 +4,7 @@
 
 Over Zenoh the manager follows the run with a replica of the scheme that computes every command and takes every
 reply from the network, screening each (``manager.scheme.replica``). Here the replies of a run are made first, by
-the subsystem processes' replicas in one thread (``replicas.py``'s way), and written to a file; then a fresh
+the subsystem processes' replicas in one thread (``replicas.py``), and written to a file; then a fresh
 process feeds them to the manager's replica under ``valgrind --tool=cachegrind``, for runs ``STEPS`` apart, and
 the difference over the steps is the count (start-up and imports cancel; as bench_instructions.py: one BLAS
 thread, fixed string hashes). ``starN`` is the star of N masses of ``zencosim.scenes.topologies``: its hub's
@@ -19,8 +19,11 @@ import re
 import subprocess
 import sys
 import tempfile
-from collections import deque
 from pathlib import Path
+
+from replicas import replicas_in_lock_step
+
+from zencosim.manager.scene.load import load_scene
 
 STEPS = (500, 2500)
 
@@ -50,31 +53,6 @@ def scene_of(name: str, steps: int, folder: Path) -> tuple[str, list[str]]:
     return name, [f"manager.duration={steps / 1000!r}"]
 
 
-def replies_of(reference: str, overrides: list[str]) -> list[tuple[str, bytes]]:
-    """Every reply the subsystem processes of a run publish, in the order published."""
-    from zencosim.manager.assembly import make_scheme, plan_scene, process_scope
-    from zencosim.manager.bus.inproc import endpoints
-    from zencosim.manager.scene.load import load_scene
-    from zencosim.manager.scheme.replica import Replica
-    scene = load_scene(reference, overrides)
-    replicas, published, replies = {}, deque(), []
-    for name in scene.subsystems:
-        plan, subsystems = plan_scene(scene)
-        scope, _ = process_scope(scene, plan, name)
-        tracked = [plan.subsystems[i].name for i in sorted(plan.tracked(scope))]
-        replicas[name] = Replica(make_scheme(scene, plan, local=scope), tracked, endpoints(plan, subsystems, [name]),
-                                 lambda sender, reply: published.append((sender, reply)), on_drop=lambda n, r: None)
-    for replica in replicas.values():
-        replica.start()
-    while published:
-        sender, reply = published.popleft()
-        replies.append((sender, reply))
-        for name, replica in replicas.items():
-            if name != sender and sender in replica.replies:
-                replica.deliver(sender, reply)
-    return replies
-
-
 def instructions(script: Path, replies: Path) -> int:
     env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1"}
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
@@ -96,7 +74,8 @@ def main() -> None:
             for steps in STEPS:
                 reference, overrides = scene_of(name, steps, folder)
                 path = folder / f"{name}_{steps}.pkl"
-                path.write_bytes(pickle.dumps((reference, overrides, replies_of(reference, overrides))))
+                replies = replicas_in_lock_step(load_scene(reference, overrides))
+                path.write_bytes(pickle.dumps((reference, overrides, replies)))
                 counts.append(instructions(script, path))
             per_step = (counts[1] - counts[0]) / (STEPS[1] - STEPS[0])
             print(f"{name:20s} {per_step:12,.0f} instructions per macro-step of the manager's replica", flush=True)

@@ -16,8 +16,9 @@ from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.replica import Replica
 
 
-def replicas_in_lock_step(scene: Scene) -> None:
-    """Run ``scene`` with one replica per subsystem, as its process runs it, to the end."""
+def replicas_in_lock_step(scene: Scene) -> list[tuple[str, bytes]]:
+    """Run ``scene`` with one replica per subsystem, as its process runs it, to the end; every reply published, in
+    the order published (``(subsystem, reply)``)."""
     replicas: dict[str, Replica] = {}
     published: deque[tuple[str, bytes]] = deque()
     for name in scene.subsystems:
@@ -28,14 +29,17 @@ def replicas_in_lock_step(scene: Scene) -> None:
                                  lambda sender, reply: published.append((sender, reply)), on_drop=_dropped)
     for replica in replicas.values():
         replica.start()
+    replies = []
     while published:
         sender, reply = published.popleft()
+        replies.append((sender, reply))
         for name, replica in replicas.items():
             if name != sender and sender in replica.replies:
                 replica.deliver(sender, reply)
     waiting = {name: replica.waiting_for() for name, replica in replicas.items() if not replica.finished}
     if waiting:
         raise RuntimeError(f"replicas still waiting: {waiting}")
+    return replies
 
 
 def _dropped(sender: str, reason: str) -> None:
