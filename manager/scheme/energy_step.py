@@ -53,7 +53,7 @@ from zencosim.manager.scheme.base import (
     SubsystemCalls,
 )
 from zencosim.manager.scheme.extrapolation import sample_matrix
-from zencosim.manager.scheme.jacobi import bond_residual_power, initial_outputs
+from zencosim.manager.scheme.jacobi import bond_residual_power, gathered_inputs, initial_outputs, schedule
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import Kind, encode
@@ -131,15 +131,11 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
     sources = [tuple((readers[f.source], subs[f.source].ratio, list(f.outputs), list(f.inputs), f.order)
                      for f in s.feeds) for s in subs]
     # zero-order inputs each fed once: per input, where its value lies in its source's newest outputs
-    held = [None if s.order or s.zero_order_sources is None else
-            tuple((readers[source], output) for source, output in s.zero_order_sources) for s in subs]
-    # per phase of the schedule (manager.scheme.jacobi's): who starts a step, whose replies are due at its end and
-    # their names, the bonds evaluated there (both sides communicate)
-    phases = [(tuple(s for s in subs if phase % s.ratio == 0), due, tuple(s.name for s in due),
-               tuple((b, bond, bond.components) for b, bond in enumerate(plan.bonds)
-                     if (phase + 1) % subs[bond.force_side].ratio == 0 and (phase + 1) % subs[bond.motion_side].ratio == 0))
-              for phase in range(period)
-              for due in [tuple(s for s in subs if (phase + 1) % s.ratio == 0)]]
+    held = [gathered_inputs(s, readers) for s in subs]
+    # per phase of the Jacobi schedule (one stage): who starts a step, whose replies are due at its end and their
+    # names, the bonds evaluated there (both sides communicate)
+    phases = [(starting, due, due_names, evaluated)
+              for ((starting, _, due, due_names, _),), evaluated in schedule(plan, everyone, everyone)[1]]
     sent: list[tuple[int, list] | None] = [None] * len(subs)  # per subsystem: (start tick, polynomial rows)
     computed: list = [None] * len(subs)  # direct: the outputs each subsystem's step computed
 

@@ -29,7 +29,7 @@ def lagrange_matrix(sample_times: tuple[float, ...]) -> np.ndarray:
 def sample_matrix(offsets_ns: tuple[int, ...]) -> np.ndarray:
     """``lagrange_matrix`` of samples ``offsets_ns`` [ns] from the start of the receiver's step (zero or negative,
     oldest first): the samples of a run whose steps vary (``manager.scheme.energy_step``), which repeats a few
-    spacings. Cached, as ``extrapolation_matrix``, whose matrices it equals for evenly spaced samples."""
+    spacings; ``extrapolation_matrix``'s evenly spaced samples too. Cached."""
     return lagrange_matrix(tuple(offset * 1e-9 for offset in offsets_ns))
 
 
@@ -39,8 +39,7 @@ def extrapolation_matrix(points: int, sample_step_ns: int, offset_ns: int) -> np
     before the start of the receiver's step (zero in single-rate schemes; ``-sample_step_ns`` for the
     corrector of the implicit scheme, whose newest sample lies at the end of the step, paper 003
     Eq. 11). Cached: the run loop asks for the same few matrices at every step."""
-    times = tuple((-offset_ns - (points - 1 - k) * sample_step_ns) * 1e-9 for k in range(points))
-    return lagrange_matrix(times)
+    return sample_matrix(tuple(-offset_ns - (points - 1 - k) * sample_step_ns for k in range(points)))
 
 
 def lagrange_coefficients(samples: np.ndarray, columns: slice | np.ndarray, newest: int, order: int,

@@ -105,7 +105,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     adjusters = [tuple(c for c in correctors if s.index in c.targets) for s in subs]
     copied = [None if adjusters[s.index] or direct else _copied_inputs(s, readers) for s in subs]
     # a ZOH polynomial's values, its sources' newest (where this replica tracks every source)
-    zero_order = [_gathered_inputs(s, readers) if all(f.source in tracked for f in s.feeds) else None for s in subs]
+    zero_order = [gathered_inputs(s, readers) if all(f.source in tracked for f in s.feeds) else None for s in subs]
     gathered = [zero_order[s.index] if direct and not adjusters[s.index] else None for s in subs]
     unpack_inputs = [struct.Struct(f"<{len(s.inputs)}d").unpack_from for s in subs]  # a ZOH command's values
 
@@ -128,7 +128,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     # a subsystem process's replica without correctors evaluates no bond: nothing of its run reads them (the
     # manager's replica reports the residuals; a process, its steps' timing)
     everyone = frozenset(range(len(subs)))
-    period, stages = _schedule(plan, local, tracked, local == everyone or bool(correctors))
+    period, stages = schedule(plan, local, tracked, local == everyone or bool(correctors))
     # a direct run's messages, for its tap (manager.scheme.tapped): request by request, or appended to a block's lists
     taken = (taken_for(tap, plan, pacer is not None, status is not None, stages)
              if direct is not None and tap is not None else None)
@@ -272,7 +272,7 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
     return tuple((readers[source], start, end) for source, start, end in segments)
 
 
-def _gathered_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int], ...] | None:
+def gathered_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int], ...] | None:
     """As ``_copied_inputs`` for the direct path: per input, ``(reader of its source, output index)``, the value in
     the source's newest outputs as floats (``OutputReader.newest``). None otherwise."""
     sources = s.zero_order_sources
@@ -313,7 +313,7 @@ def initial_outputs(plan: Plan, readers: list[OutputReader], input_polynomial, l
             readers[i].commit(replies[subs[i].name], 0)
 
 
-def _schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int], bonds: bool = True) -> tuple:
+def schedule(plan: Plan, local: frozenset[int], tracked: frozenset[int], bonds: bool = True) -> tuple:
     """What happens at each phase of the schedule, which repeats every lcm of the ratios: ``(period, phases)``, each
     phase ``(stages, bonds)``: per stage of the plan (``Plan.stages``) the local subsystems starting a step, the
     non-local sides of their bonds starting one (whose input polynomial the residual power needs: the columns

@@ -34,7 +34,7 @@ def taken_for(tap, plan: Plan, paced: bool, status: bool, stages: list[tuple]) -
     run is not paced (a real-time run's live view follows it step by step) and a block, which holds whole schedule
     periods, stays small (the lcm of the communication ratios at most ``LONGEST_PERIOD`` base steps); else
     exchange by exchange. ``status``: the run reports its status; ``stages``: its schedule's phases
-    (``manager.scheme.jacobi._schedule``)."""
+    (``manager.scheme.jacobi.schedule``)."""
     if not paced and hasattr(tap, "take_steps") and math.lcm(*(s.ratio for s in plan.subsystems)) <= LONGEST_PERIOD:
         return TakenSteps(tap, plan, status, stages)
     return Taken(tap, plan)
@@ -134,7 +134,7 @@ class TakenSteps:
     calls ``flush`` where a period starts after a full block. Flat lists of floats, not a list per message: the
     cyclic garbage collector walks every list a block keeps alive, and with a list per message that walk cost more
     than the rest of the tap. The rest follows from the schedule: a request of shape ``phase × stages + stage``
-    commands the subsystems that start there and awaits those due there (``jacobi._schedule``), a status comes with
+    commands the subsystems that start there and awaits those due there (``jacobi.schedule``), a status comes with
     each stage-0 request but the run's first, and a subsystem's k-th reply answers its k-th command (its step: the
     command's tick plus its ratio). A generated loop (``manager.scheme.compiled``) appends the same values a block of
     steps at a time, as arrays (``append_steps``), which are handed over as they are."""

@@ -19,7 +19,7 @@ from zencosim.manager.bus.inproc import DirectCalls, run_in_process
 from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
-from zencosim.manager.scheme.jacobi import _schedule
+from zencosim.manager.scheme.jacobi import schedule
 from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.wire.protocol import HEADER
@@ -188,7 +188,7 @@ def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():
 
     def taken(plan, paced):
         every = frozenset(range(len(plan.subsystems)))
-        return taken_for(recorder, plan, paced, True, _schedule(plan, every, every)[1])
+        return taken_for(recorder, plan, paced, True, schedule(plan, every, every)[1])
     assert isinstance(taken(plan, False), Taken)
     assert isinstance(taken(crane, True), Taken)
     assert isinstance(taken(crane, False), TakenSteps)
