@@ -77,14 +77,14 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     levers = scene.manager
     scheduling = (ThreadScheduling(levers.realtime_priority, cpu if levers.realtime_affinity else None, who)
                   if levers.realtime_priority or levers.realtime_affinity else None)
-    pacer = Pacer(plan.base_step_ns, start_ns, spin_ns, scheduling) if realtime else None
-    spill = spill_for(plan.n_ticks, keep)
     if scene.manager.step_control == "energy":
         if realtime:
             raise ValueError("a real-time run paces a fixed macro-step; manager.step_control = 'energy' varies it")
         law = StepLaw(scene.manager.energy_control, plan.base_step_ns, math.lcm(*(s.ratio for s in plan.subsystems)))
         return energy_controlled(plan, law, progress, status, spill_for(law.most_points(plan.n_ticks), keep),
                                  direct if tap is None and status is None else None)
+    pacer = Pacer(plan.base_step_ns, start_ns, spin_ns, scheduling) if realtime else None
+    spill = spill_for(plan.n_ticks, keep)
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,

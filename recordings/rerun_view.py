@@ -133,7 +133,9 @@ class RunView:
 
     def start(self) -> None:
         """Log each series' name, colour and unit (static); call once the stream's sinks are set."""
-        every = [s for group in self.series.values() for s in group] + [self.macro_step] * (self.macro_step is not None)
+        every = [s for group in self.series.values() for s in group]
+        if self.macro_step is not None:
+            every.append(self.macro_step)
         for series in every:
             self.stream.log(series.entity, rr.SeriesLines(colors=[series.color], names=[series.label], widths=[1.5]),
                             rr.AnyValues(unit=series.unit), static=True)

@@ -9,9 +9,9 @@ message to compare never passes (it verifies nothing).
 
 The re-run is planned for no more macro-steps than the recording holds statuses (plus one; an energy-controlled
 run, whose steps vary: up to its last status), so what it allocates is bounded by the file's size
-(``recordings.mcap_read`` bounds what the file may hold), never by the duration its scene claims. A verification passes only when the file is intact as well
-(``Recording.intact``: read to its end, every CRC, count and digest checked): a damaged or cut-off
-file never passes, whatever its messages.
+(``recordings.mcap_read`` bounds what the file may hold), never by the duration its scene claims. A verification
+passes only when the file is intact as well (``Recording.intact``: read to its end, every CRC, count and digest
+checked): a damaged or cut-off file never passes, whatever its messages.
 """
 from __future__ import annotations
 

@@ -97,11 +97,10 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
     if manager.scheme != "jacobi":
         problems.add("manager.scheme", f"expected 'jacobi' {why} (the step control runs the Jacobi scheme), "
                      f"got {manager.scheme!r}")
-    for fixed in ("realtime", "corrects"):
-        if getattr(manager, fixed):
-            key = "manager.realtime" if fixed == "realtime" else "manager.correction"
-            problems.add(key, f"expected it off {why}: " + ("real time paces a fixed macro-step" if fixed == "realtime"
-                         else "energy correction is derived for a fixed macro-step"))
+    if manager.realtime:
+        problems.add("manager.realtime", f"expected it off {why}: real time paces a fixed macro-step")
+    if manager.corrects:
+        problems.add("manager.correction", f"expected it off {why}: energy correction is derived for a fixed macro-step")
     if manager.compensation != "none":
         problems.add("manager.compensation", f"expected 'none' {why}: the compensator is designed for one macro-step")
     if not any(coupling.bonds() for coupling in couplings.values()):

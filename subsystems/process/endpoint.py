@@ -41,7 +41,6 @@ class SubsystemEndpoint:
         self.subsystem = subsystem
         self.ratio = ratio
         self.base_step_ns = base_step_ns
-        self.comm_step_ns = ratio * base_step_ns
         self.n_inputs = len(subsystem.inputs)
         self.saved: tuple[int, SavedState] | None = None  # (step, state): SAVE replaces the previous one
         self._zero_order_size = HEADER.size + 8 * self.n_inputs  # a STEP with one row of inputs: its bytes
@@ -70,10 +69,8 @@ class SubsystemEndpoint:
     def _zero_order_step(self, step: int, time_ns: int, inputs: tuple[float, ...], ref: int, span: int) -> bytes:
         """A STEP's reply as ``_dispatch`` gives it, its one row of inputs taken as floats
         (``Subsystem.advance_values``): the same outputs, the same bytes."""
-        if span:
-            due, t1 = step + span, time_ns + span * self.base_step_ns
-        else:
-            due, t1 = step + self.ratio, time_ns + self.comm_step_ns
+        span = span or self.ratio  # as _dispatch reads a STEP's length
+        due, t1 = step + span, time_ns + span * self.base_step_ns
         y = self.subsystem.advance_values(time_ns, t1, list(inputs))
         if type(y) is not list:
             return encode(Kind.OUTPUT, due, t1, y, ref=ref)

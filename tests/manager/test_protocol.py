@@ -106,7 +106,7 @@ def test_a_zero_order_step_taken_as_floats_answers_the_bytes_the_decoded_one_doe
     (_, ours), (_, theirs) = (_endpoints(scene) for _ in range(2))
     target = next(iter(ours))
     n = len(ours[target].subsystem.inputs)
-    comm_step_ns = ours[target].comm_step_ns
+    comm_step_ns = ours[target].ratio * ours[target].base_step_ns
     for k, (first, rest) in enumerate(inputs):
         values = np.array([[first] + [rest] * (n - 1)])
         command = encode(Kind.STEP, k, k * comm_step_ns, values, rows=1)
