@@ -22,7 +22,8 @@ from zencosim.recordings.reader import Recording
 
 def recorded_signals(recording: Recording) -> dict[str, Signal]:
     """Every signal of the recorded run (see the module text); RecordingError when its scene cannot be loaded."""
-    plan, _ = plan_scene(recording.scene())
+    scene = recording.scene()
+    plan, _ = plan_scene(scene)
     needed = [f"{sub.name}/y" for sub in plan.subsystems] + [STATUS_TOPIC]
     missing = [topic for topic in needed if topic not in recording.channels]
     if missing:
@@ -31,7 +32,7 @@ def recorded_signals(recording: Recording) -> dict[str, Signal]:
     last_step = recording.last_step()
     status = recording.channels[STATUS_TOPIC]
     point_ticks = None
-    if recording.scene().manager.step_control == "energy":  # a row per point: t_0 and every status's step
+    if scene.manager.step_control == "energy":  # a row per point: t_0 and every status's step
         point_ticks = np.array([0, *(message.step for message in status.messages)], dtype=np.int64)
         rows = {int(tick): row for row, tick in enumerate(point_ticks)}
     trajectories = []

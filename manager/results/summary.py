@@ -215,7 +215,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
         "bus": bus,
         "macro_step": scene.manager.macro_step,
         "duration": scene.manager.duration,
-        "steps": plan.n_ticks if record.point_ticks is None else len(record.point_ticks) - 1,
+        "steps": record.row_count() - 1,  # the macro-steps taken
         "extrapolation": scene.manager.extrapolation,
         "reference": None if reference is None else reference.kind,
         "subsystems": {s.name: {"comm_step": s.ratio * scene.manager.macro_step,

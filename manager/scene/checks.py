@@ -100,7 +100,8 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
     if manager.realtime:
         problems.add("manager.realtime", f"expected it off {why}: real time paces a fixed macro-step")
     if manager.corrects:
-        problems.add("manager.correction", f"expected it off {why}: energy correction is derived for a fixed macro-step")
+        problems.add("manager.correction", f"expected it off {why}: energy correction is derived for a fixed "
+                     "macro-step")
     if manager.compensation != "none":
         problems.add("manager.compensation", f"expected 'none' {why}: the compensator is designed for one macro-step")
     if not any(coupling.bonds() for coupling in couplings.values()):

@@ -314,3 +314,17 @@ def test_analyze_says_which_fixed_step_it_analyses():
     assert result.returncode == 0, result.stderr
     assert ("this is the scheme at a fixed macro-step of 0.001 s; the run varies it up to 0.01 s"
             in " ".join(result.stderr.split()))
+
+
+@pytest.mark.parametrize("control, said", [("energy", "energy-controlled macro-steps of 0.001 … 0.01 s"),
+                                           ("fixed", "10000 macro-steps of 0.001 s")])
+def test_check_says_which_steps_the_scene_takes(control, said):
+    """An [manager.energy_control] table at a fixed step is not used, and `zencosim check` does not say it is."""
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-m", "zencosim", "check", "two_mass_damped", "--set",
+                             f"manager.step_control={control}", "--set", "manager.energy_control.max_step_size=0.01"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert said in result.stdout

@@ -34,8 +34,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         out.print(escape(f"  mapped: {note}"), highlight=False)
     bonds = [f"{c.name}" + (f" ({c.settings.domain})" if c.settings.domain != "translational" else "")
              for c in scene.couplings.values() if c.kind == "force_displacement"]
-    control = scene.manager.energy_control
-    steps = (f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s" if control is None else
+    control = scene.manager.energy_control  # read whenever given; used with step_control = "energy" only
+    steps = (f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s"
+             if scene.manager.step_control != "energy" else
              f"energy-controlled macro-steps of {control.min_step_size or scene.manager.macro_step:g} … "
              f"{control.max_step_size:g} s (whole multiples of {scene.manager.macro_step:g} s)")
     out.print(f"{steps}, scheme {scene.manager.scheme}, "
