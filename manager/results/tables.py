@@ -29,7 +29,7 @@ import numpy as np
 from zencosim.extras import require
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
-from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.base import RunRecord, grid_ticks
 from zencosim.manager.scheme.window import BLOCK_ROWS, read_rows
 
 TIME_COLUMN = "time [s]"
@@ -108,8 +108,7 @@ class RunSignals(Mapping):
         unit, source, every, count, values = self._columns[name]
         steps = self._steps.get((every, count))
         if steps is None:
-            steps = self._steps[every, count] = (np.arange(0, count * every, every, dtype=np.int64)
-                                                 if self._points is None else np.asarray(self._points[::every][:count]))
+            steps = self._steps[every, count] = grid_ticks(self._points, every, 0, count)
         return Signal(name, unit, source, steps, values, self._base)
 
     def __iter__(self) -> Iterator[str]:
@@ -146,9 +145,7 @@ class GridTime:
 
     def __getitem__(self, rows: slice) -> np.ndarray:
         start, stop, _ = rows.indices(self.count)
-        if self.point_ticks is not None:
-            return read_rows(self.point_ticks[::self.every], start, stop) * self.base_step_ns / 1e9
-        return np.arange(start * self.every, stop * self.every, self.every, dtype=np.int64) * self.base_step_ns / 1e9
+        return grid_ticks(self.point_ticks, self.every, start, stop) * self.base_step_ns / 1e9
 
 
 def record_tables(record: RunRecord) -> list[Table]:

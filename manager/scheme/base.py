@@ -144,14 +144,20 @@ class RunRecord:
 
     def row_ticks(self, first: int, stop: int, every: int = 1) -> np.ndarray:
         """The base steps of rows ``first … stop - 1`` of such an array (``row_count``)."""
-        if self.point_ticks is not None:
-            return read_rows(self.point_ticks[::every], first, stop)
-        return np.arange(first, stop, dtype=np.int64) * every
+        return grid_ticks(self.point_ticks, every, first, stop)
 
     def signal(self, name: str) -> np.ndarray:
         """The trajectory of output ``name`` at its subsystem's communication points."""
         sub_index, output = self.plan.signals[name]
         return self.trajectories[sub_index][:, output]
+
+
+def grid_ticks(point_ticks: np.ndarray | None, every: int, first: int, stop: int) -> np.ndarray:
+    """The base steps of rows ``first … stop - 1`` of an array sampled every ``every`` base steps — of an
+    energy-controlled run (``RunRecord.point_ticks``), every ``every`` of its points (read as ``read_rows`` reads)."""
+    if point_ticks is not None:
+        return read_rows(point_ticks[::every], first, stop)
+    return np.arange(first, stop, dtype=np.int64) * every
 
 
 def decode_output(data: bytes, sub: SubsystemPlan, step: int) -> np.ndarray:
