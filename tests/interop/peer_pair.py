@@ -219,6 +219,13 @@ def variable_connection(source: tuple[str, str], target: tuple[str, str], bond: 
             + "\n    </VariableConnection>")
 
 
+def ecco_configuration(parameters: dict[str, object]) -> str:
+    """An OSP ``EccoConfiguration`` element (libcosim's ecco algorithm) of ``parameters``: element name -> value,
+    in order."""
+    return ("\n  <EccoConfiguration>" + "".join(f"\n    <{name}>{value}</{name}>" for name, value in parameters.items())
+            + "\n  </EccoConfiguration>\n")
+
+
 PAIR = ((("mass1", "fc"), ("mass2", "fc_in")), (("mass2", "v2"), ("mass1", "v2_in")))  # force, velocity
 DISPLACEMENT = variable_connection(("mass2", "x2"), ("mass1", "x2_in"))
 PLAIN_CONNECTIONS = "".join(variable_connection(*ends, bond="c") for ends in PAIR) + DISPLACEMENT

@@ -25,25 +25,14 @@ pytest.importorskip("fmpy")
 import zencosim
 from tests.interop.libcosim_oracle import run_osp
 from tests.interop.measures import AGREEMENT, largest_difference, zencosim_signals
-from tests.interop.peer_pair import write_system
+from tests.interop.peer_pair import ecco_configuration, write_system
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="building the FMUs needs gcc")
 
 END_TIME = 2.0  # [s]
-ECCO = """
-  <EccoConfiguration>
-    <SafetyFactor>0.8</SafetyFactor>
-    <StepSize>0.0001</StepSize>
-    <MinimumStepSize>0.0001</MinimumStepSize>
-    <MaximumStepSize>0.01</MaximumStepSize>
-    <MinimumChangeRate>0.2</MinimumChangeRate>
-    <MaximumChangeRate>1.5</MaximumChangeRate>
-    <ProportionalGain>0.2</ProportionalGain>
-    <IntegralGain>0.15</IntegralGain>
-    <RelativeTolerance>1e-3</RelativeTolerance>
-    <AbsoluteTolerance>1.0</AbsoluteTolerance>
-  </EccoConfiguration>
-"""
+ECCO = ecco_configuration({"SafetyFactor": 0.8, "StepSize": 0.0001, "MinimumStepSize": 0.0001, "MaximumStepSize": 0.01,
+                           "MinimumChangeRate": 0.2, "MaximumChangeRate": 1.5, "ProportionalGain": 0.2,
+                           "IntegralGain": 0.15, "RelativeTolerance": "1e-3", "AbsoluteTolerance": 1.0})
 SIGNALS = {"x2": ("mass2", "x2"), "v2": ("mass2", "v2"), "fc": ("mass1", "fc")}
 BOND_INPUTS = [("mass2", "fc_in"), ("mass1", "v2_in")]  # observed so that libcosim's ECCO may read them
 

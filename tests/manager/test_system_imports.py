@@ -16,6 +16,7 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tests.interop.peer_pair import ecco_configuration
 from zencosim.manager.scene.imports import import_system
 from zencosim.manager.scene.load import SceneError, load_scene, scene_from_text
 
@@ -303,23 +304,14 @@ def test_osp_refuses_an_unknown_algorithm(osp_dir):
     assert osp_refusal(osp_dir, text) == {key: "unknown algorithm 'jacobiWithRollback'; expected fixedStep"}
 
 
-ECCO = """
-  <EccoConfiguration>
-    <SafetyFactor>0.99</SafetyFactor>
-    <StepSize>0.0001</StepSize>
-    <MinimumStepSize>0.00001</MinimumStepSize>
-    <MaximumStepSize>0.01</MaximumStepSize>
-    <MinimumChangeRate>0.2</MinimumChangeRate>
-    <MaximumChangeRate>1.5</MaximumChangeRate>
-    <ProportionalGain>0.2</ProportionalGain>
-    <IntegralGain>0.15</IntegralGain>
-    <RelativeTolerance>1e-6</RelativeTolerance>
-    <AbsoluteTolerance>1e-5</AbsoluteTolerance>
-  </EccoConfiguration>"""
+ECCO = {"SafetyFactor": 0.99, "StepSize": 0.0001, "MinimumStepSize": "0.00001", "MaximumStepSize": 0.01,  # libcosimpy's
+        "MinimumChangeRate": 0.2, "MaximumChangeRate": 1.5, "ProportionalGain": 0.2, "IntegralGain": 0.15,  # README
+        "RelativeTolerance": "1e-6", "AbsoluteTolerance": "1e-5"}
 
 
-def ecco_system(configuration: str = ECCO) -> str:
-    return osp_system(algorithm="ecco").replace("</OspSystemStructure>", configuration + "\n</OspSystemStructure>")
+def ecco_system(parameters: dict[str, object] = ECCO) -> str:
+    return osp_system(algorithm="ecco").replace("</OspSystemStructure>",
+                                                ecco_configuration(parameters) + "</OspSystemStructure>")
 
 
 def test_osp_ecco_imports_as_the_energy_controlled_step_with_its_parameters(osp_dir):
@@ -340,8 +332,8 @@ def test_osp_ecco_without_its_parameters_is_refused_as_libcosim_refuses_it(osp_d
     text = osp_system(algorithm="ecco")
     key = f"Algorithm (line {line(text, '<Algorithm>')})"
     assert osp_refusal(osp_dir, text)[key].startswith("algorithm 'ecco' needs an EccoConfiguration element")
-    text = ecco_system(ECCO.replace("    <IntegralGain>0.15</IntegralGain>\n", "").replace(
-        "<SafetyFactor>0.99</SafetyFactor>", "<SafetyFactor>high</SafetyFactor><Gain>1</Gain>"))
+    text = ecco_system({**{name: value for name, value in ECCO.items() if name != "IntegralGain"},
+                        "SafetyFactor": "high", "Gain": 1})
     problems = osp_refusal(osp_dir, text)
     assert problems[f"EccoConfiguration (line {line(text, '<EccoConfiguration>')})"].startswith(
         "no IntegralGain: libcosim's ecco algorithm needs every parameter")
