@@ -7,6 +7,8 @@ grid in the summary and the tables, the same digest over Zenoh, the wire's step 
 from __future__ import annotations
 
 import csv
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -293,24 +295,22 @@ def test_a_scene_without_a_power_bond_has_nothing_to_control_the_step_by(tmp_pat
     assert {p.key: p.reason for p in caught.value.problems}["manager.step_control"].endswith("this scene has none")
 
 
-def test_the_command_line_refuses_real_time_with_a_varying_step():
-    import subprocess
-    import sys
+def zencosim_command(command: str, *options: str, control: str = "energy") -> subprocess.CompletedProcess:
+    """``zencosim COMMAND two_mass_damped OPTIONS`` with ``manager.step_control = control`` and a maximum step, run as
+    a user runs it."""
+    return subprocess.run([sys.executable, "-m", "zencosim", command, "two_mass_damped", *options,
+                           "--set", f"manager.step_control={control}", "--set", "manager.energy_control.max_step_size=0.01"],
+                          capture_output=True, text=True, timeout=120)
 
-    result = subprocess.run([sys.executable, "-m", "zencosim", "run", "two_mass_damped", "--realtime",
-                             "--set", "manager.step_control=energy", "--set", "manager.energy_control.max_step_size=0.01"],
-                            capture_output=True, text=True, timeout=120)
+
+def test_the_command_line_refuses_real_time_with_a_varying_step():
+    result = zencosim_command("run", "--realtime")
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "--realtime paces a fixed macro-step; manager.step_control = 'energy' varies it" in result.stderr
 
 
 def test_analyze_says_which_fixed_step_it_analyses():
-    import subprocess
-    import sys
-
-    result = subprocess.run([sys.executable, "-m", "zencosim", "analyze", "two_mass_damped",
-                             "--set", "manager.step_control=energy", "--set", "manager.energy_control.max_step_size=0.01"],
-                            capture_output=True, text=True, timeout=120)
+    result = zencosim_command("analyze")
     assert result.returncode == 0, result.stderr
     assert ("this is the scheme at a fixed macro-step of 0.001 s; the run varies it up to 0.01 s"
             in " ".join(result.stderr.split()))
@@ -320,11 +320,6 @@ def test_analyze_says_which_fixed_step_it_analyses():
                                            ("fixed", "10000 macro-steps of 0.001 s")])
 def test_check_says_which_steps_the_scene_takes(control, said):
     """An [manager.energy_control] table at a fixed step is not used, and `zencosim check` does not say it is."""
-    import subprocess
-    import sys
-
-    result = subprocess.run([sys.executable, "-m", "zencosim", "check", "two_mass_damped", "--set",
-                             f"manager.step_control={control}", "--set", "manager.energy_control.max_step_size=0.01"],
-                            capture_output=True, text=True, timeout=120)
+    result = zencosim_command("check", control=control)
     assert result.returncode == 0, result.stderr
     assert said in result.stdout
