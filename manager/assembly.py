@@ -62,7 +62,7 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
                 progress: Callable[[int], None] | None = None, status: StatusReport | None = None,
                 spin_ns: int = SPIN_ALONE_NS, local: frozenset[int] | None = None, keep: bool | None = None,
                 cpu: int | None = None, who: str = "zencosim", direct: SubsystemCalls | None = None,
-                tap: Tap | None = None):
+                tap: Tap | None = None, follower: bool = False):
     """The scheme generator of a run, with the correctors the scene asks for; paced to deadlines
     ``start_ns + j * macro_step`` when ``realtime`` (``start_ns`` on this process's monotonic clock; None: the
     first step starts the clock); reporting its status after every macro-step with ``status`` (a
@@ -73,7 +73,8 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     the scene sets ``manager.realtime_affinity`` (``who`` names the process in a warning when a real-time lever
     is refused); ``direct``: the subsystems of an in-process run, which the Jacobi scheme then calls itself
     (``manager.bus.inproc.DirectCalls``; the implicit scheme exchanges messages), handing ``tap`` (a recorded run's)
-    the messages a replica would."""
+    the messages a replica would; ``follower``: its replica follows the run from the network, executing no command
+    (the manager's over Zenoh: ``manager.scheme.jacobi``)."""
     levers = scene.manager
     scheduling = (ThreadScheduling(levers.realtime_priority, cpu if levers.realtime_affinity else None, who)
                   if levers.realtime_priority or levers.realtime_affinity else None)
@@ -88,7 +89,7 @@ def make_scheme(scene: Scene, plan: Plan, realtime: bool = False, start_ns: int 
     if scene.manager.scheme == "implicit":
         return implicit(plan, compile_joint(scene, plan), scene.manager.implicit, pacer, progress, status, spill)
     return jacobi(plan, pacer, progress, build_correctors(plan, scene.manager.correction, local, spill), status, local,
-                  spill, direct, tap)
+                  spill, direct, tap, follower)
 
 
 def process_scope(scene: Scene, plan: Plan, name: str) -> tuple[frozenset[int] | None, frozenset[str]]:

@@ -289,7 +289,7 @@ class ZenohBus:
         replies unpaced, and the record's timing is what the subsystems report of their own steps.
         ``tap`` sees every message of the manager's replica (a recorded run); ``keep``: its arrays in memory or
         spilled (``manager.run.execute``)."""
-        scheme = make_scheme(self.scene, self.plan, False, None, progress, status, keep=keep)
+        scheme = make_scheme(self.scene, self.plan, False, None, progress, status, keep=keep, follower=True)
         self._replica = Replica(scheme, self.names, tap=tap, on_drop=self._drop_reply)
         self._done = threading.Event()
         self._batches = Backlog()  # (subsystem, batch of replies); None ends
@@ -407,8 +407,7 @@ class ZenohBus:
         except ProtocolError as error:  # a malformed batch: none of it is taken
             self.dropped.add(key(self.run_id, name, "log"), str(error), self._sources.get(name))
             return
-        for reply in replies:
-            self._replica.deliver(name, reply)
+        self._replica.deliver_all(name, replies)
 
     def _drop_reply(self, name: str, reason: str) -> None:
         """The manager's replica dropped a reply of subsystem ``name`` (``manager.scheme.replica``)."""

@@ -15,7 +15,7 @@ import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.window import RowWindow, Spill, read_rows
-from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode
+from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, ProtocolError, decode, decode_header
 from zencosim.subsystems.straight_line import StepText
 
 PROGRESS_EVERY = 500  # base steps between two progress callbacks
@@ -223,6 +223,30 @@ class OutputReader:
             window.advance(row)
         window.array[row - window.offset] = y
         self.newest = y
+
+
+REPLY_KINDS = (Kind.OUTPUT, Kind.ACK, Kind.ERROR)
+
+
+def reply_fault(reply: bytes, sender: str, expected_ref: int | None, step: int | None) -> str | None:
+    """Why a replica must not take ``reply``, the next of subsystem ``sender`` from the network (None: it may): a
+    malformed header, a message that is no reply, a reply to another command than the one this replica computed
+    (``expected_ref``: its reference; None: this replica did not compute it), else one for another step than
+    ``step``, the step awaited (an ERROR is taken whatever its step: it ends the run)."""
+    try:
+        kind, _, _, reply_step, _, ref = decode_header(reply, f"subsystem {sender}")
+    except ProtocolError as error:
+        return str(error)
+    if kind not in REPLY_KINDS:
+        return f"a {kind.name} message, which is no reply"
+    if expected_ref is not None:
+        if ref != expected_ref:
+            return (f"answers another command than this replica computed (reference {ref} instead of "
+                    f"{expected_ref}): another process publishes here, or the subsystem's copy of the scheme "
+                    "diverged (run every process with the same zencosim, numpy and scene)")
+    elif step is not None and reply_step != step and kind != Kind.ERROR:
+        return f"a {kind.name} for step {reply_step}; the scheme awaits step {step}"
+    return None
 
 
 def expect_reply(data: bytes, sub: SubsystemPlan, expected: Kind, step: int, command: Kind | None = None):

@@ -39,6 +39,8 @@ from zencosim.manager.scheme.base import (
 )
 from zencosim.manager.scheme.compiled import compiled_steps
 from zencosim.manager.scheme.extrapolation import evaluate, lagrange_coefficients
+from zencosim.manager.scheme.followed_blocks import Follow, FollowedBlocks
+from zencosim.manager.scheme.lock_step import LockStep
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.residual import residual_power
@@ -58,7 +60,7 @@ def _index(positions: tuple[int, ...]) -> slice | np.ndarray:
 def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None,
            correctors: tuple[Corrector, ...] = (), status: StatusReport | None = None,
            local: frozenset[int] | None = None, spill: Spill | None = None, direct: SubsystemCalls | None = None,
-           tap: Tap | None = None) -> Generator[Exchange, dict[str, bytes], RunRecord]:
+           tap: Tap | None = None, follower: bool = False) -> Generator[Exchange, dict[str, bytes], RunRecord]:
     """Run the whole co-simulation; yields :class:`Exchange` requests, returns the :class:`RunRecord`.
 
     With ``status``, every exchange after the first step carries the status of the step before it (its step:
@@ -153,11 +155,31 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     compiled = (compiled_steps(plan, direct, block is not None) if direct is not None and pacer is None
                 and not correctors and (taken is None or block is not None) else None)
 
+    # a subsystem process's replica that does nothing but step its subsystem on its sources' newest outputs hands its
+    # steps to the replica in one request (manager.scheme.lock_step)
+    lock_step = (lock_step_request(plan, local, tracked, readers, copied, releases.release)
+                 if direct is None and not correctors and status is None and progress is None and period == 1 else None)
+
+    # the manager's replica of an unrecorded single-rate zero-order run takes whole steps at a time
+    follow = (FollowedBlocks(plan, readers, p_window, e_window, last_bond_energy, last_bond_tick, releases.times,
+                             progress)
+              if follower and not correctors and status is None and pacer is None and period == 1
+              and not plan.sequential and all(segments is not None for segments in copied) else None)
+
     try:
         first_tick = 0
+        if follow is not None:  # blocks of steps while each is what the scheme expects; from the first that is not, one
+            while first_tick < n_ticks:  # step at a time (the replica queues that block again)
+                block = yield Follow(first_tick, n_ticks)
+                if not follow.take(block, first_tick):
+                    break
+                first_tick += len(block[subs[0].name])
         if compiled is not None:
             first_tick = compiled.run(readers, p_window, e_window, releases.times, progress, status, block)
             step_status = first_tick if status is not None else None
+        if lock_step is not None:  # every step in lock step (its record: the release times; the manager's, the rest)
+            yield lock_step
+            first_tick = n_ticks
         for tick in range(first_tick, n_ticks):
             phase = tick % period
             next_tick = tick + 1
@@ -270,6 +292,24 @@ def _copied_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple
         else:
             segments.append([source, start, start + 8])
     return tuple((readers[source], start, end) for source, start, end in segments)
+
+
+def lock_step_request(plan: Plan, local: frozenset[int], tracked: frozenset[int], readers: list[OutputReader],
+                      copied: list, release: Callable[[int], int]) -> LockStep | None:
+    """The :class:`LockStep` request of a replica that computes one subsystem's commands (a subsystem process) from
+    zero-order inputs copied from its sources' replies (``_copied_inputs``), single-rate Jacobi; None otherwise (the
+    manager's replica, and an in-process one, follow every subsystem: their record is the run's)."""
+    if len(local) != 1 or len(plan.subsystems) == 1 or plan.sequential:
+        return None
+    (own,) = local
+    segments = copied[own]
+    if segments is None:
+        return None
+    subs = plan.subsystems
+    return LockStep(subs[own], tuple(subs[i] for i in sorted(tracked)),
+                    {subs[i].name: readers[i].newest_bytes for i in tracked},
+                    tuple((reader.sub.name, start, end) for reader, start, end in segments),
+                    0, plan.n_ticks, plan.base_step_ns, release)
 
 
 def gathered_inputs(s: SubsystemPlan, readers: list[OutputReader]) -> tuple[tuple[OutputReader, int], ...] | None:

@@ -30,11 +30,11 @@ from __future__ import annotations
 from collections import deque
 from typing import Callable, Generator, Protocol
 
-from zencosim.manager.scheme.base import Exchange, RunRecord
-from zencosim.manager.wire.protocol import Kind, ProtocolError, command_ref, decode_header
+from zencosim.manager.scheme.base import Exchange, RunRecord, reply_fault
+from zencosim.manager.scheme.followed_blocks import Follow
+from zencosim.manager.scheme.lock_step import LockStep, LockStepRun
+from zencosim.manager.wire.protocol import command_ref
 from zencosim.manager.wire.status import StatusReport
-
-REPLY_KINDS = (Kind.OUTPUT, Kind.ACK, Kind.ERROR)
 
 
 class Tap(Protocol):
@@ -85,6 +85,7 @@ class Replica:
         # once, when it arrives or when a request awaits it, so a step costs a look per reply, not per reply and
         # subsystem awaited (a star of many subsystems: the manager's replica)
         self._missing: set[str] = set()
+        self._lock_step: LockStepRun | None = None  # a LockStep request's run (manager.scheme.lock_step)
 
     @property
     def finished(self) -> bool:
@@ -94,6 +95,10 @@ class Replica:
         """Subsystems whose reply the scheme waits for now."""
         if self.request is None:
             return []
+        if self._lock_step is not None:
+            return self._lock_step.waiting_for()
+        if isinstance(self.request, Follow):
+            return [name for name, queue in self.replies.items() if not queue]
         return [name for name in self.request.awaits if name in self._missing]
 
     def start(self) -> None:
@@ -102,17 +107,41 @@ class Replica:
         except StopIteration as done:  # a scheme that called its subsystems itself (manager.scheme.direct)
             self.result = done.value
             return
+        if isinstance(self.request, LockStep):
+            self._start_lock_step()
+            return
+        if isinstance(self.request, Follow):
+            self._follow()
+            return
         self._execute(None)
         self._await()
 
     def deliver(self, name: str, reply: bytes) -> None:
         """A reply of subsystem ``name`` from the network."""
+        if self._lock_step is not None:
+            self._lock_step.deliver(name, reply)
+            if self._lock_step.done:
+                self._end_lock_step()
+            return
         self.replies[name].append(reply)
+        if isinstance(self.request, Follow):
+            self._follow()
+            return
         missing = self._missing
         if name in missing and self._ready(name):
             missing.discard(name)
             if not missing:
                 self._advance()
+
+    def deliver_all(self, name: str, replies: list[bytes]) -> None:
+        """Replies of subsystem ``name`` from the network, in order (a batch): the scheme takes them as one by one, or
+        whole steps at a time when it asks so (``Follow``)."""
+        if isinstance(self.request, Follow):
+            self.replies[name].extend(replies)
+            self._follow()
+            return
+        for reply in replies:
+            self.deliver(name, reply)
 
     def run(self) -> RunRecord:
         """Run to the end when every subsystem is local (the in-process bus)."""
@@ -176,25 +205,68 @@ class Replica:
                     self.tap.exchange(replies, None)
                 return
             self.steps_done += 1
+            if isinstance(self.request, LockStep):
+                self._start_lock_step()
+                return
+            if isinstance(self.request, Follow):
+                self._follow()
+                return
             self._execute(replies)
             self._missing = {name for name in self.request.awaits if not self._ready(name)}
             if self._missing:
                 return
 
+    def _follow(self) -> None:
+        """While the scheme asks for whole steps (``Follow``) and every subsystem has a reply queued: hand it the
+        replies of as many steps as every queue holds. A block it does not take goes back to the queues, and the
+        scheme, which then exchanges step by step, gets its replies as any request's."""
+        queues = self.replies
+        while isinstance(self.request, Follow):
+            tick = self.request.tick
+            count = min(min(map(len, queues.values())), self.request.end - tick)
+            if count == 0:
+                return
+            block = {name: [queue.popleft() for _ in range(count)] for name, queue in queues.items()}
+            try:
+                self.request = self.scheme.send(block)
+            except StopIteration as done:
+                self.result = done.value
+                self.request = None
+                self.steps_done += count
+                return
+            if not isinstance(self.request, Follow):
+                for name, replies in block.items():
+                    queues[name].extendleft(reversed(replies))
+                self._execute(None)
+                self._await()
+                return
+            self.steps_done += self.request.tick - tick
+
+    def _start_lock_step(self) -> None:
+        """Run the scheme's :class:`LockStep` request: its one local subsystem's steps, the replies that came early
+        handed over first."""
+        request = self.request
+        self._lock_step = run = LockStepRun(request, self.local[request.own.name].handle, self.publish, self.on_drop)
+        run.start()
+        for name, queue in self.replies.items():
+            while queue and not run.done:
+                run.deliver(name, queue.popleft())
+        if run.done:
+            self._end_lock_step()
+
+    def _end_lock_step(self) -> None:
+        """The lock step's last replies are in: the scheme ends."""
+        run, self._lock_step = self._lock_step, None
+        self.steps_done += run.tick - run.request.first
+        try:
+            self.request = self.scheme.send(None)
+        except StopIteration as done:
+            self.result = done.value
+            self.request = None
+            return
+        raise RuntimeError("a scheme goes on after a LockStep request; it must end")
+
     def fault(self, name: str, reply: bytes) -> str | None:
         """Why the scheme must not take ``reply``, the next of subsystem ``name`` from the network (None: it may)."""
-        try:
-            kind, _, _, step, _, ref = decode_header(reply, f"subsystem {name}")
-        except ProtocolError as error:
-            return str(error)
-        if kind not in REPLY_KINDS:
-            return f"a {kind.name} message, which is no reply"
         expected = self.expected[name]
-        if expected:
-            if ref != expected[0]:
-                return (f"answers another command than this replica computed (reference {ref} instead of "
-                        f"{expected[0]}): another process publishes here, or the subsystem's copy of the scheme "
-                        "diverged (run every process with the same zencosim, numpy and scene)")
-        elif self.request.step is not None and step != self.request.step and kind != Kind.ERROR:
-            return f"a {kind.name} for step {step}; the scheme awaits step {self.request.step}"
-        return None
+        return reply_fault(reply, name, expected[0] if expected else None, self.request.step)

@@ -15,6 +15,7 @@ from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.jacobi import jacobi
+from zencosim.manager.scheme.lock_step import LockStep
 from zencosim.manager.wire.status import StatusReport
 
 SCENES = [("two_mass_damped", ["manager.duration=0.05"]),  # period 1
@@ -39,13 +40,13 @@ class _Names:
             self.awaited = request.awaits
 
 
-def _assert_one_set_of_names_per_shape(exchanges: list[tuple[int | None, tuple]], n_ticks: int) -> None:
+def _assert_one_set_of_names_per_shape(exchanges: list[tuple[int | None, tuple]], shaped: int) -> None:
     names_of = defaultdict(set)
     for shape, names in exchanges:
         if shape is not None:
             names_of[shape].add(names)
     assert {shape: len(names) for shape, names in names_of.items()} == dict.fromkeys(names_of, 1)
-    assert sum(shape is not None for shape, _ in exchanges) == n_ticks - 1  # every step after the first has one
+    assert sum(shape is not None for shape, _ in exchanges) == shaped
 
 
 @pytest.mark.parametrize("scene_name, overrides", SCENES)
@@ -54,17 +55,23 @@ def test_a_shape_stands_for_one_set_of_names_on_every_replica(scene_name, overri
     plan, subsystems = plan_scene(scene)
     full = _Names()
     run_in_process(make_scheme(scene, plan, status=StatusReport(plan, False)), plan, subsystems, full)
-    _assert_one_set_of_names_per_shape(full.exchanges, plan.n_ticks)
+    _assert_one_set_of_names_per_shape(full.exchanges, plan.n_ticks - 1)  # every step after the first has one
 
     for own in plan.subsystems:  # each subsystem's process: fed the replies it awaits, in order, from the run above
         replies = {name: deque(taken) for name, taken in full.replies.items()}
         scheme = jacobi(plan, local=frozenset({own.index}))
-        local, request = _Names(), next(scheme)
+        local, request, lock_stepped = _Names(), next(scheme), False
         try:
             while True:
+                if isinstance(request, LockStep):  # every step in one request (a single-rate ZOH process): none to tap
+                    assert (request.first, request.end) == (0, plan.n_ticks)
+                    lock_stepped = True
+                    request = scheme.send(None)
+                    continue
                 local.exchange(None, request)
                 request = scheme.send({name: replies[name].popleft() for name in request.awaits})
         except StopIteration:
             pass
-        _assert_one_set_of_names_per_shape(local.exchanges, plan.n_ticks)
+        _assert_one_set_of_names_per_shape(local.exchanges, 0 if lock_stepped else plan.n_ticks - 1)
+        assert lock_stepped == (scene_name != "hydraulic_crane")  # single-rate zero-order: every step in one request
         assert {sends for _, (_, _, sends, _) in local.exchanges} <= {(own.name,), ()}
