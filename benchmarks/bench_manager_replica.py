@@ -7,7 +7,10 @@ reply from the network, screening each (``manager.scheme.replica``). Here the re
 the subsystem processes' replicas in one thread (``replicas.py``), and written to a file; then a fresh
 process feeds them to the manager's replica under ``valgrind --tool=cachegrind``, for runs ``STEPS`` apart, and
 the difference over the steps is the count (start-up and imports cancel; as bench_instructions.py: one BLAS
-thread, fixed string hashes). ``starN`` is the star of N masses of ``zencosim.scenes.topologies``: its hub's
+thread, fixed string hashes). Two ways, side by side: ``batches``, as the manager follows a run (``follower``: it
+may take whole steps at once, ``manager.scheme.followed_blocks``; each subsystem's replies in batches of
+``LOG_REPLIES``, as its process sends them, ``subsystems.process.host``), and ``one by one`` (the replica that takes
+reply after reply, as before the blocks). ``starN`` is the star of N masses of ``zencosim.scenes.topologies``: its hub's
 fan-in, and the manager's, is N − 1. Needs valgrind.
 """
 from __future__ import annotations
@@ -34,11 +37,23 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.replica import Replica
 reference, overrides, replies = pickle.load(open(sys.argv[1], "rb"))
 plan, _ = plan_scene(load_scene(reference, overrides))
-manager = Replica(make_scheme(load_scene(reference, overrides), plan), [s.name for s in plan.subsystems],
-                  on_drop=lambda name, reason: None)
+batches = sys.argv[2] == "batches"
+manager = Replica(make_scheme(load_scene(reference, overrides), plan, follower=batches),
+                  [s.name for s in plan.subsystems], on_drop=lambda name, reason: None)
 manager.start()
-for name, reply in replies:
-    manager.deliver(name, reply)
+if batches:
+    from zencosim.subsystems.process.host import LOG_REPLIES
+    pending = {s.name: [] for s in plan.subsystems}
+    for name, reply in replies:
+        pending[name].append(reply)
+        if len(pending[name]) == LOG_REPLIES:
+            manager.deliver_all(name, pending[name])
+            pending[name] = []
+    for name, rest in pending.items():
+        manager.deliver_all(name, rest)
+else:
+    for name, reply in replies:
+        manager.deliver(name, reply)
 assert manager.finished
 """
 
@@ -53,10 +68,10 @@ def scene_of(name: str, steps: int, folder: Path) -> tuple[str, list[str]]:
     return name, [f"manager.duration={steps / 1000!r}"]
 
 
-def instructions(script: Path, replies: Path) -> int:
+def instructions(script: Path, replies: Path, way: str) -> int:
     env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1"}
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-                             sys.executable, str(script), str(replies)], capture_output=True, text=True, env=env,
+                             sys.executable, str(script), str(replies), way], capture_output=True, text=True, env=env,
                             check=True)
     return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
 
@@ -69,17 +84,20 @@ def main() -> None:
         folder = Path(temporary)
         script = folder / "feed.py"
         script.write_text(FEED)
+        print(f"{'scene':20s} {'one by one':>12s} {'batches':>12s}   instructions per macro-step of the manager's "
+              "replica", flush=True)
         for name in args.scenes.split(","):
-            counts = []
+            paths = []
             for steps in STEPS:
                 reference, overrides = scene_of(name, steps, folder)
-                path = folder / f"{name}_{steps}.pkl"
+                paths.append(folder / f"{name}_{steps}.pkl")
                 replies = replicas_in_lock_step(load_scene(reference, overrides))
-                path.write_bytes(pickle.dumps((reference, overrides, replies)))
-                counts.append(instructions(script, path))
-            per_step = (counts[1] - counts[0]) / (STEPS[1] - STEPS[0])
-            print(f"{name:20s} {per_step:12,.0f} instructions per macro-step of the manager's replica", flush=True)
-
+                paths[-1].write_bytes(pickle.dumps((reference, overrides, replies)))
+            per_step = {}
+            for way in ("one-by-one", "batches"):
+                counts = [instructions(script, path, way) for path in paths]
+                per_step[way] = (counts[1] - counts[0]) / (STEPS[1] - STEPS[0])
+            print(f"{name:20s} {per_step['one-by-one']:12,.0f} {per_step['batches']:12,.0f}", flush=True)
 
 if __name__ == "__main__":
     main()

@@ -9,8 +9,8 @@ Reports medians over repeats and the ratios the targets are stated in: the Zenoh
 two_mass_damped (2 subsystem processes + manager, as fast as possible) over the transport floor of a
 Jacobi step (``pingpong.jacobi_lockstep_steps``: two zenoh-python processes in lock step with the bus's
 settings, each publishing step j once it holds the other's j-1; target <= 1.2), the CPU time of all its processes
-per step over the same floor's (target <= 1.5) and the manager's over one subsystem process's (target <= 0.2),
-and over the zenoh-python ping-pong round trip; in-process macro-steps per second (target >= 13 000), and the in-process
+per step over the same floor's, measured just before each run (the median of the repeats' ratios; target <= 1.5)
+and the manager's over one subsystem process's (target <= 0.2), and over the zenoh-python ping-pong round trip; in-process macro-steps per second (target >= 13 000), and the in-process
 macro-step over the floor (``benchmarks/floor.py``: the same symplectic-Euler Jacobi arithmetic as one
 Python loop over floats), each repeat's floor measured just before its run (target <= 30).
 
@@ -97,17 +97,23 @@ def compare_trees(tree: Path, repeats: int) -> dict:
             for which, measured in runs.items()}
 
 
-def zenoh_step(repeats: int, lowlatency: bool) -> dict[str, float]:
+def zenoh_step(repeats: int, lowlatency: bool, floor_steps: int = 0) -> dict[str, float]:
     """Medians over repeats of a 5 s run's mean macro-step [s] (wall time / steps), and of the CPU time [s] per step
-    of all its processes while they stepped (the subsystem processes' and the manager's), and of the manager's."""
+    of all its processes while they stepped (the subsystem processes' and the manager's), and of the manager's; with
+    ``floor_steps``, the lock-step floor's CPU per step (``pingpong.jacobi_lockstep_cpu``) measured just before each
+    run too, and the ratio of the two of each repeat (the machine's load drifts between repeats: a ratio of
+    neighbours is steadier than one of medians taken minutes apart)."""
     scene = load_scene(SCENE, ["manager.duration=5.0"])
     runs = []
     for _ in range(repeats):
+        floor = pingpong.jacobi_lockstep_cpu(floor_steps) if floor_steps else None
         record, wall = execute(scene, "zenoh", zenoh_options=ZenohOptions(lowlatency))
         steps = record.plan.n_ticks
         subsystems = [report["cpu_s"] / steps for report in record.reported_timing.values()]
-        runs.append({"step_s": wall / steps, "cpu_s": sum(subsystems) + record.manager_cpu_s / steps,
-                     "manager_cpu_s": record.manager_cpu_s / steps, "subsystem_cpu_s": max(subsystems)})
+        cpu = sum(subsystems) + record.manager_cpu_s / steps
+        runs.append({"step_s": wall / steps, "cpu_s": cpu, "manager_cpu_s": record.manager_cpu_s / steps,
+                     "subsystem_cpu_s": max(subsystems),
+                     **({"floor_cpu_s": floor, "cpu_ratio": cpu / floor} if floor else {})})
     return {key: statistics.median(run[key] for run in runs) for key in runs[0]}
 
 
@@ -140,7 +146,7 @@ def main() -> None:
         "floor_step_us": inproc["floor_us"], "ratio_step_to_floor": inproc["ratio_to_floor"],
     }
     if not args.inprocess_only:
-        lowlatency = zenoh_step(args.repeats, True)
+        lowlatency = zenoh_step(args.repeats, True, n)
         figures.update({
             "zenoh_step_us_lowlatency": lowlatency["step_s"] * 1e6,
             "zenoh_cpu_us_per_step": lowlatency["cpu_s"] * 1e6,
@@ -149,14 +155,13 @@ def main() -> None:
             "zenoh_step_us_default_transport": zenoh_step(args.repeats, False)["step_s"] * 1e6,
             "jacobi_floor_step_us": statistics.median(statistics.mean(pingpong.jacobi_lockstep_steps(n))
                                                       for _ in range(args.repeats)) * 1e6,
-            "jacobi_floor_cpu_us_per_step": statistics.median(pingpong.jacobi_lockstep_cpu(n)
-                                                              for _ in range(args.repeats)) * 1e6,
+            "jacobi_floor_cpu_us_per_step": lowlatency["floor_cpu_s"] * 1e6,
             "pingpong_rtt_us_official": statistics.median(pingpong.zenoh_round_trips(n, official=True)) * 1e6,
             "pingpong_rtt_us_bus_settings": statistics.median(pingpong.zenoh_round_trips(n, official=False)) * 1e6,
             "udp_rtt_us": statistics.median(pingpong.udp_round_trips(n)) * 1e6,
         })
         figures["ratio_step_to_jacobi_floor"] = figures["zenoh_step_us_lowlatency"] / figures["jacobi_floor_step_us"]
-        figures["ratio_cpu_to_jacobi_floor"] = figures["zenoh_cpu_us_per_step"] / figures["jacobi_floor_cpu_us_per_step"]
+        figures["ratio_cpu_to_jacobi_floor"] = lowlatency["cpu_ratio"]  # the median of each repeat's
         figures["ratio_manager_to_subsystem_cpu"] = (figures["zenoh_manager_cpu_us_per_step"]
                                                      / figures["zenoh_subsystem_cpu_us_per_step"])
         figures["ratio_step_to_official_pingpong"] = figures["zenoh_step_us_lowlatency"] / figures["pingpong_rtt_us_official"]

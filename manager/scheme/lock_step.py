@@ -47,14 +47,15 @@ class LockStep:
 
 
 class LockStepRun:
-    """Runs a :class:`LockStep` as the replies arrive; ``handle(command)``: the own subsystem's endpoint,
+    """Runs a :class:`LockStep` as the replies arrive; ``answer(tick, command)``: the own subsystem's reply to its
+    command of step ``tick`` (``subsystems.process.endpoint``: ``StatementSteps.answer``, or its ``handle``),
     ``publish(name, reply)``: where its replies go, ``on_drop(name, reason)``: a reply from the network that is
     not taken (``manager.scheme.replica``)."""
 
-    def __init__(self, request: LockStep, handle: Callable[[bytes], bytes],
+    def __init__(self, request: LockStep, answer: Callable[[int, bytes], bytes],
                  publish: Callable[[str, bytes], None] | None, on_drop: Callable[[str, str], None]) -> None:
         self.request = request
-        self.handle, self.publish, self.on_drop = handle, publish, on_drop
+        self.answer, self.publish, self.on_drop = answer, publish, on_drop
         self.tick = request.first
         self.newest = dict(request.newest)
         self.later: dict[str, deque[bytes]] = {s.name: deque() for s in request.tracked}
@@ -136,7 +137,7 @@ class LockStepRun:
             command = header(*head, tick, tick * base, 0) + b"".join([newest[name][start:end]
                                                                       for name, start, end in segments])
             request.release(tick)
-            reply = self.handle(command)
+            reply = self.answer(tick, command)
             if self.publish is not None:
                 self.publish(own, reply)
             self.tick = tick + 1

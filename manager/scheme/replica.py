@@ -86,6 +86,7 @@ class Replica:
         # subsystem awaited (a star of many subsystems: the manager's replica)
         self._missing: set[str] = set()
         self._lock_step: LockStepRun | None = None  # a LockStep request's run (manager.scheme.lock_step)
+        self._statements = None  # its subsystem's StatementSteps (subsystems.process.endpoint), where it has them
 
     @property
     def finished(self) -> bool:
@@ -246,7 +247,11 @@ class Replica:
         """Run the scheme's :class:`LockStep` request: its one local subsystem's steps, the replies that came early
         handed over first."""
         request = self.request
-        self._lock_step = run = LockStepRun(request, self.local[request.own.name].handle, self.publish, self.on_drop)
+        endpoint = self.local[request.own.name]
+        self._statements = endpoint.zero_order_steps()  # its step as statements, where it has them
+        answer = (self._statements.answer if self._statements is not None
+                  else lambda _, command: endpoint.handle(command))
+        self._lock_step = run = LockStepRun(request, answer, self.publish, self.on_drop)
         run.start()
         for name, queue in self.replies.items():
             while queue and not run.done:
@@ -258,6 +263,8 @@ class Replica:
         """The lock step's last replies are in: the scheme ends."""
         run, self._lock_step = self._lock_step, None
         self.steps_done += run.tick - run.request.first
+        if self._statements is not None:  # the subsystem takes the state its statements left
+            self._statements.end(run.tick)
         try:
             self.request = self.scheme.send(None)
         except StopIteration as done:

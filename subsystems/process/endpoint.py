@@ -7,6 +7,8 @@ scheme (called directly), on identical bytes; the in-process Jacobi scheme calls
 from __future__ import annotations
 
 import struct
+import zlib
+from collections.abc import Callable
 
 from zencosim.manager.bus.signals import raised_by_code
 from zencosim.manager.wire.protocol import (
@@ -20,6 +22,7 @@ from zencosim.manager.wire.protocol import (
     encode_error,
 )
 from zencosim.subsystems.inputs import InputPolynomial
+from zencosim.subsystems.straight_line import StepText, define, unpacked
 from zencosim.subsystems.subsystem import SavedState, Subsystem
 
 
@@ -76,6 +79,14 @@ class SubsystemEndpoint:
             return encode(Kind.OUTPUT, due, t1, y, ref=ref)
         return HEADER.pack(VERSION, Kind.OUTPUT, 0, len(y), due, t1, ref) + self._pack_outputs(*y)
 
+    def zero_order_steps(self) -> StatementSteps | None:
+        """The subsystem's zero-order STEPs answered by its step's statements (:class:`StatementSteps`), or None where
+        it has none (``Subsystem.step_text``)."""
+        text = self.subsystem.step_text(self.ratio * self.base_step_ns, "", f"tick * {self.base_step_ns}")
+        if text is None or len(text.outputs) != len(self.subsystem.outputs):
+            return None
+        return StatementSteps(self, text)
+
     def _inputs(self, message) -> InputPolynomial:
         rows = message.rows
         if rows < 1 or message.values.size != rows * self.n_inputs:
@@ -110,3 +121,54 @@ class SubsystemEndpoint:
             return encode(Kind.OUTPUT, message.step, message.time_ns, sub.project(message.values), ref=ref)
         raise ProtocolError(f"subsystem {sub.name}: cannot handle a {kind.name} message")
 
+
+
+class StatementSteps:
+    """A subsystem's zero-order STEP commands answered by its step as statements over floats (``Subsystem.step_text``:
+    a small linear model's straight-line step, a co-simulation FMU's calls) in one generated function, its state kept
+    as floats from call to call: the reply ``SubsystemEndpoint.handle`` gives, byte for byte (the same statements
+    ``advance_values`` runs, the values read from the command's bytes, the command's CRC-32 as the reference; a
+    failure answered with the same ERROR). For a subsystem process in lock step (``manager.scheme.lock_step``),
+    which calls :meth:`answer` once a step and :meth:`end` when its steps are done."""
+
+    def __init__(self, endpoint: SubsystemEndpoint, text: StepText) -> None:
+        self.endpoint = endpoint
+        self.state = endpoint.subsystem.z.tolist()
+        self.inputs_at_end: list[float] | None = None  # None: no step taken
+        self._step: Callable = define(_answer_text(endpoint, text), "answer", "<zero-order step>", {
+            **text.namespace, "HEADER": HEADER, "inputs_of": endpoint._unpack_inputs, "crc32": zlib.crc32,
+            "outputs_of": struct.Struct(f"<{len(text.outputs)}d").pack})
+
+    def answer(self, tick: int, command: bytes) -> bytes:
+        """The reply to the zero-order STEP ``command`` of step ``tick`` (a valid one: its header as the scheme
+        writes it)."""
+        try:
+            reply, self.state, self.inputs_at_end = self._step(tick, command, self.state)
+            return reply
+        except (Exception, SystemExit, KeyboardInterrupt) as error:  # as handle answers a failing command
+            reason = failure_reason(error)
+            if reason is None:
+                raise
+            return encode_error(tick, tick * self.endpoint.base_step_ns, reason, zlib.crc32(command))
+
+    def end(self, tick: int) -> None:
+        """The steps are done at base step ``tick``: the subsystem takes the state they left (``took_steps``)."""
+        if self.inputs_at_end is not None:
+            self.endpoint.subsystem.took_steps(tick * self.endpoint.base_step_ns, self.state, self.inputs_at_end)
+
+
+def _answer_text(endpoint: SubsystemEndpoint, text: StepText) -> str:
+    """The source of ``answer(tick, command, state) -> (reply, state, inputs at the end)``: the command's input values
+    as ``_zero_order_step`` reads them, the step's statements, the OUTPUT reply as it packs it."""
+    due = f"tick + {endpoint.ratio}"
+    lines = ["def answer(tick, command, state):"]
+    if text.coefficients:
+        lines.append(f"    {unpacked(text.coefficients)} = inputs_of(command, {HEADER.size})")
+    if text.state:
+        lines.append(f"    {unpacked(text.state)} = state")
+    lines.extend(f"    {statement}" for statement in text.statements)
+    lines.append(f"    return (HEADER.pack({VERSION}, {int(Kind.OUTPUT)}, 0, {len(text.outputs)}, {due}, "
+                 f"({due}) * {endpoint.base_step_ns}, crc32(command))"
+                 f" + outputs_of({', '.join(text.outputs)}), [{', '.join(text.new_state)}], "
+                 f"[{', '.join(text.inputs_at_end)}])")
+    return "\n".join(lines)
