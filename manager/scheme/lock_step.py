@@ -66,6 +66,7 @@ class LockStepRun:
         self.sources = tuple(s.name for s in request.tracked if s is not request.own)
         self.missing: set[str] = set()
         self.unusual: set[str] = set()  # tracked subsystems whose reply for the current step is no plain OUTPUT
+        self.early = 0  # replies in ``later``
         self.done = request.first >= request.end
         self._command_head = (VERSION, int(Kind.STEP), 1, len(request.own.inputs))  # a STEP's header, up to its step
 
@@ -80,19 +81,21 @@ class LockStepRun:
 
     def deliver(self, name: str, reply: bytes) -> None:
         """A reply of source ``name`` from the network."""
-        if name in self.missing and not self.later[name]:
+        missing = self.missing
+        if name in missing and not self.later[name]:
             if self._accept(name, reply):
-                self.missing.discard(name)
-                if not self.missing:
+                missing.discard(name)
+                if not missing:
                     self._run()
         else:
             self.later[name].append(reply)
+            self.early += 1
 
     def _accept(self, name: str, reply: bytes) -> bool:
         """Take ``reply`` as ``name``'s for the current step when it may be taken (True; one that is no OUTPUT for
         the step, an ERROR, is noted: ``_commit`` raises its named error), drop it with its reason when it may not
         (False)."""
-        if not self._plain(name, reply):
+        if len(reply) != self.size[name] or _HEAD.unpack_from(reply) != (self.prefix[name], self.tick):
             reason = reply_fault(reply, name, None, self.tick)
             if reason is not None:
                 self.on_drop(name, reason)
@@ -101,14 +104,11 @@ class LockStepRun:
         self.newest[name] = reply
         return True
 
-    def _plain(self, name: str, reply: bytes) -> bool:
-        """Whether ``reply`` is ``name``'s OUTPUT for the current step (``check_output``'s first test)."""
-        return len(reply) == self.size[name] and _HEAD.unpack_from(reply) == (self.prefix[name], self.tick)
-
     def _take(self, name: str) -> bool:
         """Whether ``name``'s reply for the current step is in: the replies that came early, screened in order."""
         later = self.later[name]
         while later:
+            self.early -= 1
             if self._accept(name, later.popleft()):
                 return True
         return False
@@ -124,9 +124,10 @@ class LockStepRun:
     def _run(self) -> None:
         """Every step whose tracked replies are in: their commit, the step's command, its release, the own
         subsystem's reply."""
-        request, newest = self.request, self.newest
+        request, newest, sources = self.request, self.newest, self.sources
         own = request.own.name
         segments, header, head, base = request.segments, HEADER.pack, self._command_head, request.base_step_ns
+        own_size, own_prefix = self.size[own], self.prefix[own]
         while True:
             if self.unusual:
                 self._commit()
@@ -140,10 +141,12 @@ class LockStepRun:
             reply = self.answer(tick, command)
             if self.publish is not None:
                 self.publish(own, reply)
-            self.tick = tick + 1
-            if not self._plain(own, reply):  # its own replies are not screened: the scheme takes them as they are
+            self.tick = tick = tick + 1
+            # its own replies are not screened (the scheme takes them as they are): one that is no OUTPUT is noted
+            if len(reply) != own_size or _HEAD.unpack_from(reply) != (own_prefix, tick):
                 self.unusual.add(own)
             newest[own] = reply
-            self.missing = {name for name in self.sources if not self._take(name)}
+            # the sources' replies for the next step: none is in unless one came early
+            self.missing = {name for name in sources if not self._take(name)} if self.early else set(sources)
             if self.missing:
                 return

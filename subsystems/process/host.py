@@ -131,6 +131,7 @@ class _Host:
         self.cpu_s = [0.0, 0.0]  # this process's CPU time when the run started and when its replica finished
         self.last_sent = time.monotonic()
         self.dropped = DroppedMessages()  # messages taken off the network and dropped (manager.bus.dropped)
+        self.quiet = threading.local()  # the threads whose numpy overflow and invalid warnings _guarded turned off
 
     def stop(self, why: str) -> None:
         self.reasons.append(why)
@@ -220,10 +221,14 @@ class _Host:
 
     def _guarded(self, action, *args) -> None:
         """Run a replica action; an error here (a failed run) ends this process. A diverging run overflows: its
-        values become infinite or NaN without a warning, and the manager's summary reports it."""
+        values become infinite or NaN without a warning, and the manager's summary reports it (numpy's handling of
+        both set once in each thread that runs an action — Zenoh's callback thread: its context keeps it — not
+        entered and left around every reply)."""
+        if not hasattr(self.quiet, "set"):
+            np.seterr(over="ignore", invalid="ignore")
+            self.quiet.set = True
         try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                action(*args)
+            action(*args)
         except Exception as error:
             self.stop(f"{type(error).__name__}: {error}")
         if self.replica is not None and self.replica.finished:

@@ -6,16 +6,21 @@ answering is named, the run ends non-zero within the timeout, and no process is 
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
+import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
 
 import zencosim
 from tests.conftest import alive, busy_prefix, children_of, cmdline, end_busy, read_until, record_of, summary_of
-from zencosim.manager.bus.zenoh_session import free_tcp_port
+from zencosim.manager.bus.zenoh_session import free_tcp_port, open_session, session_config
+from zencosim.manager.scene.load import load_scene
+from zencosim.subsystems.process.host import _Host
 from zencosim.scenes.topologies import mass_star
 
 pytestmark = pytest.mark.multiprocess
@@ -154,3 +159,29 @@ def test_every_bundled_scene_gives_one_digest_on_both_buses(name):
     the wire protocol) give one digest for every bundled scene."""
     scene = _short(name)
     assert zencosim.run(scene, "zenoh").digest == zencosim.run(scene).digest
+
+
+def test_a_process_quiets_numpys_overflow_once_in_zenohs_callback_thread_which_keeps_it():
+    """A subsystem process turns numpy's overflow and invalid warnings off once per thread that runs its replica
+    (``_Host._guarded``), not around every reply: Zenoh's callback thread must keep that setting from one callback
+    to the next. Three overflows in three callbacks, each under warnings-as-errors: none raises (the host would stop
+    with the warning as its reason); this thread's setting is untouched."""
+    outcomes, done = [], threading.Event()
+
+    def overflow() -> None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            outcomes.append(float(np.float64(1e308) * np.float64(10.0)))
+        if len(outcomes) == 3:
+            done.set()
+
+    with open_session(session_config([f"tcp/127.0.0.1:{free_tcp_port()}"])) as session:
+        host = _Host(load_scene("two_mass_damped"), "S1", "quiet-test", session)
+        session.declare_subscriber("zencosim/quiet-test/x", lambda _: host._guarded(overflow))
+        for _ in range(3):
+            session.put("zencosim/quiet-test/x", b"")
+        deadline = time.monotonic() + 60  # a loaded machine may take its time; a failure ends the wait at once
+        while not (done.is_set() or host.finished.is_set()) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert not host.reasons and outcomes == [math.inf] * 3
+    assert np.geterr()["over"] == "warn"
