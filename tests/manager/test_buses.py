@@ -20,8 +20,8 @@ import zencosim
 from tests.conftest import alive, busy_prefix, children_of, cmdline, end_busy, read_until, record_of, summary_of
 from zencosim.manager.bus.zenoh_session import free_tcp_port, open_session, session_config
 from zencosim.manager.scene.load import load_scene
-from zencosim.subsystems.process.host import _Host
 from zencosim.scenes.topologies import mass_star
+from zencosim.subsystems.process.host import _Host
 
 pytestmark = pytest.mark.multiprocess
 
