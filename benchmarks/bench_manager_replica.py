@@ -47,10 +47,10 @@ if batches:
     for name, reply in replies:
         pending[name].append(reply)
         if len(pending[name]) == LOG_REPLIES:
-            manager.deliver_all(name, pending[name])
+            manager.deliver_batches([(name, pending[name])])
             pending[name] = []
     for name, rest in pending.items():
-        manager.deliver_all(name, rest)
+        manager.deliver_batches([(name, rest)])
 else:
     for name, reply in replies:
         manager.deliver(name, reply)

@@ -59,5 +59,12 @@ class Backlog:
             self._read += _RECORD.size + name_length + batch_length
         return body[:name_length].decode(), body[name_length:]
 
+    def get_waiting(self) -> list[tuple[str, bytes] | None]:
+        """The next item (waiting for it) and every item that waits after it, up to and including the end (None)."""
+        items = [self.get()]
+        while items[-1] is not None and not self._queue.empty():
+            items.append(self.get())
+        return items
+
     def empty(self) -> bool:
         return self._queue.empty()

@@ -389,25 +389,27 @@ class ZenohBus:
             except OSError:
                 pass  # a platform that refuses it: the follower runs at normal priority
         while True:
-            item = self._batches.get()
-            if item is None:
-                return
-            name, batch = item
+            items = self._batches.get_waiting()  # every batch there is: the replica takes them together
+            batches = [item for item in items if item is not None]
             self._following = True
             with self._lock:
-                if self._driving and not self._done.is_set():
-                    self._guarded(self._deliver_batch, name, batch)
+                if batches and self._driving and not self._done.is_set():
+                    self._guarded(self._deliver_batches, batches)
             self._following = False
             with self._untaken_lock:
-                self._untaken -= 1
+                self._untaken -= len(batches)
+            if items[-1] is None:
+                return
 
-    def _deliver_batch(self, name: str, batch: bytes) -> None:
-        try:
-            replies = split_messages(batch, f"subsystem {name}")
-        except ProtocolError as error:  # a malformed batch: none of it is taken
-            self.dropped.add(key(self.run_id, name, "log"), str(error), self._sources.get(name))
-            return
-        self._replica.deliver_all(name, replies)
+    def _deliver_batches(self, batches: list[tuple[str, bytes]]) -> None:
+        """Hand the replica the replies of ``batches``, in order (a malformed batch: none of it is taken)."""
+        taken = []
+        for name, batch in batches:
+            try:
+                taken.append((name, split_messages(batch, f"subsystem {name}")))
+            except ProtocolError as error:
+                self.dropped.add(key(self.run_id, name, "log"), str(error), self._sources.get(name))
+        self._replica.deliver_batches(taken)
 
     def _drop_reply(self, name: str, reason: str) -> None:
         """The manager's replica dropped a reply of subsystem ``name`` (``manager.scheme.replica``)."""

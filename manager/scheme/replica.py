@@ -134,15 +134,17 @@ class Replica:
             if not missing:
                 self._advance()
 
-    def deliver_all(self, name: str, replies: list[bytes]) -> None:
-        """Replies of subsystem ``name`` from the network, in order (a batch): the scheme takes them as one by one, or
-        whole steps at a time when it asks so (``Follow``)."""
-        if isinstance(self.request, Follow):
-            self.replies[name].extend(replies)
-            self._follow()
-            return
-        for reply in replies:
-            self.deliver(name, reply)
+    def deliver_batches(self, batches: list[tuple[str, list[bytes]]]) -> None:
+        """Replies from the network, batch after batch (``(subsystem, its replies in order)``): the scheme takes them
+        as one by one, or whole steps at a time when it asks so (``Follow``), once every batch is queued."""
+        for at, (name, replies) in enumerate(batches):
+            if isinstance(self.request, Follow):
+                for later, more in batches[at:]:
+                    self.replies[later].extend(more)
+                self._follow()
+                return
+            for reply in replies:
+                self.deliver(name, reply)
 
     def run(self) -> RunRecord:
         """Run to the end when every subsystem is local (the in-process bus)."""

@@ -47,22 +47,26 @@ def published(scene_name: str) -> tuple:
     return PUBLISHED[scene_name]
 
 
-def _follow(plan, replies, batches: list[int], follower: bool, progress=None) -> Replica:
+def _follow(plan, replies, batches: list[int], follower: bool, progress=None, together: int = 1) -> Replica:
     """The manager's replica fed ``replies``: each subsystem's in batches of the sizes ``batches`` cycles through
-    (a batch goes out when it is full, or at the end), in the order the subsystems published them."""
+    (a batch goes out when it is full, or at the end), in the order the subsystems published them, handed over
+    ``together`` batches at a time (the batches a lagging follower finds waiting)."""
     manager = Replica(jacobi(plan, progress=progress, follower=follower), [s.name for s in plan.subsystems],
                       on_drop=lambda name, reason: pytest.fail(f"{name}'s reply dropped: {reason}"))
     manager.start()
     pending = {s.name: [] for s in plan.subsystems}
     sizes = {s.name: deque(batches) for s in plan.subsystems}
+    ready = []
     for name, reply in replies:
         pending[name].append(reply)
         if len(pending[name]) >= sizes[name][0]:
-            manager.deliver_all(name, pending[name])
+            ready.append((name, pending[name]))
             pending[name] = []
             sizes[name].rotate(-1)
-    for name, rest in pending.items():
-        manager.deliver_all(name, rest)
+            if len(ready) == together:
+                manager.deliver_batches(ready)
+                ready = []
+    manager.deliver_batches(ready + [(name, rest) for name, rest in pending.items()])
     return manager
 
 
@@ -75,11 +79,11 @@ def _same_record(ours, theirs) -> None:
 
 
 @settings(max_examples=12, deadline=None)
-@given(st.sampled_from(sorted(SCENES)), st.lists(st.integers(1, 70), min_size=1, max_size=5))
-def test_blocks_of_any_size_give_the_record_of_the_replica_that_takes_reply_after_reply(scene_name, batches):
+@given(st.sampled_from(sorted(SCENES)), st.lists(st.integers(1, 70), min_size=1, max_size=5), st.integers(1, 6))
+def test_blocks_of_any_size_give_the_record_of_the_replica_that_takes_reply_after_reply(scene_name, batches, together):
     plan, replies = published(scene_name)
     generic = _follow(plan, replies, [1], follower=False)
-    blocks = _follow(plan, replies, batches, follower=True)
+    blocks = _follow(plan, replies, batches, follower=True, together=together)
     assert generic.finished and blocks.finished
     _same_record(blocks.result, generic.result)
 
