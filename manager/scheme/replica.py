@@ -19,6 +19,13 @@ with its key) and the replica waits for the next one: a stray, replayed or garbl
 the run, and a subsystem whose replica diverged (different software, different arithmetic) sends only
 replies that fail, so the run stalls and the bus's timeout names it with what it dropped.
 
+Two requests stand for many exchanges, where the run is single-rate with zero-order inputs: a subsystem
+process's scheme yields one :class:`~zencosim.manager.scheme.lock_step.LockStep` for all its steps, which the
+replica runs as the replies arrive (``LockStepRun``: the same commands, replies and screening, without an exchange
+per step); the manager's scheme, made ``follower``, yields :class:`~zencosim.manager.scheme.followed_blocks.Follow`
+requests and is handed whole macro-steps of queued replies at once (``deliver_batches``), taking a block or giving
+it back to the queues to go on step by step.
+
 A :class:`Tap` sees what a replica goes through, in order, one call per exchange: the replies the scheme
 took (in simulation order whether they were computed here or came from the network), then the request it
 made of them: the status after the macro-step that has just ended, when the scheme reports it, and the
