@@ -88,15 +88,21 @@ def straight_line_step(Phi_m: np.ndarray, Psi: np.ndarray, rows: int, span_s: fl
     text = step_text(Phi_m, Psi, rows, span_s, G, n_linear, y_0)
     if text is None:
         return None
-    lines = ["def step(z, c):"]
-    if text.state:
-        lines.append(f"    {unpacked(text.state)} = z.tolist()")
-    if text.coefficients:
-        lines.append(f"    {unpacked(text.coefficients)} = c")
-    lines.extend(f"    {statement}" for statement in text.statements)
+    lines = ["def step(z, c):", *body_lines(text, "z.tolist()", "c")]
     lines.extend(f"    z[{i}] = {name}" for i, name in enumerate(text.new_state))
     lines.append(f"    return [{', '.join(text.outputs)}], [{', '.join(text.inputs_at_end)}]")
     return define("\n".join(lines), "step", "<straight-line step>")
+
+
+def body_lines(text: StepText, state: str, coefficients: str) -> list[str]:
+    """A generated function's lines that run ``text``'s statements (indented once): its state names unpacked from the
+    expression ``state``, its coefficient names from ``coefficients``, then the statements."""
+    lines = []
+    if text.state:
+        lines.append(f"    {unpacked(text.state)} = {state}")
+    if text.coefficients:
+        lines.append(f"    {unpacked(text.coefficients)} = {coefficients}")
+    return lines + [f"    {statement}" for statement in text.statements]
 
 
 def define(source: str, name: str, label: str, namespace: dict | None = None):

@@ -1,7 +1,8 @@
-"""Shared helpers: run a bundled scene with overrides, and manage real child processes."""
+"""Shared helpers: run a bundled scene with overrides, manage real child processes, write the examples."""
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -70,6 +71,18 @@ def cmdline(pid: int) -> str:
         return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
     except FileNotFoundError:
         return ""
+
+
+@pytest.fixture(scope="module")
+def examples(tmp_path_factory) -> Path:
+    """The example scenes and FMUs (``zencosim examples``), written and built in a folder of the test module's."""
+    if shutil.which("gcc") is None:
+        pytest.skip("building the example FMUs needs gcc")
+    from zencosim.examples.write import write_examples
+
+    directory = tmp_path_factory.mktemp("examples")
+    write_examples(directory)
+    return directory
 
 
 @pytest.fixture

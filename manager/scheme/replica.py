@@ -115,14 +115,9 @@ class Replica:
         except StopIteration as done:  # a scheme that called its subsystems itself (manager.scheme.direct)
             self.result = done.value
             return
-        if isinstance(self.request, LockStep):
-            self._start_lock_step()
-            return
-        if isinstance(self.request, Follow):
-            self._follow()
-            return
-        self._execute(None)
-        self._await()
+        if not self._runs_many():
+            self._execute(None)
+            self._await()
 
     def deliver(self, name: str, reply: bytes) -> None:
         """A reply of subsystem ``name`` from the network."""
@@ -215,16 +210,23 @@ class Replica:
                     self.tap.exchange(replies, None)
                 return
             self.steps_done += 1
-            if isinstance(self.request, LockStep):
-                self._start_lock_step()
-                return
-            if isinstance(self.request, Follow):
-                self._follow()
+            if self._runs_many():
                 return
             self._execute(replies)
             self._missing = {name for name in self.request.awaits if not self._ready(name)}
             if self._missing:
                 return
+
+    def _runs_many(self) -> bool:
+        """Run the request when it stands for many exchanges (``LockStep``, ``Follow``: see the module text); whether
+        it did."""
+        if isinstance(self.request, LockStep):
+            self._start_lock_step()
+        elif isinstance(self.request, Follow):
+            self._follow()
+        else:
+            return False
+        return True
 
     def _follow(self) -> None:
         """While the scheme asks for whole steps (``Follow``) and every subsystem has a reply queued: hand it the

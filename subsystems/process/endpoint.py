@@ -22,7 +22,7 @@ from zencosim.manager.wire.protocol import (
     encode_error,
 )
 from zencosim.subsystems.inputs import InputPolynomial
-from zencosim.subsystems.straight_line import StepText, define, unpacked
+from zencosim.subsystems.straight_line import StepText, body_lines, define
 from zencosim.subsystems.subsystem import SavedState, Subsystem
 
 
@@ -161,12 +161,7 @@ def _answer_text(endpoint: SubsystemEndpoint, text: StepText) -> str:
     """The source of ``answer(tick, command, state) -> (reply, state, inputs at the end)``: the command's input values
     as ``_zero_order_step`` reads them, the step's statements, the OUTPUT reply as it packs it."""
     due = f"tick + {endpoint.ratio}"
-    lines = ["def answer(tick, command, state):"]
-    if text.coefficients:
-        lines.append(f"    {unpacked(text.coefficients)} = inputs_of(command, {HEADER.size})")
-    if text.state:
-        lines.append(f"    {unpacked(text.state)} = state")
-    lines.extend(f"    {statement}" for statement in text.statements)
+    lines = ["def answer(tick, command, state):", *body_lines(text, "state", f"inputs_of(command, {HEADER.size})")]
     lines.append(f"    return (HEADER.pack({VERSION}, {int(Kind.OUTPUT)}, 0, {len(text.outputs)}, {due}, "
                  f"({due}) * {endpoint.base_step_ns}, crc32(command))"
                  f" + outputs_of({', '.join(text.outputs)}), [{', '.join(text.new_state)}], "

@@ -35,15 +35,6 @@ SCENES = ("two_mass_damped_fmu", "double_oscillator_fmu")  # the explicit FMI 2.
 
 
 @pytest.fixture(scope="module")
-def examples(tmp_path_factory):
-    from zencosim.examples.write import write_examples
-
-    directory = tmp_path_factory.mktemp("examples")
-    write_examples(directory)
-    return directory
-
-
-@pytest.fixture(scope="module")
 def runs(examples) -> dict:
     """Per scene: the OSP file, libcosim's run of it, zencosim's run of it, zencosim's run of the TOML scene."""
     found = {}

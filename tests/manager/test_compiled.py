@@ -6,7 +6,6 @@ The oracle is the generic loop on the same scene (``compiled_steps`` patched to 
 message path and with a Zenoh run tests/manager/test_direct.py and tests/manager/test_buses.py check."""
 from __future__ import annotations
 
-import shutil
 
 import numpy as np
 import pytest
@@ -170,17 +169,6 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
     assert len(seen[0]) > 3 * 4500 and seen[0] == seen[1]
     wall, step_wall = np.array([values[2:4] for values in statuses]).T
     assert len(wall) == 4500 and (np.diff(wall) >= 0).all() and (step_wall >= 0).all() and (step_wall <= wall).all()
-
-
-@pytest.fixture(scope="module")
-def examples(tmp_path_factory):
-    if shutil.which("gcc") is None:
-        pytest.skip("building the example FMUs needs gcc")
-    from zencosim.examples.write import write_examples
-
-    directory = tmp_path_factory.mktemp("examples")
-    write_examples(directory)
-    return directory
 
 
 @pytest.mark.parametrize("name", ["two_mass_damped_fmu", "double_oscillator_fmu"])

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 import zencosim
-from zencosim.examples.write import write_examples
 
 fmpy = pytest.importorskip("fmpy")
 
@@ -53,13 +52,6 @@ offset = {OFFSET}
 {extra}
 """)
     return path
-
-
-@pytest.fixture(scope="module")
-def examples(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("signals")
-    write_examples(directory)
-    return directory
 
 
 def test_the_input_receives_the_transformed_output_as_fmpy_running_the_same_fmus_gives(examples):

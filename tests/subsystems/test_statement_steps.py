@@ -5,7 +5,6 @@ input values, the example C FMU's calls, its failure's ERROR reply — and, at t
 state."""
 from __future__ import annotations
 
-import shutil
 import struct
 
 import numpy as np
@@ -61,17 +60,6 @@ def test_a_linear_subsystems_statements_answer_as_its_endpoint_does_byte_for_byt
     assert ours.subsystem.z.tobytes() == twin.subsystem.z.tobytes()
     assert ours.subsystem.t_ns == twin.subsystem.t_ns == len(inputs) * base
     assert np.array_equal(ours.subsystem.w, twin.subsystem.w, equal_nan=True)
-
-
-@pytest.fixture(scope="module")
-def examples(tmp_path_factory):
-    if shutil.which("gcc") is None:
-        pytest.skip("building the example FMUs needs gcc")
-    from zencosim.examples.write import write_examples
-
-    directory = tmp_path_factory.mktemp("examples")
-    write_examples(directory)
-    return directory
 
 
 @pytest.mark.parametrize("fail_at", [None, 0.0305])
