@@ -76,10 +76,10 @@ class FollowedBlocks:
         steps = np.arange(tick + 1, tick + count + 1)
         replies = []
         for s, name in enumerate(self.names):
-            data = b"".join(block[name])
-            if len(data) != count * self.outputs[s].itemsize:
+            size = self.outputs[s].itemsize
+            if any(len(reply) != size for reply in block[name]):  # each of its size (check_output's first test)
                 return False
-            reply = np.frombuffer(data, self.outputs[s])
+            reply = np.frombuffer(b"".join(block[name]), self.outputs[s])
             if not ((reply["head"] == self.heads[s]).all() and (reply["step"] == steps).all()):
                 return False
             replies.append(reply)

@@ -138,7 +138,7 @@ class Replica:
 
     def deliver_batches(self, batches: list[tuple[str, list[bytes]]]) -> None:
         """Replies from the network, batch after batch (``(subsystem, its replies in order)``): the scheme takes them
-        as one by one, or whole steps at a time when it asks so (``Follow``), once every batch is queued."""
+        one by one, or whole steps at a time when it asks so (``Follow``), once every batch is queued."""
         for at, (name, replies) in enumerate(batches):
             if isinstance(self.request, Follow):
                 for later, more in batches[at:]:

@@ -161,3 +161,23 @@ def test_a_process_in_lock_step_ends_with_its_source_failure_named():
     scene = load_scene("two_mass_damped", SCENES["two_mass_damped"])
     with pytest.raises(SubsystemFailure, match=f"^subsystem S1: failed at step {at}: the model blew up$"):
         _process(plan, "S2", replies, build_subsystems(scene))
+
+
+def test_a_block_with_a_cut_reply_and_a_padded_one_is_not_taken_and_both_are_dropped():
+    """One reply of S2 a float short and its next a float long (the block's bytes add up as if they were whole): the
+    block goes back to the queues, the step-by-step replica drops both, takes the genuine ones that follow, and the
+    record is the one of the replies as published."""
+    plan, replies = published("two_mass_damped")
+    s2 = [at for at, (name, _) in enumerate(replies) if name == "S2"]
+    short, long_ = s2[10], s2[11]
+    forged = list(replies)
+    forged[short] = ("S2", replies[short][1][:-8])
+    forged[long_] = ("S2", replies[long_][1] + replies[short][1][-8:])
+    forged[long_ + 1:long_ + 1] = [replies[short], replies[long_]]  # the genuine ones, after the forged pair
+    dropped = []
+    manager = Replica(jacobi(plan, follower=True), [s.name for s in plan.subsystems],
+                      on_drop=lambda name, reason: dropped.append(name))
+    manager.start()
+    manager.deliver_batches([(name, [reply]) for name, reply in forged])
+    assert manager.finished and dropped == ["S2", "S2"]
+    _same_record(manager.result, _follow(plan, replies, [1], follower=False).result)
