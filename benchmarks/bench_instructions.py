@@ -1,6 +1,6 @@
 """Instructions per in-process macro-step of two_mass_damped and of its plain-Python floor, counted by valgrind.
 
-    python benchmarks/bench_instructions.py [--tree DIR] [--recording] [--fmu] [--replicas]
+    python benchmarks/bench_instructions.py [--tree DIR] [--recording] [--fmu] [--replicas] [--chains 3,33]
 
 ``zencosim.run`` counts a run as a user makes it (``zencosim.run(zencosim.load_scene("two_mass_damped", …))``):
 the stepping loop, the references and the summary, which must grow with the samples, not cost a second run.
@@ -17,8 +17,9 @@ status, and with the status and the recorder's tap (its frames dropped: no recor
 the same system with both subsystems as the example C FMUs (``zencosim examples``: two_mass_damped_fmu.toml) and,
 where libcosimpy is installed, libcosim stepping the same two FMUs from an OSP file of that scene (issue 26's
 reference: 9,382 instructions per step). ``--replicas`` counts what the two subsystem processes of a Zenoh run
-compute per step besides Zenoh (``replicas.py``: their replicas in one thread, each reply handed to the other).
-Needs valgrind.
+compute per step besides Zenoh (``replicas.py``: their replicas in one thread, each reply handed to the other);
+``--chains 3,33`` the same for chains of masses (``zencosim.scenes.topologies``), per process (the mean over its
+processes): what a process computes per step should not grow with n. Needs valgrind.
 """
 from __future__ import annotations
 
@@ -63,6 +64,14 @@ elif sys.argv[1] == "user":  # a run as a user makes it: references and summary 
 elif sys.argv[1] == "replicas":  # the subsystem processes' replicas, their replies handed across in this thread
     from replicas import replicas_in_lock_step
     replicas_in_lock_step(scene)
+elif sys.argv[1].startswith("chain"):  # the same for a chain of argv[1][5:] masses (zencosim.scenes.topologies)
+    import tempfile
+    from replicas import replicas_in_lock_step
+    from zencosim.scenes.topologies import mass_chain
+    with tempfile.NamedTemporaryFile("w", suffix=".toml") as written:
+        written.write(mass_chain(int(sys.argv[1][5:]), int(sys.argv[2]) / 1000))
+        written.flush()
+        replicas_in_lock_step(load_scene(written.name))
 else:  # the stepping loop: "plain", with the "status", with the status and the "tap"
     from bench_recording import stepping_loop
     from zencosim.manager.assembly import plan_scene
@@ -122,6 +131,8 @@ def main() -> int:
     parser.add_argument("--fmu", action="store_true", help="also count the step with two C FMUs, and libcosim's")
     parser.add_argument("--replicas", action="store_true",
                         help="also count the two subsystem processes' own work per step, without Zenoh")
+    parser.add_argument("--chains", default="",
+                        help="sizes of chains (e.g. 3,33) whose processes' work per step and process to count")
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         print("bench_instructions needs valgrind (apt-get install valgrind)", file=sys.stderr)
@@ -145,6 +156,8 @@ def main() -> int:
         fmu_pair(show)
     if args.replicas:
         show("subsystem processes' replicas, both, without Zenoh", per_step("replicas"))
+    for n in filter(None, args.chains.split(",")):  # issue 26: a chain's process costs the same at every n
+        show(f"chain of {n}: one process's replica, mean, without Zenoh", per_step(f"chain{n}") / int(n))
     for tree in args.tree:
         from bench_runtime import package_farm
         farm = package_farm(tree)

@@ -27,15 +27,17 @@ def replicas_in_lock_step(scene: Scene) -> list[tuple[str, bytes]]:
         tracked = [plan.subsystems[i].name for i in sorted(plan.tracked(scope))]
         replicas[name] = Replica(make_scheme(scene, plan, local=scope), tracked, endpoints(plan, subsystems, [name]),
                                  lambda sender, reply: published.append((sender, reply)), on_drop=_dropped)
+    # who takes each subsystem's replies: the processes that track it (subscribed to its key, as over Zenoh)
+    takers = {sender: [replica for name, replica in replicas.items() if name != sender and sender in replica.replies]
+              for sender in replicas}
     for replica in replicas.values():
         replica.start()
     replies = []
     while published:
         sender, reply = published.popleft()
         replies.append((sender, reply))
-        for name, replica in replicas.items():
-            if name != sender and sender in replica.replies:
-                replica.deliver(sender, reply)
+        for replica in takers[sender]:
+            replica.deliver(sender, reply)
     waiting = {name: replica.waiting_for() for name, replica in replicas.items() if not replica.finished}
     if waiting:
         raise RuntimeError(f"replicas still waiting: {waiting}")
