@@ -23,7 +23,7 @@ import struct
 import numpy as np
 
 from zencosim.manager.scheme.tapped import StepsBlock
-from zencosim.manager.wire.protocol import HEADER_DTYPE, VERSION, Kind, command_ref
+from zencosim.manager.wire.protocol import Kind, command_refs, encode_rows
 from zencosim.manager.wire.status import Statuses
 from zencosim.recordings.encoding import write_rows
 
@@ -75,13 +75,12 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
             steps = np.frombuffer(frame, dtype="<i8", count=answered, offset=at)
             outputs = np.frombuffer(frame, dtype="<f8", count=answered * n_outputs, offset=at + 8 * answered)
             at += answered * (8 + 8 * n_outputs)
-            sent = _records(Kind.STEP, ticks, base, values.reshape(commanded, width), rows, 0)
+            sent = encode_rows(Kind.STEP, ticks, base, values.reshape(commanded, width), rows, 0)
             if answered > commanded:
                 raise ValueError(f"{answered} replies to {commanded} commands")
-            data, size = memoryview(sent.reshape(-1)), sent.shape[1]  # each reply's reference: its command's CRC-32
-            references = np.array([command_ref(data[at:at + size]) for at in range(0, answered * size, size)],
-                                  dtype=np.uint32)
-            streams += [_records(Kind.OUTPUT, steps, base, outputs.reshape(answered, n_outputs), 0, references), sent]
+            references = command_refs(sent[:answered])  # each reply's reference: its command's CRC-32
+            streams += [encode_rows(Kind.OUTPUT, steps, base, outputs.reshape(answered, n_outputs), 0, references),
+                        sent]
         if at != len(frame) or (statuses_bytes % m if m else statuses_bytes):
             raise ValueError("its parts do not add up to its length")
         streams.append(statuses.reshape(m, statuses_bytes // m) if m else statuses.reshape(0, 0))
@@ -109,14 +108,3 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
         raise ValueError(f"a STEPS frame that does not hold what its head says ({error})") from None
     return channels.astype(np.uint8), sizes, stamps, joined.tobytes()
 
-
-def _records(kind: Kind, steps: np.ndarray, base_step_ns: int, values: np.ndarray, rows: int,
-             references: np.ndarray | int) -> np.ndarray:
-    """Messages of one kind and shape, a row of ``values`` each, as ``manager.wire.protocol.encode`` writes them:
-    one message per row of bytes."""
-    records = np.zeros(len(steps), dtype=[("header", HEADER_DTYPE), ("values", "<f8", (values.shape[1],))])
-    header = records["header"]
-    header["version"], header["kind"], header["rows"], header["count"] = VERSION, kind, rows, values.shape[1]
-    header["step"], header["time_ns"], header["ref"] = steps, steps * base_step_ns, references
-    records["values"] = values
-    return records.view(np.uint8).reshape(len(steps), records.dtype.itemsize)

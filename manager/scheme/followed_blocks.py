@@ -20,7 +20,6 @@ generic exchanges, which screen, drop and name the failure as before, and the re
 from __future__ import annotations
 
 import time
-import zlib
 from dataclasses import dataclass
 from typing import Callable
 
@@ -29,7 +28,7 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import PROGRESS_EVERY, OutputReader
 from zencosim.manager.scheme.window import RowWindow
-from zencosim.manager.wire.protocol import HEADER, VERSION, Kind
+from zencosim.manager.wire.protocol import VERSION, Kind, command_refs, encode_rows, message_dtype
 
 
 @dataclass(frozen=True)
@@ -39,11 +38,6 @@ class Follow:
 
     tick: int
     end: int
-
-
-def _header_fields(count: int) -> list[tuple]:
-    return [("head", "<u8"), ("step", "<i8"), ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4"),
-            ("values", "<f8", (count,))]
 
 
 class FollowedBlocks:
@@ -58,13 +52,7 @@ class FollowedBlocks:
         self.release_times, self.progress = release_times, progress
         subs = plan.subsystems
         self.names = [s.name for s in subs]
-        self.outputs = [np.dtype(_header_fields(len(s.outputs))) for s in subs]
-        # an OUTPUT's first 8 header bytes (version, kind, rows 0, count) as one integer
-        self.heads = [int.from_bytes(HEADER.pack(VERSION, Kind.OUTPUT, 0, len(s.outputs), 0, 0, 0)[:8], "little")
-                      for s in subs]
-        self.commands = [np.dtype([("version", "u1"), ("kind", "u1"), ("rows", "<u2"), ("count", "<u4"),
-                                   ("step", "<i8"), ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4"),
-                                   ("values", "<f8", (len(s.inputs),))]) for s in subs]
+        self.outputs = [message_dtype(len(s.outputs)) for s in subs]  # each subsystem's OUTPUT
         self.sources = [s.zero_order_sources for s in subs]
         self.step_s = plan.base_step_ns * 1e-9
 
@@ -77,28 +65,26 @@ class FollowedBlocks:
         replies = []
         for s, name in enumerate(self.names):
             size = self.outputs[s].itemsize
-            if any(len(reply) != size for reply in block[name]):  # each of its size (check_output's first test)
+            if any(len(reply) != size for reply in block[name]):  # each of its size, and (below) an OUTPUT
                 return False
             reply = np.frombuffer(b"".join(block[name]), self.outputs[s])
-            if not ((reply["head"] == self.heads[s]).all() and (reply["step"] == steps).all()):
+            header = reply["header"]  # of its count for its step: check_output's first test
+            if not ((header["version"] == VERSION) & (header["kind"] == Kind.OUTPUT)
+                    & (header["count"] == len(plan.subsystems[s].outputs)) & (header["step"] == steps)).all():
                 return False
             replies.append(reply)
         # each subsystem's outputs at steps tick … tick + count: the newest committed, then the block's
         values = [np.concatenate((np.asarray(reader.newest, float)[None], reply["values"]))
                   for reader, reply in zip(readers, replies)]
         inputs = []
-        for s, sub in enumerate(plan.subsystems):
-            command = np.zeros(count, self.commands[s])
-            command["version"], command["kind"], command["rows"] = VERSION, Kind.STEP, 1
-            command["count"], command["step"] = len(sub.inputs), steps - 1
-            command["time_ns"] = (steps - 1) * plan.base_step_ns
+        for s, sub in enumerate(plan.subsystems):  # its commands (ZOH: its sources' outputs at each step's start)
+            held = np.empty((count, len(sub.inputs)))
             for i, (source, output) in enumerate(self.sources[s]):
-                command["values"][:, i] = values[source][:-1, output]
-            raw, size = command.tobytes(), command.itemsize
-            references = [zlib.crc32(raw[at:at + size]) for at in range(0, len(raw), size)]
-            if not np.array_equal(references, replies[s]["ref"]):
+                held[:, i] = values[source][:-1, output]
+            commands = encode_rows(Kind.STEP, steps - 1, plan.base_step_ns, held, 1, 0)
+            if not np.array_equal(command_refs(commands), replies[s]["header"]["ref"]):
                 return False
-            inputs.append(command["values"])
+            inputs.append(held)
         for reader, reply, name in zip(readers, replies, self.names):
             reader.window.put_rows(tick + 1, reply["values"])
             reader.newest = tuple(reply["values"][-1].tolist())

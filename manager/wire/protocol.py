@@ -93,6 +93,28 @@ def command_ref(command: bytes) -> int:
     return zlib.crc32(command)
 
 
+def message_dtype(count: int) -> np.dtype:
+    """A message of ``count`` float64 values as a numpy record: its header (``HEADER_DTYPE``), then the values."""
+    return np.dtype([("header", HEADER_DTYPE), ("values", "<f8", (count,))])
+
+
+def encode_rows(kind: Kind, steps: np.ndarray, base_step_ns: int, values: np.ndarray, rows: int,
+                references: np.ndarray | int) -> np.ndarray:
+    """Messages of one kind and shape, a row of ``values`` each, at ``steps`` (their time: step × ``base_step_ns``),
+    as ``encode`` writes them: one message per row of bytes."""
+    records = np.zeros(len(steps), dtype=message_dtype(values.shape[1]))
+    header = records["header"]
+    header["version"], header["kind"], header["rows"], header["count"] = VERSION, kind, rows, values.shape[1]
+    header["step"], header["time_ns"], header["ref"] = steps, steps * base_step_ns, references
+    records["values"] = values
+    return records.view(np.uint8).reshape(len(steps), records.dtype.itemsize)
+
+
+def command_refs(commands: np.ndarray) -> np.ndarray:
+    """``command_ref`` of each command of ``commands`` (one per row of bytes, as ``encode_rows`` gives them)."""
+    return np.fromiter(map(command_ref, commands), np.uint32, len(commands))
+
+
 def decode(data: bytes, sender: str) -> Message:
     """Decode and validate one message from ``sender`` (named in every error)."""
     kind, rows, count, step, time_ns, ref = decode_header(data, sender)
