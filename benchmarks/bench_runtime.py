@@ -10,9 +10,10 @@ two_mass_damped (2 subsystem processes + manager, as fast as possible) over the 
 Jacobi step (``pingpong.jacobi_lockstep_steps``: two zenoh-python processes in lock step with the bus's
 settings, each publishing step j once it holds the other's j-1; target <= 1.2), the CPU time of all its processes
 per step over the same floor's, measured just before each run (the median of the repeats' ratios; target <= 1.5)
-and the manager's over one subsystem process's (target <= 0.2), and over the zenoh-python ping-pong round trip; in-process macro-steps per second (target >= 13 000), and the in-process
-macro-step over the floor (``benchmarks/floor.py``: the same symplectic-Euler Jacobi arithmetic as one
-Python loop over floats), each repeat's floor measured just before its run (target <= 30).
+and the manager's over one subsystem process's (target <= 0.2), and over the zenoh-python ping-pong round trip;
+in-process macro-steps per second (target >= 13 000), and the in-process macro-step over the floor
+(``benchmarks/floor.py``: the same symplectic-Euler Jacobi arithmetic as one Python loop over floats), each
+repeat's floor measured just before its run (target <= 30).
 
 ``--tree DIR`` also measures the in-process step of the zencosim source tree at ``DIR`` (a checkout of
 another commit), alternating with this one, each repeat in a fresh process of its own: a before/after

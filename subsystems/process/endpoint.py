@@ -7,7 +7,6 @@ scheme (called directly), on identical bytes; the in-process Jacobi scheme calls
 from __future__ import annotations
 
 import struct
-import zlib
 from collections.abc import Callable
 
 from zencosim.manager.bus.signals import raised_by_code
@@ -122,12 +121,11 @@ class SubsystemEndpoint:
         raise ProtocolError(f"subsystem {sub.name}: cannot handle a {kind.name} message")
 
 
-
 class StatementSteps:
     """A subsystem's zero-order STEP commands answered by its step as statements over floats (``Subsystem.step_text``:
     a small linear model's straight-line step, a co-simulation FMU's calls) in one generated function, its state kept
     as floats from call to call: the reply ``SubsystemEndpoint.handle`` gives, byte for byte (the same statements
-    ``advance_values`` runs, the values read from the command's bytes, the command's CRC-32 as the reference; a
+    ``advance_values`` runs, the values read from the command's bytes, its ``command_ref`` as the reference; a
     failure answered with the same ERROR). For a subsystem process in lock step (``manager.scheme.lock_step``),
     which calls :meth:`answer` once a step and :meth:`end` when its steps are done."""
 
@@ -136,8 +134,8 @@ class StatementSteps:
         self.state = endpoint.subsystem.z.tolist()
         self.inputs_at_end: list[float] | None = None  # None: no step taken
         self._step: Callable = define(_answer_text(endpoint, text), "answer", "<zero-order step>", {
-            **text.namespace, "HEADER": HEADER, "inputs_of": endpoint._unpack_inputs, "crc32": zlib.crc32,
-            "outputs_of": struct.Struct(f"<{len(text.outputs)}d").pack})
+            **text.namespace, "HEADER": HEADER, "inputs_of": endpoint._unpack_inputs, "command_ref": command_ref,
+            "outputs_of": endpoint._pack_outputs})
 
     def answer(self, tick: int, command: bytes) -> bytes:
         """The reply to the zero-order STEP ``command`` of step ``tick`` (a valid one: its header as the scheme
@@ -149,7 +147,7 @@ class StatementSteps:
             reason = failure_reason(error)
             if reason is None:
                 raise
-            return encode_error(tick, tick * self.endpoint.base_step_ns, reason, zlib.crc32(command))
+            return encode_error(tick, tick * self.endpoint.base_step_ns, reason, command_ref(command))
 
     def end(self, tick: int) -> None:
         """The steps are done at base step ``tick``: the subsystem takes the state they left (``took_steps``)."""
@@ -163,7 +161,7 @@ def _answer_text(endpoint: SubsystemEndpoint, text: StepText) -> str:
     due = f"tick + {endpoint.ratio}"
     lines = ["def answer(tick, command, state):", *body_lines(text, "state", f"inputs_of(command, {HEADER.size})")]
     lines.append(f"    return (HEADER.pack({VERSION}, {int(Kind.OUTPUT)}, 0, {len(text.outputs)}, {due}, "
-                 f"({due}) * {endpoint.base_step_ns}, crc32(command))"
+                 f"({due}) * {endpoint.base_step_ns}, command_ref(command))"
                  f" + outputs_of({', '.join(text.outputs)}), [{', '.join(text.new_state)}], "
                  f"[{', '.join(text.inputs_at_end)}])")
     return "\n".join(lines)
