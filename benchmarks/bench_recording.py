@@ -49,7 +49,7 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import RunRecord
 from zencosim.manager.wire.protocol import encode
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings.layout import channel_specs, status_index
+from zencosim.recordings.layout import status_index
 from zencosim.recordings.reader import read_recording
 from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
 from zencosim.recordings.writer import RecordingWriter
@@ -159,7 +159,7 @@ class _NullRecorder(Recorder):
         super().__init__(os.devnull)
 
     def start(self, scene, plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
-        self._declare(channel_specs(plan, status), realtime, status)
+        self._declare(plan, status, realtime)
         self._hold_signals()
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:

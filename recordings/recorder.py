@@ -43,11 +43,12 @@ from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import Exchange
-from zencosim.manager.scheme.tapped import StepsBlock
+from zencosim.manager.scheme.tapped import RowsBlock, StepsBlock
 from zencosim.manager.wire.status import Statuses, StatusReport
 from zencosim.recordings import RecorderFailed, RecorderLost, RecordingError
 from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
-from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME, STEPS, channel_index
+from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME, ROWS, STEPS, channel_index
+from zencosim.recordings.rows_frame import rows_about, rows_frame
 from zencosim.recordings.steps_frame import steps_frame
 
 STALL_S = 10.0  # an observer that makes no progress for this long fails (the scene's manager.timeout, once known)
@@ -259,14 +260,15 @@ class Recorder:
         self._channels = bytearray()  # the batch being tapped: channel index of each message
         self._messages: list[bytes] = []  # and the messages but the statuses (in the status log until the flush)
         self._report: StatusReport | None = None  # the run's status, whose log the flush takes the statuses from
+        self._names: list[str] = []  # the run's subsystems
+        self._about = b""  # what every ROWS frame of the run says of it (recordings.rows_frame)
         self._tapped = np.zeros(0, dtype=np.int64)  # messages handed over, per channel index
         self._signals: DeferredSignals | None = None  # SIGINT and SIGTERM held during a flush, from start to close
 
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start the recorder process and the live view, and wait until they are ready."""
         self._hold_signals()
-        specs = channel_specs(plan, status)
-        self._declare(specs, realtime, status)
+        specs = self._declare(plan, status, realtime)
         self._stall_s = scene.manager.timeout
         channels = [{"topic": spec.topic, "metadata": spec.metadata()} for spec in specs]
         metadata = run_metadata(scene, plan, bus, run_id, realtime, self.host_info)
@@ -306,19 +308,24 @@ class Recorder:
         if threading.current_thread() is threading.main_thread():
             self._signals = DeferredSignals()
 
-    def _declare(self, specs: list[ChannelSpec], realtime: bool, status: StatusReport) -> None:
-        """What the tap needs to know of the channels (``realtime``: the tap hands a batch over every ``HANDOVER_S``
-        of run time) and the run's status, whose messages it takes from the log its scheme fills."""
+    def _declare(self, plan: Plan, status: StatusReport, realtime: bool) -> list[ChannelSpec]:
+        """What the tap needs to know of the run of ``plan``, its channels (returned) and the run's status, whose
+        messages it takes from the log its scheme fills (``realtime``: the tap hands a batch over every
+        ``HANDOVER_S`` of run time)."""
+        specs = channel_specs(plan, status)
         if len(specs) > 255:
             raise RecordingError(f"{self.path}: {len(specs)} channels; a recording holds at most 255")
         self._report = status
+        self._names = [s.name for s in plan.subsystems]
+        self._about = rows_about(plan)  # of every ROWS frame
         self._topics = [spec.topic for spec in specs]
         self._tapped = np.zeros(len(specs), dtype=np.int64)
         self._status = status_index(specs)
         self._index = index = channel_index(specs)  # (source, channel) → index
         self.exchange = self._tap(index, max(1, round(HANDOVER_S * 1e9 / status.base_step_ns)) if realtime else None)
         if not realtime:  # a real-time run's tap hands a batch over every HANDOVER_S: exchange by exchange
-            self.take_steps = self._take_steps
+            self.take_steps, self.take_rows = self._take_steps, self._take_rows
+        return specs
 
     def _take_steps(self, block: StepsBlock) -> None:
         """The tap of a direct (in-process) run, a block of exchanges as arrays at a time (``manager.scheme.tapped``):
@@ -334,7 +341,23 @@ class Recorder:
                 counts[self._index[name, "y"]] = len(s.steps)
                 counts[self._index[name, "commands"]] = len(s.ticks)
             counts[self._status] = block.statuses
-            self._send(STEPS, steps_frame(block, statuses), statuses, counts, block.last)
+            self._send(STEPS, steps_frame(block, statuses), self._reached(statuses), counts, block.last)
+
+    def _take_rows(self, block: RowsBlock) -> None:
+        """The tap of a generated loop (``manager.scheme.compiled``), its rows a block at a time (``TakenRows``): sent
+        as one ROWS frame (``recordings.rows_frame``), as ``_take_steps`` sends a STEPS frame."""
+        self.flush()
+        with self._signals.held() if self._signals is not None else contextlib.nullcontext():
+            if self._all_gone:
+                return
+            counts = np.zeros(len(self._topics), dtype=np.int64)
+            for name in self._names:
+                counts[self._index[name, "y"]] = block.replies
+                counts[self._index[name, "commands"]] = block.requests
+            steps = block.status_steps
+            counts[self._status] = len(steps)
+            frame = rows_frame(block, self._about, time_ns() - time.perf_counter_ns())
+            self._send(ROWS, frame, steps[-1] if steps else self._step, counts, block.last)
 
     def _tap(self, index: dict[tuple[str, str], int], every: int | None
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
@@ -402,7 +425,7 @@ class Recorder:
             if not self._all_gone:
                 self._send(BATCH, b"".join((BATCH_HEAD.pack(len(channels), n_statuses, len(statuses.messages)),
                                             channels, statuses.stamps.tobytes(), statuses.messages,
-                                            marshal.dumps(messages))), statuses,
+                                            marshal.dumps(messages))), self._reached(statuses),
                            np.bincount(np.frombuffer(channels, dtype=np.uint8), minlength=len(self._topics)), last)
             channels.clear()
             messages.clear()
@@ -412,14 +435,17 @@ class Recorder:
         """Every observer is gone (``--record-lost continue``): what the tap takes is dropped."""
         return bool(self._observers) and all(observer.gone for observer in self._observers)
 
-    def _send(self, kind: int, payload: bytes, statuses: Statuses, counts: np.ndarray, last: bool) -> None:
-        """Send a frame holding ``statuses`` and ``counts`` messages per channel, and count them handed over; with
-        SIGINT and SIGTERM deferred (``flush``). ``last``: the run's last frame, which the live view is not skipped
-        for; other frames tell it how many macro-steps they hold."""
-        step = int(statuses.steps[-1]) if len(statuses.steps) else self._step
+    def _send(self, kind: int, payload: bytes, step: int, counts: np.ndarray, last: bool) -> None:
+        """Send a frame holding ``counts`` messages per channel, the last status of ``step``, and count them handed
+        over; with SIGINT and SIGTERM deferred (``flush``). ``last``: the run's last frame, which the live view is
+        not skipped for; other frames tell it how many macro-steps they hold."""
         self._write_frame(kind, payload, None if last else step - self._step)
         self._tapped += counts
         self._step = step
+
+    def _reached(self, statuses: Statuses) -> int:
+        """The step of the last of ``statuses``, or the step reached before them when there are none."""
+        return int(statuses.steps[-1]) if len(statuses.steps) else self._step
 
     @property
     def pids(self) -> list[int]:

@@ -12,8 +12,9 @@ the log time of it and of the messages after it), the m statuses, all of one siz
 the status log: ``manager.wire.status``), and then the list of the n - m other messages as ``marshal`` writes
 it — one C call for the tap, a fifth of the time of joining the messages and listing their sizes (the two
 processes run the same Python, whose marshal format this is); :func:`split_batch` gives them in the run's
-order. ``STEPS`` frames hold a block of a direct (in-process) run's exchanges as arrays, from which
-:func:`frame_messages` builds the same messages (``recordings.steps_frame``). The same input serves both buses: on
+order. ``STEPS`` frames hold a block of a direct (in-process) run's exchanges as arrays, and ``ROWS`` frames a
+generated loop's rows, from which :func:`frame_messages` builds the same messages (``recordings.steps_frame``,
+``recordings.rows_frame``). The same input serves both buses: on
 the Zenoh bus the manager's replica, which follows the run, is the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
@@ -38,11 +39,12 @@ from zencosim.manager.bus.children import end_with_parent
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
 from zencosim.recordings.layout import ChannelSpec, status_index
+from zencosim.recordings.rows_frame import rows_messages
 from zencosim.recordings.steps_frame import steps_messages
 from zencosim.recordings.writer import RecordingWriter
 
 FRAME = struct.Struct("<HIq")
-CONTROL, BATCH, STEPS = 0xFFFF, 0xFFFE, 0xFFFD
+CONTROL, BATCH, STEPS, ROWS = 0xFFFF, 0xFFFE, 0xFFFD, 0xFFFC
 BATCH_HEAD = struct.Struct("<III")
 IDLE_S = 0.1  # the pipe reader lets the writer flush after this long without input
 NO_END = "the manager ended without closing the recording"
@@ -129,9 +131,11 @@ def channel_index(specs: list[ChannelSpec]) -> dict[tuple[str, str], int]:
 
 
 def frame_messages(kind: int, data: bytes, index: dict[tuple[str, str], int], status: int) -> Batch:
-    """The messages of a BATCH or STEPS frame in the run's order; ValueError for one that does not hold them."""
+    """The messages of a BATCH, STEPS or ROWS frame in the run's order; ValueError for one that does not hold them."""
     if kind == STEPS:
         return Batch(*steps_messages(data, index, status))
+    if kind == ROWS:
+        return Batch(*rows_messages(data, index, status))
     return split_batch(data, status)
 
 

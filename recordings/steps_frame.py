@@ -22,7 +22,7 @@ import struct
 
 import numpy as np
 
-from zencosim.manager.scheme.tapped import StepsBlock
+from zencosim.manager.scheme.tapped import StepsBlock, SubsystemSteps
 from zencosim.manager.wire.protocol import Kind, command_refs, encode_rows
 from zencosim.manager.wire.status import Statuses
 from zencosim.recordings.encoding import write_rows
@@ -50,11 +50,7 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
     """The messages of a STEPS frame in the run's order: (channel index of each, size of each, the statuses'
     wall-clock times, the messages joined), as ``recorder_process.split_batch`` gives a BATCH frame's. ``index``:
     the channel index of each (subsystem, ``"y"`` or ``"commands"``); ``status``: the status channel's. A frame that
-    does not hold what its head says raises ValueError.
-
-    Built with numpy, not message by message: each subsystem's replies and commands are one array of records each
-    (a stream), the statuses another; the exchanges' layouts name each message's stream in turn, and a stream's
-    k-th message is its k-th record, written where it goes (``encoding.write_rows``)."""
+    does not hold what its head says raises ValueError."""
     try:
         text_bytes, m, statuses_bytes, e = STEPS_HEAD.unpack_from(frame)
         at = STEPS_HEAD.size
@@ -66,8 +62,7 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
         at += statuses_bytes
         order = np.frombuffer(frame, dtype="<u4", count=e, offset=at).astype(np.intp)
         at += 4 * e
-        base = int(about["base_step_ns"])
-        streams: list[np.ndarray] = []  # per subsystem its replies, then its commands (uint8 rows); the statuses last
+        subsystems = []
         for commanded, rows, width, answered, n_outputs in about["subsystems"]:
             ticks = np.frombuffer(frame, dtype="<i8", count=commanded, offset=at)
             values = np.frombuffer(frame, dtype="<f8", count=commanded * width, offset=at + 8 * commanded)
@@ -75,36 +70,55 @@ def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
             steps = np.frombuffer(frame, dtype="<i8", count=answered, offset=at)
             outputs = np.frombuffer(frame, dtype="<f8", count=answered * n_outputs, offset=at + 8 * answered)
             at += answered * (8 + 8 * n_outputs)
-            sent = encode_rows(Kind.STEP, ticks, base, values.reshape(commanded, width), rows, 0)
-            if answered > commanded:
-                raise ValueError(f"{answered} replies to {commanded} commands")
-            references = command_refs(sent[:answered])  # each reply's reference: its command's CRC-32
-            streams += [encode_rows(Kind.OUTPUT, steps, base, outputs.reshape(answered, n_outputs), 0, references),
-                        sent]
+            subsystems.append(SubsystemSteps(ticks, values.reshape(commanded, width), rows, steps,
+                                             outputs.reshape(answered, n_outputs)))
         if at != len(frame) or (statuses_bytes % m if m else statuses_bytes):
             raise ValueError("its parts do not add up to its length")
-        streams.append(statuses.reshape(m, statuses_bytes // m) if m else statuses.reshape(0, 0))
-        names = about["names"]
-        layouts = [[(2 * i, index[names[i], "y"]) for i in replying] + ([(2 * len(names), status)] if follows else [])
-                   + [(2 * i + 1, index[names[i], "commands"]) for i in commanded]
-                   for replying, follows, commanded in about["layouts"]]
-        # each message's stream and channel: the entries of its exchange's layout, exchange after exchange
-        entries = np.array([entry for layout in layouts for entry in layout], dtype=np.int64).reshape(-1, 2)
-        lengths = np.array([len(layout) for layout in layouts], dtype=np.int64)
-        taken = lengths[order]
-        entry = (np.repeat((np.cumsum(lengths) - lengths)[order] - (np.cumsum(taken) - taken), taken)
-                 + np.arange(int(taken.sum())))
-        stream, channels = entries[entry, 0], entries[entry, 1]
-        sizes = np.array([rows.shape[1] for rows in streams], dtype=np.int64)[stream]
-        offsets = np.cumsum(sizes) - sizes
-        joined = np.empty(int(sizes.sum()), dtype=np.uint8)
-        for k, rows in enumerate(streams):
-            where = offsets[stream == k]
-            if len(where) > len(rows):
-                raise ValueError(f"its exchanges take {len(where)} messages of a part holding {len(rows)}")
-            if len(where):
-                write_rows(joined, where, rows[:len(where)])
+        layouts = [(tuple(replying), follows, tuple(commanded)) for replying, follows, commanded in about["layouts"]]
+        return block_messages(about["names"], int(about["base_step_ns"]), layouts, order, subsystems,
+                              statuses.reshape(m, statuses_bytes // m) if m else statuses.reshape(0, 0), stamps,
+                              index, status)
     except (struct.error, ValueError, KeyError, IndexError, TypeError) as error:
         raise ValueError(f"a STEPS frame that does not hold what its head says ({error})") from None
-    return channels.astype(np.uint8), sizes, stamps, joined.tobytes()
 
+
+def block_messages(names: list[str], base_step_ns: int, layouts: list[tuple[tuple[int, ...], bool, tuple[int, ...]]],
+                   order: np.ndarray, subsystems: list[SubsystemSteps], statuses: np.ndarray, stamps: np.ndarray,
+                   index: dict[tuple[str, str], int], status: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, bytes]:
+    """The messages of a block of exchanges (``StepsBlock``'s parts, with its ``statuses``: one row of bytes each,
+    and their wall-clock ``stamps``) in the run's order, as :func:`steps_messages` returns them. ValueError (or
+    IndexError, KeyError) where the exchanges take more messages than the parts hold.
+
+    Built with numpy, not message by message: each subsystem's replies and commands are one array of records each
+    (a stream), the statuses another; the exchanges' layouts name each message's stream in turn, and a stream's
+    k-th message is its k-th record, written where it goes (``encoding.write_rows``)."""
+    streams: list[np.ndarray] = []  # per subsystem its replies, then its commands (uint8 rows); the statuses last
+    for s in subsystems:
+        answered = len(s.steps)
+        sent = encode_rows(Kind.STEP, s.ticks, base_step_ns, s.polynomials, s.rows, 0)
+        if answered > len(sent):
+            raise ValueError(f"{answered} replies to {len(sent)} commands")
+        references = command_refs(sent[:answered])  # each reply's reference: its command's CRC-32
+        streams += [encode_rows(Kind.OUTPUT, s.steps, base_step_ns, s.outputs, 0, references), sent]
+    streams.append(statuses)
+    layouts_entries = [[(2 * i, index[names[i], "y"]) for i in replying]
+                       + ([(2 * len(names), status)] if follows else [])
+                       + [(2 * i + 1, index[names[i], "commands"]) for i in commanded]
+                       for replying, follows, commanded in layouts]
+    # each message's stream and channel: the entries of its exchange's layout, exchange after exchange
+    entries = np.array([entry for layout in layouts_entries for entry in layout], dtype=np.int64).reshape(-1, 2)
+    lengths = np.array([len(layout) for layout in layouts_entries], dtype=np.int64)
+    taken = lengths[order]
+    entry = (np.repeat((np.cumsum(lengths) - lengths)[order] - (np.cumsum(taken) - taken), taken)
+             + np.arange(int(taken.sum())))
+    stream, channels = entries[entry, 0], entries[entry, 1]
+    sizes = np.array([rows.shape[1] for rows in streams], dtype=np.int64)[stream]
+    offsets = np.cumsum(sizes) - sizes
+    joined = np.empty(int(sizes.sum()), dtype=np.uint8)
+    for k, rows in enumerate(streams):
+        where = offsets[stream == k]
+        if len(where) > len(rows):
+            raise ValueError(f"its exchanges take {len(where)} messages of a part holding {len(rows)}")
+        if len(where):
+            write_rows(joined, where, rows[:len(where)])
+    return channels.astype(np.uint8), sizes, stamps, joined.tobytes()

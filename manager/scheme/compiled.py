@@ -18,10 +18,10 @@ the stages before it already taken this step (``Plan.lead``), then its subsystem
 
 The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``) and, in a recorded run, where
 it hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps); after each, the
-block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, the
-residuals and times to the status log (``StatusReport.log_steps``) and the commands and outputs to the tap
-(``TakenSteps.append_steps``): what the scheme's loop appends step by step, appended a block at a time. At the
-end the subsystems take the state the loop left (``Subsystem.took_steps``).
+block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, and the
+rows with their times to the tap (``TakenRows``), from which the recorder's processes build the messages and
+statuses the scheme's loop would have handed it: a recorded run's loop is the unrecorded one's. At the end the
+subsystems take the state the loop left (``Subsystem.took_steps``).
 
 Anything else runs the generic loop: multi-rate, polynomial inputs, correctors, pacing (a real-time run), a tap
 that takes messages one by one, Gauss–Seidel with a tap, a subsystem that has no step as statements.
@@ -36,9 +36,9 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import PROGRESS_EVERY, OutputReader, SubsystemCalls
 from zencosim.manager.scheme.residual import residual_power_text
-from zencosim.manager.scheme.tapped import BLOCK_STEPS, TakenSteps
+from zencosim.manager.scheme.tapped import BLOCK_STEPS, TakenRows
 from zencosim.manager.scheme.window import RowWindow
-from zencosim.manager.wire.status import StatusReport
+from zencosim.manager.wire.arrays import float64s, int64s
 from zencosim.subsystems.straight_line import StepText, define, unpacked
 
 # steps in a block handed to a recorder's tap: a generated loop's step costs about an eighth of the scheme's loop's,
@@ -50,32 +50,31 @@ class CompiledSteps:
     """A scene's macro-steps as one generated loop (see the module text); ``run`` takes the place of the
     scheme's loop."""
 
-    def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText], commands: bool) -> None:
+    def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText]) -> None:
         self.plan, self.direct = plan, direct
         self.width = [len(s.outputs) for s in plan.subsystems]
-        self.commands = [len(s.inputs) if commands else 0 for s in plan.subsystems]  # each row's command columns
         self.output_ends = np.cumsum(self.width)
-        self.command_ends = self.output_ends[-1] + np.cumsum(self.commands)
-        self.bonds_start = int(self.command_ends[-1])  # the bonds' δP, then their δE
-        self.source = _loop_text(plan, texts, commands)
+        self.bonds_start = int(self.output_ends[-1])  # the bonds' δP, then their δE
+        self.source = _loop_text(plan, texts)
         namespace = {"Stopped": Stopped}
         for text in texts:
             namespace.update(text.namespace)
         self.steps = define(self.source, "steps", "<compiled macro-steps>", namespace)
 
     def run(self, readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
-            release_times: RowWindow, progress: Callable[[int], None] | None, status: StatusReport | None = None,
-            taken: TakenSteps | None = None) -> int:
+            release_times: RowWindow, progress: Callable[[int], None] | None, taken: TakenRows | None = None) -> int:
         """Run every macro-step from the outputs at t_0 the ``readers`` hold; fill their windows, the bonds' and the
-        release times'; report progress, log the status (``status``) and hand the tap its blocks (``taken``) as the
-        scheme does. Returns the number of macro-steps run (all). A step that raises (a model's failure, an
-        interrupt) ends the run as the scheme's loop ends it: the steps before it handed over, the tap given its
-        request, and the failure named as ``SubsystemCalls.step`` names it."""
+        release times'; report progress and hand the tap its rows (``taken``) as the scheme hands it its blocks.
+        Returns the number of macro-steps run (all). A step that raises (a model's failure, an interrupt) ends the
+        run as the scheme's loop ends it: the steps before it handed over, the tap given its request, and the
+        failure named as ``SubsystemCalls.step`` names it."""
         plan = self.plan
         n_ticks = plan.n_ticks
         state = [list(self.direct.state(s)) for s in plan.subsystems]
         newest = [list(reader.newest) for reader in readers]
         energies = [0.0] * len(plan.bonds)
+        if taken is not None:
+            taken.starts_from([y for outputs in newest for y in outputs], self.bonds_start + 2 * len(plan.bonds))
         first = 0
         while first < n_ticks:
             last = min(n_ticks, _next(first, PROGRESS_EVERY), _next(first, TAP_BLOCK_STEPS) if taken else n_ticks)
@@ -87,9 +86,9 @@ class CompiledSteps:
                                                                     rows.extend, times.append, time.perf_counter_ns)
             except Stopped as stopped:
                 self._stopped(stopped, first, rows, times, readers, residual_power, residual_energy, release_times,
-                              status, taken)
+                              taken)
             self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
-                            release_times, status, taken)
+                            release_times, taken)
             for reader, values in zip(readers, newest):
                 reader.newest = values
             first = last
@@ -102,45 +101,35 @@ class CompiledSteps:
 
     def _hand_over(self, first: int, rows: list[float], times: list[int], done_ns: int, readers: list[OutputReader],
                    residual_power: RowWindow, residual_energy: RowWindow, release_times: RowWindow,
-                   status: StatusReport | None, taken: TakenSteps | None) -> np.ndarray:
-        """The steps from ``first`` whose ``rows`` the loop extended (whole steps) to the run's windows, the status
-        log and the tap; ``times``: their releases (and perhaps one more), ``done_ns``: when the last completed.
-        Returns the rows as an array."""
+                   taken: TakenRows | None) -> int:
+        """The steps from ``first`` whose ``rows`` the loop extended (whole steps) to the run's windows and the tap;
+        ``times``: their releases (and perhaps one more), ``done_ns``: when the last completed. Returns how many."""
         n_bonds = len(self.plan.bonds)
         width = self.bonds_start + 2 * n_bonds
-        block = np.fromiter(rows, float, len(rows)).reshape(len(rows) // width, width)
+        block = float64s(rows).reshape(len(rows) // width, width)
         count = len(block)
         for reader, values in zip(readers, _columns(block, self.output_ends, self.width)):
             reader.window.put_rows(first + 1, values)
         residual_power.put_rows(first + 1, block[:, self.bonds_start:self.bonds_start + n_bonds])
         residual_energy.put_rows(first + 1, block[:, self.bonds_start + n_bonds:])
-        released = np.fromiter(times, np.int64, len(times))[:count]
+        released = int64s(times)[:count]
         release_times.put_rows(first, released)
-        if status is not None:  # a step completed where the next was released (the loop's next statement)
-            completed = np.append(released[1:], done_ns)[:count]
-            status.log_steps(block[:, self.bonds_start:], np.arange(first + 1, first + count + 1), released, completed)
-        if taken is not None:
-            taken.append_steps(first, _columns(block, self.command_ends, self.commands),
-                               _columns(block, self.output_ends, self.width))
-        return block
+        if taken is not None:  # a step completed where the next was released (the loop's next statement)
+            taken.append_rows(block, released, np.append(released[1:], done_ns)[:count])
+        return count
 
     def _stopped(self, stopped: Stopped, first: int, rows: list[float], times: list[int], readers: list[OutputReader],
                  residual_power: RowWindow, residual_energy: RowWindow, release_times: RowWindow,
-                 status: StatusReport | None, taken: TakenSteps | None) -> None:
+                 taken: TakenRows | None) -> None:
         """Hand over the steps before the one that raised and raise what the scheme's loop raises: as it, the tap
         gets that step's request (its commands, the outputs at its start), not its replies."""
-        block = self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
-                                release_times, status, taken)
+        count = self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
+                                release_times, taken)
         if taken is not None:
-            at_start = ([values[0].tolist() for values in _columns(block[-1:], self.output_ends, self.width)]
-                        if len(block) else [list(reader.newest) for reader in readers])
-            commands = [np.array([[at_start[source][output] for source, output in s.zero_order_sources]])
-                        for s in self.plan.subsystems]
-            taken.append_steps(first + len(block), commands, [np.empty((0, width)) for width in self.width])
+            taken.unanswered()
         if stopped.subsystem is None:
             raise stopped.error
-        raise self.direct.failure(self.plan.subsystems[stopped.subsystem], first + len(block) + 1,
-                                  stopped.error) from None
+        raise self.direct.failure(self.plan.subsystems[stopped.subsystem], first + count + 1, stopped.error) from None
 
 
 class Stopped(BaseException):  # not an error of its own: it carries one out of the generated loop
@@ -162,24 +151,23 @@ def _next(tick: int, every: int) -> int:
     return (tick // every + 1) * every
 
 
-def compiled_steps(plan: Plan, direct: SubsystemCalls, commands: bool = False) -> CompiledSteps | None:
+def compiled_steps(plan: Plan, direct: SubsystemCalls, tapped: bool = False) -> CompiledSteps | None:
     """The scene's macro-steps as one loop, or None where the generic loop must run them (see the module text; the
-    caller has ruled out correctors, pacing and a tap that takes messages one by one); ``commands``: each step's row
-    holds the commands too (for a tap)."""
+    caller has ruled out correctors, pacing and a tap that takes messages one by one); ``tapped``: a tap takes its
+    rows (``TakenRows``: Jacobi only, whose commands are the outputs of the step before)."""
     subs = plan.subsystems
-    if (plan.sequential and commands) or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
+    if (plan.sequential and tapped) or any(s.ratio != 1 or s.zero_order_sources is None for s in subs):
         return None
     texts = [direct.step_text(s, f"s{s.index}_", f"tick * {plan.base_step_ns}") for s in subs]
     if any(text is None or len(text.outputs) != len(s.outputs) for text, s in zip(texts, subs)):
         return None
-    return CompiledSteps(plan, direct, texts, commands)
+    return CompiledSteps(plan, direct, texts)
 
 
-def _loop_text(plan: Plan, texts: list[StepText], commands: bool) -> str:
+def _loop_text(plan: Plan, texts: list[StepText]) -> str:
     """The source of ``steps(first, last, state, newest, energies, extend, stamp, perf)``: macro-steps ``first`` …
     ``last - 1`` from each subsystem's ``state`` and ``newest`` outputs and each bond's energy, each step's release
-    time stamped, its row (every subsystem's outputs, with ``commands`` every subsystem's commands, the bonds' δP,
-    their δE) extended; it returns the state, the
+    time stamped, its row (every subsystem's outputs, the bonds' δP, their δE) extended; it returns the state, the
     newest outputs, the energies and the input values at the last step's end."""
     subs = plan.subsystems
     step_s = plan.base_step_ns * 1e-9
@@ -212,10 +200,7 @@ def _loop_text(plan: Plan, texts: list[StepText], commands: bool) -> str:
             power = f"{power} + ({term})"
         body.append(f"{powers[b]} = {power}")
         body.append(f"{energies[b]} = {energies[b]} + {powers[b]} * {step_s!r}")
-    row = [name for text in texts for name in text.outputs]
-    if commands:
-        row += [name for text in texts for name in text.coefficients]
-    row += powers + energies
+    row = [name for text in texts for name in text.outputs] + powers + energies
     body.append(f"extend(({', '.join(row)},))")
     lines = head + ["    stepping = None", "    try:", "        for tick in range(first, last):"]
     lines += [f"            {line}" for line in body]

@@ -44,7 +44,7 @@ from zencosim.manager.scheme.lock_step import LockStep
 from zencosim.manager.scheme.pacing import Releases
 from zencosim.manager.scheme.replica import Tap
 from zencosim.manager.scheme.residual import residual_power
-from zencosim.manager.scheme.tapped import BLOCK_STEPS, Taken, TakenSteps, taken_for
+from zencosim.manager.scheme.tapped import BLOCK_STEPS, Taken, TakenRows, TakenSteps, taken_for, takes_blocks
 from zencosim.manager.scheme.window import RowWindow, Spill
 from zencosim.manager.wire.protocol import HEADER, VERSION, Kind, encode
 from zencosim.manager.wire.status import StatusReport
@@ -131,16 +131,21 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     # manager's replica reports the residuals; a process, its steps' timing)
     everyone = frozenset(range(len(subs)))
     period, stages = schedule(plan, local, tracked, local == everyone or bool(correctors))
-    # a direct run's messages, for its tap (manager.scheme.tapped): request by request, or appended to a block's lists
-    taken = (taken_for(tap, plan, pacer is not None, status is not None, stages)
+    # a direct run that is not paced, with no corrector and no tap that takes messages one by one, may run as one
+    # generated loop (manager.scheme.compiled): then it runs every step, and this loop none
+    compiled = (compiled_steps(plan, direct, tap is not None) if direct is not None and pacer is None
+                and not correctors and (tap is None or takes_blocks(tap, plan, False)) else None)
+    # a direct run's messages, for its tap (manager.scheme.tapped): request by request, appended to a block's lists,
+    # or the generated loop's rows
+    taken = (taken_for(tap, plan, pacer is not None, status is not None, stages, compiled is not None)
              if direct is not None and tap is not None else None)
     block = taken if isinstance(taken, TakenSteps) else None
     if block is not None:
         block_ticks, block_shapes, block_commands, block_outputs = block.ticks, block.shapes, block.commands, \
             block.outputs
     yield from initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
-    if block is not None:
-        block.start()
+    if isinstance(taken, TakenSteps | TakenRows):
+        taken.start()
     n_stages = len(plan.stages)
     some_bonds_idle = [len(bonds) < n_bonds for _, bonds in stages]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
@@ -150,11 +155,6 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     step_kind = int(Kind.STEP)
     stepping: list[tuple[SubsystemPlan, np.ndarray]] = []  # direct: the steps to call once released
     computed: list[np.ndarray | None] = [None] * len(subs)  # direct: the outputs each subsystem's step computed
-    # a direct run that is not paced, with no corrector and no tap that takes messages one by one, may run as one
-    # generated loop (manager.scheme.compiled): then it runs every step, and this loop none
-    compiled = (compiled_steps(plan, direct, block is not None) if direct is not None and pacer is None
-                and not correctors and (taken is None or block is not None) else None)
-
     # a subsystem process's replica that does nothing but step its subsystem on its sources' newest outputs hands its
     # steps to the replica in one request (manager.scheme.lock_step)
     lock_step = (lock_step_request(plan, local, tracked, readers, copied, releases.release)
@@ -175,7 +175,7 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                     break
                 first_tick += len(block[subs[0].name])
         if compiled is not None:
-            first_tick = compiled.run(readers, p_window, e_window, releases.times, progress, status, block)
+            first_tick = compiled.run(readers, p_window, e_window, releases.times, progress, taken)
             step_status = first_tick if status is not None else None
         if lock_step is not None:  # every step in lock step (its record: the release times; the manager's, the rest)
             yield lock_step

@@ -23,21 +23,28 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.scheme.replica import Tap
+from zencosim.manager.wire.arrays import float64s
 from zencosim.manager.wire.protocol import Kind, command_ref, encode
 
 BLOCK_STEPS = 256  # requests of the stepping loop handed over at once (TakenSteps)
 LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tapped exchange by exchange
 
 
-def taken_for(tap, plan: Plan, paced: bool, status: bool, stages: list[tuple]) -> Taken | TakenSteps:
-    """What hands a direct run's messages to ``tap``: blocks of arrays where the tap takes them (``take_steps``), the
-    run is not paced (a real-time run's live view follows it step by step) and a block, which holds whole schedule
-    periods, stays small (the lcm of the communication ratios at most ``LONGEST_PERIOD`` base steps); else
-    exchange by exchange. ``status``: the run reports its status; ``stages``: its schedule's phases
-    (``manager.scheme.jacobi.schedule``)."""
-    if not paced and hasattr(tap, "take_steps") and math.lcm(*(s.ratio for s in plan.subsystems)) <= LONGEST_PERIOD:
-        return TakenSteps(tap, plan, status, stages)
-    return Taken(tap, plan)
+def takes_blocks(tap, plan: Plan, paced: bool) -> bool:
+    """Whether a direct run hands ``tap`` blocks of arrays: where the tap takes them (``take_steps``, ``take_rows``),
+    the run is not paced (a real-time run's live view follows it step by step) and a block, which holds whole
+    schedule periods, stays small (the lcm of the communication ratios at most ``LONGEST_PERIOD`` base steps)."""
+    return not paced and hasattr(tap, "take_steps") and math.lcm(*(s.ratio for s in plan.subsystems)) <= LONGEST_PERIOD
+
+
+def taken_for(tap, plan: Plan, paced: bool, status: bool, stages: list[tuple], rows: bool = False
+              ) -> Taken | TakenSteps | TakenRows:
+    """What hands a direct run's messages to ``tap``: the rows of a generated loop (``rows``, where the run
+    :func:`takes_blocks`), blocks of arrays where it takes blocks, else exchange by exchange. ``status``: the run
+    reports its status; ``stages``: its schedule's phases (``manager.scheme.jacobi.schedule``)."""
+    if not takes_blocks(tap, plan, paced):
+        return Taken(tap, plan)
+    return TakenRows(tap, plan, status) if rows else TakenSteps(tap, plan, status, stages)
 
 
 class Taken:
@@ -136,8 +143,8 @@ class TakenSteps:
     than the rest of the tap. The rest follows from the schedule: a request of shape ``phase × stages + stage``
     commands the subsystems that start there and awaits those due there (``jacobi.schedule``), a status comes with
     each stage-0 request but the run's first, and a subsystem's k-th reply answers its k-th command (its step: the
-    command's tick plus its ratio). A generated loop (``manager.scheme.compiled``) appends the same values a block of
-    steps at a time, as arrays (``append_steps``), which are handed over as they are."""
+    command's tick plus its ratio). A generated loop (``manager.scheme.compiled``) hands its rows to
+    :class:`TakenRows` instead."""
 
     def __init__(self, tap, plan: Plan, status: bool, stages: list[tuple]) -> None:
         self.tap = tap
@@ -157,10 +164,6 @@ class TakenSteps:
         self.shapes: list[int | None] = []  # and their shapes
         self.commands: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its polynomials' values, flat
         self.outputs: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its replies' outputs, flat
-        # or, appended a block of steps at a time (append_steps; a run appends one way or the other), rows of each
-        self.request_blocks: list[tuple[np.ndarray, np.ndarray]] = []  # (ticks, shapes: NaN for none)
-        self.command_blocks: list[list[np.ndarray]] = [[] for _ in range(n)]
-        self.output_blocks: list[list[np.ndarray]] = [[] for _ in range(n)]
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
 
     def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
@@ -171,26 +174,6 @@ class TakenSteps:
         """The stepping loop starts: the initialisation's last replies, with a request that sends nothing."""
         if self.initial_replies.last:
             self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
-
-    def append_steps(self, first: int, commands: list[np.ndarray], outputs: list[np.ndarray]) -> None:
-        """Base steps ``first`` … of a single-rate run of one stage (``manager.scheme.compiled``), appended as the
-        stepping loop appends them step by step: per step a request (the run's first of no shape, every other of
-        shape 0) commanding every subsystem and awaiting its reply; per subsystem a row of ``commands`` each step,
-        and of ``outputs`` each step answered (all but a last one that failed or was interrupted)."""
-        count = len(commands[0])
-        for blocks, rows in zip(self.command_blocks, commands):
-            blocks.append(rows)
-        shapes = np.zeros(count)
-        if first == 0 and count:  # the run's first request: of no shape
-            shapes[0] = np.nan
-        self.request_blocks.append((np.arange(first, first + count), shapes))
-        for blocks, rows in zip(self.output_blocks, outputs):
-            blocks.append(rows)
-
-    @property
-    def requests(self) -> int:
-        """Requests appended since the last block was handed over."""
-        return len(self.ticks) + sum(len(ticks) for ticks, _ in self.request_blocks)
 
     def end(self, status: int | None) -> None:
         """The run has ended: the replies of the last request, with the last status."""
@@ -206,13 +189,9 @@ class TakenSteps:
         replies its requests hand over (not those of a last request that the scheme never took: a run that failed
         or was interrupted), and it is built before anything is cleared, so that an interrupt while it is built
         leaves it whole for ``failed``."""
-        if self.request_blocks:
-            ticks = np.concatenate([ticks for ticks, _ in self.request_blocks])
-            shapes = np.concatenate([shapes for _, shapes in self.request_blocks])
-        else:
-            count = min(len(self.ticks), len(self.shapes))  # requests made (an interrupt may fall between the two)
-            ticks = np.array(self.ticks[:count], dtype=np.int64)
-            shapes = np.array(self.shapes[:count], dtype=float)  # the run's first request: None, here NaN
+        count = min(len(self.ticks), len(self.shapes))  # requests made (an interrupt may fall between the two)
+        ticks = np.array(self.ticks[:count], dtype=np.int64)
+        shapes = np.array(self.shapes[:count], dtype=float)  # the run's first request: None, here NaN
         count = len(ticks)
         if not count and not status:
             return
@@ -246,10 +225,10 @@ class TakenSteps:
             i, width, k = s.index, (s.order + 1) * len(s.inputs), int(handed[s.index])
             sent, n_outputs = ticks[self.commands_mask[:, i][shapes]], len(s.outputs)
             subsystems.append(SubsystemSteps(
-                sent, _rows(self.commands[i], self.command_blocks[i], width, len(sent)), s.order + 1,
-                sent[:k] + s.ratio, _rows(self.outputs[i], self.output_blocks[i], n_outputs, k)))
+                sent, _rows(self.commands[i], width, len(sent)), s.order + 1, sent[:k] + s.ratio,
+                _rows(self.outputs[i], n_outputs, k)))
         block = StepsBlock(self.names, self.plan.base_step_ns, layouts, order, subsystems, statuses, last)
-        for kept in (self.commands, self.outputs, self.command_blocks, self.output_blocks, [self.request_blocks]):
+        for kept in (self.commands, self.outputs):
             for each in kept:
                 each.clear()
         self.ticks.clear()
@@ -261,8 +240,117 @@ class TakenSteps:
         return self.layout_of.setdefault((replying, status, commanded), len(self.layout_of))
 
 
-def _rows(values: list[float], blocks: list[np.ndarray], width: int, count: int) -> np.ndarray:
-    """The first ``count`` rows of ``width`` values: of the flat ``values`` or the row ``blocks``."""
-    if blocks:
-        return np.concatenate(blocks)[:count]
-    return np.array(values[:count * width], dtype=float).reshape(count, width)
+def _rows(values: list[float], width: int, count: int) -> np.ndarray:
+    """The first ``count`` rows of ``width`` values of the flat ``values``."""
+    return float64s(values[:count * width]).reshape(count, width)
+
+
+@dataclass
+class RowsBlock:
+    """Macro-steps of a generated loop (``manager.scheme.compiled``): single-rate Jacobi, every subsystem commanded
+    each step with its sources' newest outputs (zero-order) and answering it. Requests ``first`` …
+    ``first + requests - 1``; ``rows`` (float64, one per step: every subsystem's outputs, then every bond's δP, then
+    its δE), the first carried (the step before ``first``: its outputs command request 0, its residuals and times are
+    the status request 0 reports; at the run's start, the outputs at t_0 and nothing else), then one per request
+    answered by the loop; ``released``/``completed`` [ns, perf_counter_ns] of each row's step. A request's commands are
+    the outputs of the row before its own (``plan.subsystems[i].zero_order_sources``). ``answered``: the last request's
+    replies are handed over (not those of a run that failed or was interrupted in it); ``end_status``: the run's last
+    status follows them; ``status``: the run reports its status (each request but the run's first carries the
+    status of the step it starts); ``start_ns``: the release of step 0; ``last``: the run's last block."""
+
+    first: int
+    requests: int
+    rows: list[np.ndarray]  # blocks of rows, one after the other, the carried row first
+    released: list[np.ndarray]
+    completed: list[np.ndarray]
+    answered: bool
+    end_status: bool
+    status: bool
+    start_ns: int
+    last: bool
+
+    @property
+    def replies(self) -> int:
+        """Replies of each subsystem handed over (the last request's only if ``answered``)."""
+        return max(0, self.requests - 1 + self.answered)
+
+    @property
+    def status_steps(self) -> range:
+        """The steps whose statuses the block's requests report (and, with ``end_status``, the run's last)."""
+        if not self.status:
+            return range(0)
+        return range(max(self.first, 1), self.first + self.requests + self.end_status)
+
+
+class TakenRows:
+    """What a generated loop (``manager.scheme.compiled``) hands a tap that takes rows (``tap.take_rows``): the rows it
+    makes anyway for the run's windows, a :class:`RowsBlock` about every ``TAP_BLOCK_STEPS`` steps, when the run
+    ends and when it fails. The messages are built from them by the recorder's processes
+    (``recordings.rows_frame``), so a recorded run's stepping loop is the unrecorded one's (issue 26). The
+    initialisation goes exchange by exchange, as :class:`TakenSteps` hands it."""
+
+    def __init__(self, tap, plan: Plan, status: bool) -> None:
+        self.tap = tap
+        self.status = status
+        self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
+        self.first = 0  # the first request of the block
+        self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (rows, released, completed) appended
+        self.carried: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # the row before the block's first
+        self.start_ns = 0  # the release of step 0
+        self.pending = False  # a request made after the rows, never answered
+
+    def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
+        """As :meth:`Taken.initial`."""
+        self.initial_replies.initial(request, outputs)
+
+    def start(self) -> None:
+        """As :meth:`TakenSteps.start`."""
+        if self.initial_replies.last:
+            self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
+
+    def starts_from(self, outputs: list[float], width: int) -> None:
+        """The loop starts from ``outputs`` (every subsystem's at t_0, flat) in rows of ``width``."""
+        row = np.full((1, width), np.nan)
+        row[0, :len(outputs)] = outputs
+        self.carried = (row, np.zeros(1, np.int64), np.zeros(1, np.int64))
+
+    def append_rows(self, rows: np.ndarray, released: np.ndarray, completed: np.ndarray) -> None:
+        """The loop's next steps: their ``rows`` (kept, not copied) and their release and completion times."""
+        if not self.blocks and self.first == 0 and len(released):
+            self.start_ns = int(released[0])
+        self.blocks.append((rows, released, completed))
+
+    def unanswered(self) -> None:
+        """The loop made one more request after its rows (its commands: the last row's outputs), which failed."""
+        self.pending = True
+
+    @property
+    def requests(self) -> int:
+        """Requests appended since the last block was handed over."""
+        return sum(len(rows) for rows, _, _ in self.blocks) + self.pending
+
+    def end(self, status: int | None) -> None:
+        """As :meth:`TakenSteps.end`."""
+        self.flush(last=True, status=status is not None)
+
+    def failed(self) -> None:
+        """As :meth:`TakenSteps.failed`: the last request made is not answered."""
+        self.flush(answered=False)
+
+    def flush(self, last: bool = False, answered: bool = True, status: bool = False) -> None:
+        """Hand the block over (nothing when it holds no request); the arguments as :meth:`TakenSteps.flush`'s."""
+        requests = self.requests
+        if not requests:
+            return
+        carried = self.carried
+        block = RowsBlock(self.first, requests, [carried[0], *(rows for rows, _, _ in self.blocks)],
+                          [carried[1], *(times for _, times, _ in self.blocks)],
+                          [carried[2], *(times for _, _, times in self.blocks)], answered, status, self.status,
+                          self.start_ns, last)
+        if self.blocks:
+            rows, released, completed = self.blocks[-1]
+            self.carried = (rows[-1:], released[-1:], completed[-1:])
+        self.first += requests
+        self.blocks = []
+        self.pending = False
+        self.tap.take_rows(block)

@@ -8,14 +8,14 @@ the end of the list; *measured* fields (wall-clock times) differ from run to run
 when a recording is verified by re-running it.
 
 The stepping loop does not encode the messages: as a scheme ends a step it only logs the step's figures
-(``log_residuals``, ``log_times``: two list extensions; a generated loop logs a block of steps' arrays at a
-time, ``log_steps``), and whoever taps the run takes the messages in step order (:meth:`StatusReport.take`),
-encoded many steps at once with numpy when a batch is handed over — a recording's cost on the stepping loop
-(docs/recording.md, Overhead).
+(``log_residuals``, ``log_times``: two list extensions), and whoever taps the run takes the messages in step
+order (:meth:`StatusReport.take`), encoded many steps at once with numpy (:func:`status_messages`) when a batch
+is handed over — a recording's cost on the stepping loop (docs/recording.md, Overhead). A generated loop's tap
+hands over its rows instead, from which the recorder's processes build the same messages
+(``recordings.rows_frame``).
 """
 from __future__ import annotations
 
-import struct
 import time
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -23,7 +23,8 @@ from typing import NamedTuple
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan
-from zencosim.manager.wire.protocol import HEADER_DTYPE, VERSION, Kind
+from zencosim.manager.wire.arrays import float64s, int64s
+from zencosim.manager.wire.protocol import VERSION, Kind, message_dtype
 
 TIMES = 4  # what a scheme logs per step in ``log_times``: (step, released, completed [ns, perf_counter_ns], lateness [ns])
 
@@ -64,51 +65,47 @@ class StatusReport:
         self._times: list[int] = []
         self.log_residuals = self._residuals.extend
         self.log_times = self._times.extend
-        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []  # or (residuals, times) rows, a block at a time
         self._start_ns: int | None = None  # the release of step 0: the first step logged was released then
-        self._table = np.dtype([("header", HEADER_DTYPE), ("values", "<f8", (len(self.fields),))])  # a message
-        self.size = self._table.itemsize  # [bytes] of a message
-
-    def log_steps(self, residuals: np.ndarray, steps: np.ndarray, released: np.ndarray, completed: np.ndarray) -> None:
-        """Steps logged a block at a time, the values ``log_residuals`` and ``log_times`` log one by one (a generated
-        loop's: ``manager.scheme.compiled``; a run logs one way or the other): per step its row of ``residuals`` (δP
-        then δE of every bond), its number, its release and completion times [ns, perf_counter_ns]; no lateness (it
-        is not paced). The arrays are kept as they are (not copied)."""
-        self._blocks.append((residuals, np.column_stack((steps, released, completed, np.zeros_like(steps)))))
+        self.size = message_dtype(len(self.fields)).itemsize  # [bytes] of a message
 
     @property
     def logged(self) -> int:
         """Steps logged and not yet taken."""
-        return len(self._times) // TIMES + sum(len(times) for _, times in self._blocks)
+        return len(self._times) // TIMES
 
     def take(self, count: int) -> Statuses:
         """The STATUS messages of the oldest ``count`` steps logged (they leave the log). The values are those the
         scheme computed, bit for bit; a time in seconds is its integer nanoseconds times 1e-9, as Python's."""
         count = min(count, self.logged)
         n_times, n_residuals = TIMES * count, self.n_residuals * count
-        if self._blocks:  # logged a block at a time: the oldest rows, the rest kept as one block
-            residual_rows = np.concatenate([rows for rows, _ in self._blocks])
-            time_rows = np.concatenate([rows for _, rows in self._blocks])
-            residuals, times = residual_rows[:count].ravel(), time_rows[:count]
-            self._blocks = [(residual_rows[count:], time_rows[count:])] if count < len(time_rows) else []
-        else:  # through struct, which converts a Python int or float in a fraction of numpy's time for a list of them
-            times = np.frombuffer(struct.pack(f"<{n_times}q", *self._times[:n_times]), dtype=np.int64).reshape(
-                count, TIMES)
-            residuals = np.frombuffer(struct.pack(f"<{n_residuals}d", *self._residuals[:n_residuals]), dtype=np.float64)
-            del self._times[:n_times], self._residuals[:n_residuals]
+        times = int64s(self._times[:n_times]).reshape(count, TIMES)
+        residuals = float64s(self._residuals[:n_residuals])
+        del self._times[:n_times], self._residuals[:n_residuals]
         if count == 0:
             return Statuses(b"", times[:, 0], times[:, 2])
         if self._start_ns is None:
             self._start_ns = int(times[0, 1])
-        steps, released, completed = times[:, 0], times[:, 1], times[:, 2]
-        table = np.zeros(count, dtype=self._table)
-        header = table["header"]
-        header["version"], header["kind"], header["count"] = VERSION, Kind.STATUS, len(self.fields)
-        header["step"], header["time_ns"] = steps, steps * self.base_step_ns
-        values, n = table["values"], self.n_residuals
-        values[:, :n] = residuals.reshape(count, n)
-        values[:, n] = (completed - self._start_ns) * 1e-9
-        values[:, n + 1] = (completed - released) * 1e-9
-        if self.realtime:
-            values[:, n + 2] = times[:, 3] * 1e-9
-        return Statuses(table.tobytes(), steps, completed + (time.time_ns() - time.perf_counter_ns()))
+        steps, completed = times[:, 0], times[:, 2]
+        messages = status_messages(residuals.reshape(count, self.n_residuals), steps, times[:, 1], completed,
+                                   times[:, 3] if self.realtime else None, self._start_ns, self.base_step_ns)
+        return Statuses(messages.tobytes(), steps, completed + (time.time_ns() - time.perf_counter_ns()))
+
+
+def status_messages(residuals: np.ndarray, steps: np.ndarray, released: np.ndarray, completed: np.ndarray,
+                    lateness: np.ndarray | None, start_ns: int, base_step_ns: int) -> np.ndarray:
+    """The STATUS messages of ``steps`` (one row of bytes each), as :class:`StatusReport` declares their fields: each
+    step's ``residuals`` (δP then δE of every bond), its wall time since the release of step 0 (``start_ns``) and its
+    own, from its release to its completion [ns, perf_counter_ns → s: the integer nanoseconds times 1e-9, as
+    Python's], and with ``lateness`` [ns] (a paced run) that too."""
+    count, n = residuals.shape
+    table = np.zeros(count, dtype=message_dtype(n + 2 + (lateness is not None)))
+    header = table["header"]
+    header["version"], header["kind"], header["count"] = VERSION, Kind.STATUS, table["values"].shape[1]
+    header["step"], header["time_ns"] = steps, steps * base_step_ns
+    values = table["values"]
+    values[:, :n] = residuals
+    values[:, n] = (completed - start_ns) * 1e-9
+    values[:, n + 1] = (completed - released) * 1e-9
+    if lateness is not None:
+        values[:, n + 2] = lateness * 1e-9
+    return table.view(np.uint8).reshape(count, table.dtype.itemsize)

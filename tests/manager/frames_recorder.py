@@ -4,7 +4,6 @@ from __future__ import annotations
 import numpy as np
 
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import Recorder
 from zencosim.recordings.recorder_process import frame_messages
 
@@ -14,7 +13,7 @@ class FramesRecorder(Recorder):
 
     def __init__(self, plan, status: StatusReport) -> None:
         super().__init__(None)
-        self._declare(channel_specs(plan, status), False, status)
+        self._declare(plan, status, False)
         self.frames: list[tuple[int, bytes]] = []
 
     def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:

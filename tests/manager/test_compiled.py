@@ -207,3 +207,30 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
     assert said[0] == said[1] and said[0].startswith("subsystem S2: failed at step "), said
     assert "fmi2DoStep failed with status" in said[0]
     assert recorded[0] == recorded[1] and len(recorded[0]) >= 4
+
+
+@pytest.mark.parametrize("at", [500, 2500], ids=["first block", "second block"])
+def test_an_interrupted_recorded_run_hands_the_recorder_what_the_generic_loop_hands_it(at, monkeypatch):
+    """An interrupt between two steps (from the progress report after step ``at``; blocks of 2,048 steps): the
+    recorder gets the same messages from the generated loop's rows as from the generic loop, up to the commands of
+    the last request, whose replies the scheme took but never handed over."""
+    recorded, ran = [], []
+
+    def progress(tick: int) -> None:
+        if tick == at:
+            raise KeyboardInterrupt
+    for compiled in (True, False):
+        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])
+        plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = FramesRecorder(plan, status)
+        with monkeypatch.context() as patched, pytest.raises(KeyboardInterrupt):
+            patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, ran))
+            run_in_process(make_scheme(scene, plan, status=status, progress=progress,
+                                       direct=DirectCalls(plan, subsystems), tap=recorder), plan, subsystems, recorder)
+        recorder.flush(last=True)
+        recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
+    assert ran == [True, False]
+    commands = recorder._index["S1", "commands"]
+    assert recorded[0] == recorded[1]
+    assert sum(i == commands for i, _ in recorded[0]) == at + 1  # the initialisation's INIT and the steps' STEPs

@@ -24,8 +24,9 @@ from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings.recorder_process import BATCH, frame_messages
+from zencosim.recordings.recorder_process import BATCH, ROWS, frame_messages
 from zencosim.recordings.recorder_process import STEPS as STEPS_FRAME
+from zencosim.recordings.rows_frame import END_STATUS, ROWS_HEAD, STATUS
 from zencosim.recordings.steps_frame import STEPS_HEAD
 from zencosim.scenes import __path__ as bundled
 
@@ -168,7 +169,9 @@ def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arra
         run_in_process(scheme, plan, subsystems, recorder)
         recorder.flush(last=True)
         kinds = {kind for kind, _ in recorder.frames}
-        assert kinds == ({BATCH, STEPS_FRAME} if direct else {BATCH}), kinds  # the initialisation, then blocks
+        # the initialisation, then blocks: a generated loop's rows (manager.scheme.compiled), else the scheme's arrays
+        blocks = ROWS if name == "two_mass_damped" else STEPS_FRAME
+        assert kinds == ({BATCH, blocks} if direct else {BATCH}), kinds
         seen.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))  # a status: header, δP, δE
         if direct:
             assert recorder.published == {topic: sum(1 for i, _ in seen[1] if recorder._topics[i] == topic)
@@ -206,16 +209,21 @@ def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():
     assert len(seen[1]) > 8000 and seen[0] == seen[1]
 
 
-def test_a_steps_frame_that_does_not_hold_what_its_head_says_is_refused():
-    """Cut short, lengthened, or with a layout number past its layouts: a ValueError naming the frame, as a BATCH
-    frame's (recorder_process.split_batch), never wrong messages."""
-    scene = load_scene("two_mass_damped", ["manager.duration=0.2"])  # one block
+def _block_frame(name: str, kind: int) -> tuple[FramesRecorder, bytes]:
+    """The recorder of a short recorded direct run of scene ``name`` and its first frame of ``kind``."""
+    scene = load_scene(name, ["manager.duration=0.2"])
     plan, subsystems = plan_scene(scene)
     status = StatusReport(plan, False)
     recorder = FramesRecorder(plan, status)
     run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems), tap=recorder),
                    plan, subsystems, recorder)
-    (frame,) = [data for kind, data in recorder.frames if kind == STEPS_FRAME]
+    return recorder, next(data for found, data in recorder.frames if found == kind)
+
+
+def test_a_steps_frame_that_does_not_hold_what_its_head_says_is_refused():
+    """Cut short, lengthened, or with a layout number past its layouts: a ValueError naming the frame, as a BATCH
+    frame's (recorder_process.split_batch), never wrong messages."""
+    recorder, frame = _block_frame("hydraulic_crane", STEPS_FRAME)
     frame_messages(STEPS_FRAME, frame, recorder._index, recorder._status)  # whole: read
     text_bytes, m, statuses_bytes, _ = STEPS_HEAD.unpack_from(frame)
     order_at = STEPS_HEAD.size + text_bytes + 8 * m + statuses_bytes
@@ -223,3 +231,19 @@ def test_a_steps_frame_that_does_not_hold_what_its_head_says_is_refused():
     for damaged in (frame[:-8], frame + b"\0" * 8, frame[:STEPS_HEAD.size + 3], wrong_layout):
         with pytest.raises(ValueError, match="a STEPS frame that does not hold what its head says"):
             frame_messages(STEPS_FRAME, damaged, recorder._index, recorder._status)
+
+
+def test_a_rows_frame_that_does_not_hold_what_its_head_says_is_refused():
+    """Cut short, lengthened, more requests than rows, replies said to follow a request past the rows, the run's last
+    status without its replies: a ValueError naming the frame, never wrong messages."""
+    recorder, frame = _block_frame("two_mass_damped", ROWS)
+    frame_messages(ROWS, frame, recorder._index, recorder._status)  # whole: read
+    head = list(ROWS_HEAD.unpack_from(frame))
+
+    def with_head(**changes: int) -> bytes:
+        fields = dict(zip(("about", "rows", "requests", "flags"), head[:4]), **changes)
+        return ROWS_HEAD.pack(*fields.values(), *head[4:]) + frame[ROWS_HEAD.size:]
+    for damaged in (frame[:-8], frame + b"\0" * 8, frame[:ROWS_HEAD.size + 3], with_head(requests=head[1] + 1),
+                    with_head(requests=head[1]), with_head(requests=0), with_head(flags=END_STATUS | STATUS)):
+        with pytest.raises(ValueError, match="a ROWS frame that does not hold what its head says"):
+            frame_messages(ROWS, damaged, recorder._index, recorder._status)

@@ -20,7 +20,6 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import Exchange
 from zencosim.manager.wire.protocol import Kind, decode
 from zencosim.manager.wire.status import StatusReport
-from zencosim.recordings.layout import channel_specs
 from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
 from zencosim.recordings.recorder_process import BATCH_HEAD, split_batch
 
@@ -34,7 +33,7 @@ class CapturingRecorder(Recorder):
         super().__init__(tmp_path / "unused.mcap")
         plan, _ = plan_scene(load_scene("two_mass_damped"))
         self.report = StatusReport(plan, realtime)
-        self._declare(channel_specs(plan, self.report), realtime, self.report)
+        self._declare(plan, self.report, realtime)
         if hold_signals:  # as start() does; close() puts the handlers back
             self._hold_signals()
         self.frames: list[bytes] = []
