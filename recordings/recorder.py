@@ -54,6 +54,7 @@ from zencosim.recordings.steps_frame import steps_frame
 STALL_S = 10.0  # an observer that makes no progress for this long fails (the scene's manager.timeout, once known)
 PROGRESS_LOOK_S = 0.5  # while it is waited for, its CPU time and state are looked at this often [s]
 PIPE_BYTES = 1 << 20  # pipe capacity asked of the kernel: room for bursts before the tap blocks
+PAGE_BYTES = os.sysconf("SC_PAGE_SIZE")  # a pipe's buffers are pages
 BATCH_MESSAGES = 2048  # the tap hands messages over in batches of about this many (at a status message)
 HANDOVER_S = 0.01  # and a real-time run's at least every this much run time [s] (a live view's 100 frames/s)
 F_SETPIPE_SZ, F_GETPIPE_SZ = 1031, 1032  # Linux fcntl
@@ -107,6 +108,7 @@ class _Observer:
             self.capacity: int | None = fcntl.fcntl(fd, F_GETPIPE_SZ)  # [bytes] of its pipe
         except OSError:
             self.capacity = None  # cannot tell: a lossy observer is waited for like any other
+        self.writes = 0  # writes into its pipe since it was last seen empty (_room_for)
         os.set_blocking(fd, False)
 
     def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None],
@@ -115,10 +117,11 @@ class _Observer:
         ``stalled(self, -waited_s)`` once it takes bytes again after that. ``steps``: the frame is a batch of
         that many macro-steps, which a lossy observer without room skips."""
         fd = self.process.stdin.fileno()
-        if steps is not None and self.lossy and not self._room_for(sum(map(len, parts))):
+        if steps is not None and self.lossy and not self._room_for(sum(map(len, parts)), len(parts)):
             self.skipped[0] += 1
             self.skipped[1] += steps
             return
+        self.writes += len(parts)
         stalls, since = 0, 0.0
         for part in parts:
             view = memoryview(part)
@@ -135,15 +138,22 @@ class _Observer:
         if stalls:
             stalled(self, since - time.monotonic())
 
-    def _room_for(self, size: int) -> bool:
-        """Whether the pipe takes ``size`` bytes now; an empty pipe always does (a frame larger than the pipe
-        is then written as its reader takes it)."""
+    def _room_for(self, size: int, writes: int) -> bool:
+        """Whether the pipe takes ``size`` bytes in ``writes`` writes now; an empty pipe always does (a frame larger
+        than the pipe is then written as its reader takes it). A pipe holds whole pages, and a write that does not
+        fit in the last page's room starts a new one: each write since the pipe was empty may have left up to a page
+        unused (with 147 KB frames, six fitted in 1 MiB by their bytes and the seventh did not: the run waited for
+        a frozen live view)."""
         unread = array("i", [0])
         try:
             fcntl.ioctl(self.process.stdin.fileno(), termios.FIONREAD, unread)
         except OSError:
             return True  # cannot tell: wait for room
-        return self.capacity is None or unread[0] == 0 or self.capacity - unread[0] >= size
+        if self.capacity is None or unread[0] == 0:
+            self.writes = 0
+            return True
+        pages = -(-unread[0] // PAGE_BYTES) + self.writes + -(-size // PAGE_BYTES) + writes  # at the most
+        return pages * PAGE_BYTES <= self.capacity
 
     def ended(self) -> str:
         """How the process ended (``"killed by SIGKILL"``, ``"exited with code 1: writing the file failed: No
