@@ -25,8 +25,13 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from zencosim.manager.scheme.window import row_blocks
+
+HORIZON = 8192  # points decided with numpy at a time
+AFTER_FLAG = 64  # points decided one by one after a flagged one (a burst flags many in a row)
+WINDOW_SIZES = 3  # windows of at most this many sizes are decided with numpy (more: irregular times)
 
 
 @dataclass(frozen=True)
@@ -57,19 +62,72 @@ class SpikeMonitor:
         self.open: list | None = None  # the interval being grown: [start, end, peak time, peak, points]
 
     def flags(self, t: np.ndarray, p_res: np.ndarray) -> np.ndarray:
-        """Boolean mask of the flagged points among the next points ``t`` [s], ``p_res`` [W]."""
+        """Boolean mask of the flagged points among the next points ``t`` [s], ``p_res`` [W].
+
+        Stretches without a flagged point are decided with numpy (:meth:`_stretch`): there every point's window is
+        the points before it within ``window``, whose running median scipy's rank filters give. A flagged point
+        leaves the windows of the points after it, so after one the next ``AFTER_FLAG`` points go one by one
+        (:meth:`_one_by_one`: the running median kept in a sorted list), and so do series whose times are not in
+        order, whose values are not finite or whose windows hold more than ``WINDOW_SIZES`` numbers of points
+        (irregular times)."""
+        t = np.asarray(t, dtype=float)
+        magnitudes = np.abs(np.asarray(p_res, dtype=float))
         flagged = np.zeros(len(t), dtype=bool)
-        times, magnitudes, ordered = self.times, self.magnitudes, self.ordered
-        window, threshold = self.window, self.threshold
         if self.start is None and len(t):
             self.start = float(t[0])
-        start = self.start
+        regular = bool(np.isfinite(magnitudes).all() and (np.diff(t) >= 0).all())
+        i = 0
+        while i < len(t):
+            if regular:
+                i, regular = self._stretch(t, magnitudes, flagged, i)
+            i = self._one_by_one(t, magnitudes, flagged, i, i + AFTER_FLAG if regular else len(t))
+        return flagged
+
+    def _stretch(self, t: np.ndarray, magnitudes: np.ndarray, flagged: np.ndarray, i: int) -> tuple[int, bool]:
+        """Decide points ``i`` … (at most ``HORIZON``) with numpy, up to the first flagged one (flagged here);
+        returns the first point not decided, and False where the windows hold too many numbers of points (nothing
+        decided)."""
+        stop = min(len(t), i + HORIZON)
+        held = len(self.times)  # the unflagged points of the window so far, then the new ones
+        times = np.concatenate((np.array(self.times), t[i:stop]))
+        values = np.concatenate((np.array(self.magnitudes), magnitudes[i:stop]))
+        new = np.arange(held, len(times))
+        sizes = new - np.searchsorted(times, times[new] - self.window, side="left")  # the window: the points before
+        judged = (times[new] - self.start >= self.window) & (sizes > 0)  # a full window of history, not empty
+        kinds = np.unique(sizes[judged]).tolist()
+        if len(kinds) > WINDOW_SIZES:
+            return i, False
+        baseline = np.zeros(len(new))
+        for size in kinds:  # the median of each window of ``size`` points (the mean of the middle two if even)
+            at = judged & (sizes == size)
+            ends = new[at] - size + size // 2  # where a centred filter of ``size`` sees the points before new[at]
+            upper = ndimage.rank_filter(values, size // 2, size=size)[ends]
+            baseline[at] = (upper if size % 2
+                            else 0.5 * (ndimage.rank_filter(values, size // 2 - 1, size=size)[ends] + upper))
+        spikes = judged & (values[new] > self.threshold * baseline)
+        decided = int(np.argmax(spikes)) if spikes.any() else len(new)
+        end = held + decided  # the unflagged points, as the one-by-one loop leaves its window after the last
+        if end:
+            first = int(np.searchsorted(times[:end], times[end - 1] - self.window, side="left"))
+            self.times = deque(times[first:end].tolist())
+            self.magnitudes = deque(values[first:end].tolist())
+            self.ordered = sorted(self.magnitudes)
+        if decided < len(new):
+            flagged[i + decided] = True
+            return i + decided + 1, True
+        return stop, True
+
+    def _one_by_one(self, t: np.ndarray, magnitudes: np.ndarray, flagged: np.ndarray, i: int, stop: int) -> int:
+        """Decide points ``i`` … ``stop - 1`` one by one; returns where it stopped."""
+        stop = min(stop, len(t))
+        times, kept, ordered = self.times, self.magnitudes, self.ordered
+        window, threshold, start = self.window, self.threshold, self.start
         insort, position = bisect.insort, bisect.bisect_left
-        for i, (time, magnitude) in enumerate(zip(t.tolist(), np.abs(p_res).tolist())):
+        for i, (time, magnitude) in enumerate(zip(t[i:stop].tolist(), magnitudes[i:stop].tolist()), start=i):
             oldest = time - window
             while times and times[0] < oldest:
                 times.popleft()
-                del ordered[position(ordered, magnitudes.popleft())]
+                del ordered[position(ordered, kept.popleft())]
             if time - start >= window and ordered:  # a full window of history
                 middle = len(ordered) // 2
                 baseline = ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
@@ -77,9 +135,9 @@ class SpikeMonitor:
                     flagged[i] = True
                     continue
             times.append(time)
-            magnitudes.append(magnitude)
+            kept.append(magnitude)
             insort(ordered, magnitude)
-        return flagged
+        return stop
 
     def add(self, t: np.ndarray, p_res: np.ndarray) -> None:
         """Take the next points; flagged points closer than ``merge_gap`` join one interval."""
