@@ -98,13 +98,14 @@ class SpikeMonitor:
         if len(kinds) > WINDOW_SIZES:
             return i, False
         baseline = np.zeros(len(new))
-        for size in kinds:  # the median of each window of ``size`` points (the mean of the middle two if even)
+        for size in kinds:  # the median of each window of ``size`` points: its middle one, or the lower middle one
             at = judged & (sizes == size)
             ends = new[at] - size + size // 2  # where a centred filter of ``size`` sees the points before new[at]
-            upper = ndimage.rank_filter(values, size // 2, size=size)[ends]
-            baseline[at] = (upper if size % 2
-                            else 0.5 * (ndimage.rank_filter(values, size // 2 - 1, size=size)[ends] + upper))
+            baseline[at] = ndimage.rank_filter(values, (size - 1) // 2, size=size)[ends]
         spikes = judged & (values[new] > self.threshold * baseline)
+        for k in np.flatnonzero(spikes & (sizes % 2 == 0)):  # an even window's median is not below its lower middle
+            window = np.sort(values[new[k] - sizes[k]:new[k]])  # one: the mean of the two, where a spike may be
+            spikes[k] = values[new[k]] > self.threshold * (0.5 * (window[sizes[k] // 2 - 1] + window[sizes[k] // 2]))
         decided = int(np.argmax(spikes)) if spikes.any() else len(new)
         end = held + decided  # the unflagged points, as the one-by-one loop leaves its window after the last
         if end:
