@@ -10,6 +10,7 @@ recording's tap only: ``manager.bus.inproc``).
 """
 from __future__ import annotations
 
+import functools
 import struct
 import zlib
 from enum import IntEnum
@@ -111,8 +112,34 @@ def encode_rows(kind: Kind, steps: np.ndarray, base_step_ns: int, values: np.nda
 
 
 def command_refs(commands: np.ndarray) -> np.ndarray:
-    """``command_ref`` of each command of ``commands`` (one per row of bytes, as ``encode_rows`` gives them)."""
-    return np.fromiter(map(command_ref, commands), np.uint32, len(commands))
+    """``command_ref`` of each command of ``commands`` (one per row of bytes, as ``encode_rows`` gives them): for
+    commands of up to ``TABLED_BYTES`` bytes, CRC-32 as the affine map it is on messages of one length, one table
+    lookup per byte and an exclusive or of them all (``_crc_tables``), with numpy: 0.54 → 0.1 µs per command of
+    two_mass_damped, where each ``zlib.crc32`` call took a numpy row and a Python call."""
+    length = commands.shape[1]
+    if length > TABLED_BYTES:
+        return np.fromiter(map(command_ref, commands), np.uint32, len(commands))
+    of_zeros, tables = _crc_tables(length)
+    return np.bitwise_xor.reduce(tables[np.arange(length), commands], axis=1, initial=of_zeros)
+
+
+TABLED_BYTES = 256  # commands up to this long take their CRC-32 from tables (length × 256 × 4 bytes)
+
+
+@functools.cache
+def _crc_tables(length: int) -> tuple[int, np.ndarray]:
+    """CRC-32 is affine over GF(2) for messages of ``length`` bytes: ``crc(m) = crc(0…0) ⊕ ⨁_p T[p, m_p]`` with
+    ``T[p, v] = crc(v at p, zeros elsewhere) ⊕ crc(0…0)`` (linearity of the remainder; zlib's initial and final
+    inversions are the affine part). Returns ``crc(0…0)`` and ``T`` (uint32), computed by zlib once per length."""
+    of_zeros = zlib.crc32(bytes(length))
+    tables = np.empty((length, 256), dtype=np.uint32)
+    message = bytearray(length)
+    for p in range(length):
+        for v in range(256):
+            message[p] = v
+            tables[p, v] = zlib.crc32(message) ^ of_zeros
+        message[p] = 0
+    return of_zeros, tables
 
 
 def decode(data: bytes, sender: str) -> Message:

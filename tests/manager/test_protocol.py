@@ -6,6 +6,7 @@ import resource
 import signal
 import subprocess
 import sys
+import zlib
 
 import numpy as np
 import pytest
@@ -22,7 +23,17 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.jacobi import jacobi
 from zencosim.manager.scheme.replica import Replica
-from zencosim.manager.wire.protocol import HEADER, Kind, ProtocolError, command_ref, decode, encode, encode_error
+from zencosim.manager.wire.protocol import (
+    HEADER,
+    TABLED_BYTES,
+    Kind,
+    ProtocolError,
+    command_ref,
+    command_refs,
+    decode,
+    encode,
+    encode_error,
+)
 from zencosim.manager.wire.text import printable
 from zencosim.subsystems.process.endpoint import failure_reason
 
@@ -303,3 +314,18 @@ def test_the_drops_of_every_process_are_merged_per_key_and_said_in_one_sentence(
     assert describe(merged) == ("5 dropped on zencosim/r/S1/log by manager, S1 (first: answers another command); "
                                 "1 dropped on zencosim/r/S1/y by S2 from zenoh id abc entity 1 "
                                 "(first: protocol version 238, expected 2)")
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, TABLED_BYTES + 8), st.integers(0, 40), st.integers(0, 2**32 - 1))
+def test_command_refs_are_zlibs_crc32_of_each_command(length, count, seed):
+    """The CRC-32 of a block of commands from tables (an affine map over bytes) against zlib's on each: generated
+    lengths on both sides of the tables' limit, random bytes and rows of only 0x00 or 0xFF."""
+    rng = np.random.default_rng(seed)
+    commands = rng.integers(0, 256, (count, length), dtype=np.uint8)
+    commands[::3] = 0
+    commands[1::5] = 0xFF
+    refs = command_refs(commands)
+    assert refs.dtype == np.uint32
+    assert refs.tolist() == [zlib.crc32(row.tobytes()) for row in commands] == [command_ref(bytes(row))
+                                                                                   for row in commands]
