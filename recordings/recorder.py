@@ -9,7 +9,8 @@ the tap only appends the messages and their channels to two lists, and every ``B
 messages (every ``HANDOVER_S`` of a real-time run) they go down the pipe as one frame, to every observer, so
 validation, encoding and compression (and the live view) run in the other processes, on the other core.
 An in-process run that is not paced hands ``take_steps`` blocks of arrays instead (``manager.scheme.tapped``),
-each sent as one STEPS frame from which those processes build the messages (``recordings.steps_frame``).
+each sent as one STEPS frame from which those processes build the messages (``recordings.steps_frame``), or, from a
+generated loop, ``take_rows`` its rows, sent as ROWS frames (``recordings.rows_frame``).
 A full pipe blocks the tap: backpressure, never a drop. ``finish`` sends the outcome and what the tap
 handed over and returns the recorder's end record (outcome, per-channel published / received / lost).
 A recorder that cannot write (a full disk) says why on its standard output before it exits, and the line

@@ -11,7 +11,9 @@ keeps the values the stepping loop appends to its lists and hands over a :class:
 the order of the exchanges; the recorder process builds the wire messages and each reply's reference, the CRC-32 of
 its command (``recordings.steps_frame``). Encoding and handing over every message on the stepping loop cost the
 recorded in-process loop of two_mass_damped a third more instructions per step (stop 29; the blocks' cost:
-docs/recording.md, benchmarks/bench_instructions.py --recording).
+docs/recording.md, benchmarks/bench_instructions.py --recording). A generated loop (``manager.scheme.compiled``)
+hands :class:`TakenRows` the rows it makes anyway, as :class:`RowsBlock` (the recorder's ``take_rows``), from which
+the recorder's processes build the same messages (``recordings.rows_frame``).
 """
 from __future__ import annotations
 
