@@ -16,7 +16,8 @@
    side by side in one process, taking turns every 500 steps, so that the host's drift falls on all
    three alike (as separate runs in turn their pair ratios spread from −34 % to +60 %).
    In process, also a run without and a run with recording side by side in one process, taking turns
-   every 500 steps, compared by the CPU time of each (``interleaved_overhead``).
+   every 500 steps, compared by the CPU time of each (``interleaved_overhead``), for the scene's 10 s and for
+   ``LONG_S``: from the two, what recording costs per step and once per run (``per_step_and_fixed``).
 2. Recorder ceiling: messages per second the recorder's writer takes (validate, encode and write
    MCAP, in batches as the tap sends them), alone on one core.
    Also the file's bytes per message, the time to read a recording back per message, and whether
@@ -55,6 +56,7 @@ from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
 from zencosim.recordings.writer import RecordingWriter
 
 SCENE = "two_mass_damped"
+LONG_S = 100.0  # [s] of the scene's long runs side by side: recording's cost per step apart from its cost per run
 
 
 def _in_turn(runs: list, repeat: int) -> list:
@@ -118,12 +120,13 @@ def overhead(bus: str, repeats: int, workdir: Path, live: str | None = None) -> 
             "lost": lost, "file_bytes": None if live else (workdir / f"{bus}-0.mcap").stat().st_size}
 
 
-def interleaved_overhead(repeats: int, workdir: Path) -> dict:
+def interleaved_overhead(repeats: int, workdir: Path, duration: float | None = None) -> dict:
     """In process, a run without and a run with ``--record`` side by side in one process, taking turns every
     500 steps (``_side_by_side``): CPU µs per macro-step of each run's thread (the whole of ``execute``, so the
     recording's start and finish count against it), and the median over repeats of their ratio — a figure the
-    host's drift, which falls on both alike, does not swing as it swings the runs in turn of ``overhead``."""
-    scene = load_scene(SCENE)
+    host's drift, which falls on both alike, does not swing as it swings the runs in turn of ``overhead``.
+    ``duration`` [s]: of the scene's runs (its own by default)."""
+    scene = load_scene(SCENE, [] if duration is None else [f"manager.duration={duration}"])
     steps = plan_scene(scene)[0].n_ticks
     plain, recorded, lost = [], [], []
     for repeat in range(repeats):
@@ -133,8 +136,17 @@ def interleaved_overhead(repeats: int, workdir: Path) -> dict:
         plain.append(cpu[0] / steps * 1e6)
         recorded.append(cpu[1] / steps * 1e6)
         lost.append(recorder.result["lost"])
-    return {"cpu_us_without": statistics.median(plain), "cpu_us_with": statistics.median(recorded),
+    return {"steps": steps, "cpu_us_without": statistics.median(plain), "cpu_us_with": statistics.median(recorded),
             **_overhead_of(recorded, plain), "lost": lost}
+
+
+def per_step_and_fixed(short: dict, long: dict) -> dict:
+    """What recording adds to a run's thread per step and once per run (starting and finishing the recorder), from
+    the side-by-side figures of a short and a long run: the added CPU [µs] of each, against their steps."""
+    added = [(f["cpu_us_with"] - f["cpu_us_without"]) * f["steps"] for f in (short, long)]
+    per_step_us = (added[1] - added[0]) / (long["steps"] - short["steps"])
+    return {"per_step_us": per_step_us, "per_step_overhead": per_step_us / long["cpu_us_without"],
+            "fixed_ms": (added[0] - per_step_us * short["steps"]) * 1e-3}
 
 
 def live_overhead(repeats: int, workdir: Path) -> dict:
@@ -324,6 +336,7 @@ def main() -> None:
                    "stepping_loop": stepping_loop_cost(args.loop_repeats),
                    "inproc": overhead("inproc", args.repeats, workdir),
                    "inproc_side_by_side": interleaved_overhead(args.repeats, workdir),
+                   "inproc_side_by_side_long": interleaved_overhead(args.repeats, workdir, LONG_S),
                    "zenoh": overhead("zenoh", args.zenoh_repeats, workdir),
                    "live": live_overhead(args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
@@ -361,6 +374,13 @@ def main() -> None:
     table.add_row("inproc, runs side by side in turns: overhead of recording (target <= 10 %; median of ratios, "
                   "CI, range)", _overhead(turns))
     table.add_row("inproc, runs side by side in turns: messages lost per run", ", ".join(map(str, turns["lost"])))
+    long = figures["inproc_side_by_side_long"]
+    table.add_row(f"inproc, the same, {LONG_S:g} s runs: CPU per step without / with --record [µs]; overhead",
+                  f"{long['cpu_us_without']:.2f} / {long['cpu_us_with']:.2f}; {_overhead(long)}")
+    split = figures["inproc_recording_split"] = per_step_and_fixed(turns, long)
+    table.add_row("inproc, recording per step (target <= 10 % of a step) and once per run (from the two lengths)",
+                  f"{split['per_step_us']:.3f} µs = {split['per_step_overhead'] * 100:.1f} % of a step; "
+                  f"{split['fixed_ms']:.2f} ms")
     recorder = figures["recorder"]
     table.add_row("recorder writer alone [messages/s of CPU]", f"{recorder['messages_per_s']:.0f}")
     table.add_row("file [bytes/message]", f"{recorder['file_bytes_per_message']:.1f}")
