@@ -154,8 +154,9 @@ def test_a_tap_sees_the_same_messages_in_the_same_order_on_both_paths(name, over
                          ids=["two_mass_damped", "multi-rate", "multi-rate-gauss-seidel", "gauss-seidel-chain",
                               "hydraulic_crane"])
 def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arrays(name, overrides, duration):
-    """A recorded direct run hands the recorder blocks of arrays (manager.scheme.tapped.TakenSteps, STEPS frames);
-    the messages the recorder process builds from them (recordings.steps_frame) are those a replica's tap hands it
+    """A recorded direct run hands the recorder blocks of arrays (manager.scheme.tapped: TakenSteps, STEPS frames;
+    a generated loop's TakenRows, ROWS frames); the messages the recorder process builds from them
+    (recordings.steps_frame, rows_frame) are those a replica's tap hands it
     exchange by exchange on the message path: every message, byte for byte, in order and with its channel index —
     the statuses included, but for the wall times in them (each run's own)."""
     seen = []

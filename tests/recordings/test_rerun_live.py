@@ -62,7 +62,7 @@ def _sink(rrd: Path):
             sink.wait()
 
 
-@pytest.mark.parametrize("bus", ["zenoh", "inproc"])  # in process, the view builds the messages from STEPS frames
+@pytest.mark.parametrize("bus", ["zenoh", "inproc"])  # in process, the view builds the messages from ROWS frames
 def test_a_live_run_receives_what_the_replay_of_its_recording_shows(processes, tmp_path, bus):
     live, replayed, mcap = tmp_path / "live.rrd", tmp_path / "replay.rrd", tmp_path / "run.mcap"
     with _sink(live) as address:
@@ -110,7 +110,7 @@ def test_a_live_view_that_falls_behind_is_skipped_not_waited_for(tmp_path):
             view = recorder.pids[1]
             os.kill(view, signal.SIGSTOP)
             try:
-                # as zencosim run makes it: the scheme calls the subsystems and hands the recorder STEPS frames
+                # as zencosim run makes it: the scheme calls the subsystems and hands the recorder ROWS frames
                 run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems),
                                            tap=recorder), plan, subsystems, recorder)
             finally:
