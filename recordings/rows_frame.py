@@ -23,7 +23,7 @@ import struct
 import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan
-from zencosim.manager.scheme.tapped import RowsBlock, SubsystemSteps
+from zencosim.manager.scheme.tapped import RowsBlock, SubsystemSteps, rows_replies, rows_status_steps
 from zencosim.manager.wire.status import status_messages
 from zencosim.recordings.steps_frame import block_messages
 
@@ -67,13 +67,13 @@ def rows_messages(frame: bytes, index: dict[tuple[str, str], int], status: int
         if at + 8 * n * (width + 2) != len(frame) or not 1 <= requests <= n or (answered and requests != n - 1) \
                 or (end_status and not answered):
             raise ValueError("its parts do not add up to its length")
-        replies = requests - 1 + answered
+        replies = rows_replies(requests, answered)
         ticks = first + np.arange(requests, dtype=np.int64)
         subsystems = [SubsystemSteps(ticks, rows[:requests, [int(starts[source]) + output for source, output in fed]],
                                      1, ticks[:replies] + 1, rows[1:1 + replies, starts[i]:starts[i + 1]])
                       for i, fed in enumerate(about["sources"])]
-        # the statuses: each request's but the run's first (of its step: its row), and the run's last
-        carrying = np.arange(0 if first else 1, requests + end_status) if flags & STATUS else np.arange(0)
+        steps = rows_status_steps(first, requests, end_status, bool(flags & STATUS))
+        carrying = np.arange(steps.start, steps.stop) - first  # a status's step is its row's
         statuses = status_messages(rows[carrying, int(starts[-1]):], first + carrying, released[carrying],
                                    completed[carrying], None, start_ns, int(about["base_step_ns"]))
         everyone = tuple(range(len(names)))

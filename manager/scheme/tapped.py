@@ -273,15 +273,25 @@ class RowsBlock:
 
     @property
     def replies(self) -> int:
-        """Replies of each subsystem handed over (the last request's only if ``answered``)."""
-        return max(0, self.requests - 1 + self.answered)
+        """Replies of each subsystem handed over."""
+        return rows_replies(self.requests, self.answered)
 
     @property
     def status_steps(self) -> range:
         """The steps whose statuses the block's requests report (and, with ``end_status``, the run's last)."""
-        if not self.status:
-            return range(0)
-        return range(max(self.first, 1), self.first + self.requests + self.end_status)
+        return rows_status_steps(self.first, self.requests, self.end_status, self.status)
+
+
+def rows_replies(requests: int, answered: bool) -> int:
+    """The replies of each subsystem a :class:`RowsBlock` of ``requests`` hands over (the last request's only if
+    ``answered``); the recorder counts them and its processes build them (``recordings.rows_frame``)."""
+    return max(0, requests - 1 + answered)
+
+
+def rows_status_steps(first: int, requests: int, end_status: bool, status: bool) -> range:
+    """The steps whose statuses a :class:`RowsBlock` (its fields) reports: each request's but the run's first (of the
+    step it starts), and with ``end_status`` the run's last; none where the run reports no status."""
+    return range(max(first, 1), first + requests + end_status) if status else range(0)
 
 
 class TakenRows:
