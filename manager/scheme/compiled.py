@@ -55,6 +55,7 @@ class CompiledSteps:
         self.width = [len(s.outputs) for s in plan.subsystems]
         self.output_ends = np.cumsum(self.width)
         self.bonds_start = int(self.output_ends[-1])  # the bonds' δP, then their δE
+        self.row_width = self.bonds_start + 2 * len(plan.bonds)
         self.source = _loop_text(plan, texts)
         namespace = {"Stopped": Stopped}
         for text in texts:
@@ -74,7 +75,7 @@ class CompiledSteps:
         newest = [list(reader.newest) for reader in readers]
         energies = [0.0] * len(plan.bonds)
         if taken is not None:
-            taken.starts_from([y for outputs in newest for y in outputs], self.bonds_start + 2 * len(plan.bonds))
+            taken.starts_from([y for outputs in newest for y in outputs], self.row_width)
         first = 0
         while first < n_ticks:
             last = min(n_ticks, _next(first, PROGRESS_EVERY), _next(first, TAP_BLOCK_STEPS) if taken else n_ticks)
@@ -105,8 +106,7 @@ class CompiledSteps:
         """The steps from ``first`` whose ``rows`` the loop extended (whole steps) to the run's windows and the tap;
         ``times``: their releases (and perhaps one more), ``done_ns``: when the last completed. Returns how many."""
         n_bonds = len(self.plan.bonds)
-        width = self.bonds_start + 2 * n_bonds
-        block = float64s(rows).reshape(len(rows) // width, width)
+        block = float64s(rows).reshape(len(rows) // self.row_width, self.row_width)
         count = len(block)
         for reader, values in zip(readers, _columns(block, self.output_ends, self.width)):
             reader.window.put_rows(first + 1, values)
