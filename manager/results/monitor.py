@@ -102,11 +102,14 @@ class SpikeMonitor:
             at = judged & (sizes == size)
             ends = new[at] - size + size // 2  # where a centred filter of ``size`` sees the points before new[at]
             baseline[at] = ndimage.rank_filter(values, (size - 1) // 2, size=size)[ends]
-        spikes = judged & (values[new] > self.threshold * baseline)
-        for k in np.flatnonzero(spikes & (sizes % 2 == 0)):  # an even window's median is not below its lower middle
-            window = np.sort(values[new[k] - sizes[k]:new[k]])  # one: the mean of the two, where a spike may be
-            spikes[k] = values[new[k]] > self.threshold * (0.5 * (window[sizes[k] // 2 - 1] + window[sizes[k] // 2]))
-        decided = int(np.argmax(spikes)) if spikes.any() else len(new)
+        decided = len(new)  # up to the first spike: an even window's median, the mean of its middle two, is not below
+        for k in np.flatnonzero(judged & (values[new] > self.threshold * baseline)).tolist():  # the lower one
+            if sizes[k] % 2 == 0:
+                window = np.sort(values[new[k] - sizes[k]:new[k]])
+                if not values[new[k]] > self.threshold * (0.5 * (window[sizes[k] // 2 - 1] + window[sizes[k] // 2])):
+                    continue
+            decided = k
+            break
         end = held + decided  # the unflagged points, as the one-by-one loop leaves its window after the last
         if end:
             first = int(np.searchsorted(times[:end], times[end - 1] - self.window, side="left"))
