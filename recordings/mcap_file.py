@@ -118,7 +118,7 @@ class McapFile:
                                                         create_time=time_ns, data_size=len(data), name=name,
                                                         media_type=media_type))
 
-    def messages(self, records: bytes, channel_ids: np.ndarray, log_times: np.ndarray, offsets: np.ndarray) -> None:
+    def messages(self, records: np.ndarray, channel_ids: np.ndarray, log_times: np.ndarray, offsets: np.ndarray) -> None:
         """Add message records (``recordings.encoding``) to the open chunk: ``records`` holds them one after the
         other, at ``offsets``, of ``channel_ids`` at ``log_times``; the chunk is written out once it holds
         ``chunk_bytes``."""
@@ -129,7 +129,7 @@ class McapFile:
         ids, starts = np.unique(channel_ids[order], return_index=True)
         for channel_id, part in zip(ids.tolist(), np.split(pairs[order], starts[1:])):
             self._indexes[channel_id].append(part)
-        self._chunk += records
+        self._chunk += memoryview(records)  # a bytearray + an ndarray would be numpy's addition
         if len(self._chunk) >= self._chunk_bytes:
             self._write_chunk()
 

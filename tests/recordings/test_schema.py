@@ -12,7 +12,6 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from zencosim.manager.wire.protocol import Kind, encode, encode_error
-from zencosim.recordings import encoding
 from zencosim.recordings.encoding import BatchEncoder
 from zencosim.recordings.layout import ChannelSpec
 from zencosim.recordings.schema import ChannelSchema, decode
@@ -42,7 +41,7 @@ def encoded(spec: ChannelSpec, wires: list[bytes]) -> list[bytes]:
     for offset in batch.offsets.tolist():
         opcode, length, channel_id = struct.unpack_from("<BQH", batch.records, offset)
         assert (opcode, channel_id) == (0x05, 1)
-        records.append(batch.records[offset + 9 + 22:offset + 9 + length])
+        records.append(batch.records[offset + 9 + 22:offset + 9 + length].tobytes())
     return records
 
 
@@ -129,6 +128,8 @@ def batches(draw) -> tuple[list[int], list[bytes]]:
     evenly spaced, as in a run's steady batches), or channels in any order; values of every kind."""
     def message(channel: int, step: int) -> bytes:
         if channel == 0:
+            if draw(st.integers(0, 9)) == 0:  # now and then a subsystem's ERROR, encoded on its own
+                return encode_error(step, step * 1000, draw(st.text(max_size=30)))
             return encode(Kind.OUTPUT, step, step * 1000, draw(arrays(np.float64, 3, elements=ANY_FLOAT64)))
         if channel == 1:
             rows = draw(st.integers(1, 3))
@@ -145,19 +146,21 @@ def batches(draw) -> tuple[list[int], list[bytes]]:
 
 @settings(max_examples=150, deadline=None)
 @given(batches())
-def test_rows_read_and_written_through_strided_views_are_the_gathered_ones(batch):
-    """Where a group's messages lie evenly spaced in a batch and in its records, the encoder reads and writes them
-    through strided views (``recordings.encoding._rows``, ``write_rows``): the same records, byte for byte, as the
-    gathers and scatters it uses for any other layout."""
+def test_a_batch_holds_each_message_encoded_alone(batch):
+    """The encoder groups a batch's messages by layout, gathers each group's bytes and scatters its records back into
+    the batch's order (``recordings.encoding``): the records are, byte for byte and in that order, those of the
+    messages encoded one at a time, each with the log time it has in the batch."""
     order, wires = batch
     schemas = [ChannelSchema(OUTPUTS), ChannelSchema(INPUTS), ChannelSchema(STATUS)]
-    arguments = (np.array(order, dtype=np.uint8), np.array([len(w) for w in wires], dtype=np.int64),
-                 np.arange(order.count(2), dtype=np.int64) * 10, b"".join(wires), 7, str)
-    strided = BatchEncoder(schemas, [1, 2, 3], status=2).encode(*arguments)
-    with pytest.MonkeyPatch.context() as patched:
-        patched.setattr(encoding, "_evenly_spaced", lambda starts, width: None)
-        gathered = BatchEncoder(schemas, [1, 2, 3], status=2).encode(*arguments)
-    assert strided.records == gathered.records
-    assert strided.offsets.tolist() == gathered.offsets.tolist()
-    assert strided.log_times.tolist() == gathered.log_times.tolist()
-    assert strided.channels.tolist() == gathered.channels.tolist()
+    whole = BatchEncoder(schemas, [1, 2, 3], status=2).encode(
+        np.array(order, dtype=np.uint8), np.array([len(w) for w in wires], dtype=np.int64),
+        np.arange(order.count(2), dtype=np.int64) * 10 + 100, b"".join(wires), 7, str)
+    assert whole.channels.tolist() == order
+    starts = whole.offsets.tolist()
+    for channel, wire, log_time, start, end in zip(order, wires, whole.log_times.tolist(), starts,
+                                                    [*starts[1:], whole.records.size]):
+        alone = BatchEncoder(schemas, [1, 2, 3], status=2).encode(
+            np.array([channel], dtype=np.uint8), np.array([len(wire)]),
+            np.array([log_time] if channel == 2 else [], dtype=np.int64), wire, log_time, str)
+        assert alone.log_times.tolist() == [log_time]
+        assert whole.records[start:end].tobytes() == alone.records.tobytes()
