@@ -21,7 +21,9 @@
 2. Recorder ceiling: messages per second the recorder's writer takes (validate, encode and write
    MCAP, in batches as the tap sends them), alone on one core.
    Also the file's bytes per message, the time to read a recording back per message, and whether
-   every float64 round-trips bit for bit.
+   every float64 round-trips bit for bit. And the recorder process's pace: its work on the frames a 60 s
+   in-process run hands over, per step, against the run's own step (``recorder_pace``): where it is the
+   larger, it bounds a recorded run's wall time (the tap waits for the pipe; nothing is dropped).
 """
 from __future__ import annotations
 
@@ -53,6 +55,7 @@ from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.layout import status_index
 from zencosim.recordings.reader import read_recording
 from zencosim.recordings.recorder import BATCH_MESSAGES, Recorder
+from zencosim.recordings.recorder_process import channel_index, frame_messages
 from zencosim.recordings.writer import RecordingWriter
 
 SCENE = "two_mass_damped"
@@ -304,6 +307,44 @@ def writer_ceiling(messages: list[tuple[int, bytes]], path: Path) -> dict:
             "mcap_library_decoded_us_per_message": library_us, "read_over_library": decode_us / library_us}
 
 
+class _FramesKept(_NullRecorder):
+    """The tap with no recorder process: its frames are kept (``frames``: kind and payload), and its channels."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.frames: list[tuple[int, bytes]] = []
+
+    def _declare(self, plan, status: StatusReport, realtime: bool) -> list:
+        self.specs = super()._declare(plan, status, realtime)
+        return self.specs
+
+    def _write_frame(self, kind: int, payload: bytes, steps: int | None = None) -> None:
+        self.frames.append((kind, payload))
+
+
+def recorder_pace(repeats: int, workdir: Path, duration: float = 60.0) -> dict:
+    """What bounds a recorded in-process run's wall time: the recorder process's work (``recorder_process``: the
+    messages built from the frames, encoded, compressed, written) on the frames a ``duration`` run hands over, CPU
+    µs per step alone on one core (the least over ``repeats``), against the run's own CPU per step with the tap."""
+    scene = load_scene(SCENE, [f"manager.duration={duration}"])
+    tap = _FramesKept()
+    started = time.thread_time()
+    record, _ = execute(scene, "inproc", recorder=tap)
+    steps = record.plan.n_ticks
+    run_us = (time.thread_time() - started) / steps * 1e6
+    status, index = status_index(tap.specs), channel_index(tap.specs)
+    recorder_us = []
+    for repeat in range(repeats):
+        started = time.process_time()
+        writer = RecordingWriter(workdir / f"pace-{repeat}.mcap", {"zencosim": "bench"}, "", tap.specs)
+        for kind, data in tap.frames:
+            writer.write(*frame_messages(kind, data, index, status))
+        writer.finish("completed", None)
+        recorder_us.append((time.process_time() - started) / steps * 1e6)
+    return {"duration_s": duration, "steps": steps, "frames": len(tap.frames), "run_us_per_step": run_us,
+            "recorder_us_per_step": min(recorder_us), "recorder_over_run": min(recorder_us) / run_us}
+
+
 def _library_decoded_us(path: Path) -> float:
     """CPU µs per message of the mcap library's own decoded iteration of ``path`` (protobuf messages, with
     mcap-protobuf-support's decoder): issue 26's reference for reading a recording."""
@@ -341,6 +382,7 @@ def main() -> None:
                    "live": live_overhead(args.zenoh_repeats, workdir)}
         messages = wire_messages(workdir / "inproc-0.mcap")
         figures["recorder"] = writer_ceiling(messages, workdir / "inproc-0.mcap")
+        figures["recorder_pace"] = recorder_pace(args.repeats, workdir)
 
     table = Table(title=f"recording {SCENE}: medians ({args.repeats} in-process, {args.zenoh_repeats} Zenoh runs "
                         f"of each kind), load average {figures['load_average'][0]:.1f} on {figures['cpus']} cores")
@@ -383,6 +425,10 @@ def main() -> None:
                   f"{split['fixed_ms']:.2f} ms")
     recorder = figures["recorder"]
     table.add_row("recorder writer alone [messages/s of CPU]", f"{recorder['messages_per_s']:.0f}")
+    pace = figures["recorder_pace"]
+    table.add_row(f"recorder process's work on a {pace['duration_s']:g} s run's frames, alone [µs of CPU per step]; "
+                  "over the run's step (what bounds a recorded run's wall time)",
+                  f"{pace['recorder_us_per_step']:.2f}; {pace['recorder_over_run']:.1f}×")
     table.add_row("file [bytes/message]", f"{recorder['file_bytes_per_message']:.1f}")
     table.add_row("reading a recording [µs/message]", f"{recorder['read_us_per_message']:.2f}")
     table.add_row("the mcap library's decoded iteration [µs/message]",
