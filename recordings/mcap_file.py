@@ -125,10 +125,8 @@ class McapFile:
         if not offsets.size:
             return
         pairs = np.column_stack((log_times, offsets + len(self._chunk))).astype("<u8")
-        order = np.argsort(channel_ids, kind="stable")
-        ids, starts = np.unique(channel_ids[order], return_index=True)
-        for channel_id, part in zip(ids.tolist(), np.split(pairs[order], starts[1:])):
-            self._indexes[channel_id].append(part)
+        for channel_id in np.flatnonzero(np.bincount(channel_ids)).tolist():  # a few channels: a mask each
+            self._indexes[channel_id].append(pairs[channel_ids == channel_id])
         self._chunk += memoryview(records)  # a bytearray + an ndarray would be numpy's addition
         if len(self._chunk) >= self._chunk_bytes:
             self._write_chunk()
