@@ -347,11 +347,8 @@ class Recorder:
             statuses = self._report.take(block.statuses)
             if self._all_gone:
                 return
-            counts = np.zeros(len(self._topics), dtype=np.int64)
-            for name, s in zip(block.names, block.subsystems):
-                counts[self._index[name, "y"]] = len(s.steps)
-                counts[self._index[name, "commands"]] = len(s.ticks)
-            counts[self._status] = block.statuses
+            counts = self._counts(block.names, [len(s.steps) for s in block.subsystems],
+                                  [len(s.ticks) for s in block.subsystems], block.statuses)
             self._send(STEPS, steps_frame(block, statuses), self._reached(statuses), counts, block.last)
 
     def _take_rows(self, block: RowsBlock) -> None:
@@ -361,14 +358,21 @@ class Recorder:
         with self._signals.held() if self._signals is not None else contextlib.nullcontext():
             if self._all_gone:
                 return
-            counts = np.zeros(len(self._topics), dtype=np.int64)
-            for name in self._names:
-                counts[self._index[name, "y"]] = block.replies
-                counts[self._index[name, "commands"]] = block.requests
             steps = block.status_steps
-            counts[self._status] = len(steps)
+            counts = self._counts(self._names, [block.replies] * len(self._names),
+                                  [block.requests] * len(self._names), len(steps))
             frame = rows_frame(block, self._about, time_ns() - time.perf_counter_ns())
             self._send(ROWS, frame, steps[-1] if steps else self._step, counts, block.last)
+
+    def _counts(self, names: list[str], replies: list[int], commands: list[int], statuses: int) -> np.ndarray:
+        """The messages per channel of a block: the replies and the commands of each of the subsystems ``names``, and
+        ``statuses``."""
+        counts = np.zeros(len(self._topics), dtype=np.int64)
+        for name, n_replies, n_commands in zip(names, replies, commands):
+            counts[self._index[name, "y"]] = n_replies
+            counts[self._index[name, "commands"]] = n_commands
+        counts[self._status] = statuses
+        return counts
 
     def _tap(self, index: dict[tuple[str, str], int], every: int | None
              ) -> Callable[[dict[str, bytes] | None, Exchange | None], None]:
