@@ -118,7 +118,8 @@ class McapFile:
                                                         create_time=time_ns, data_size=len(data), name=name,
                                                         media_type=media_type))
 
-    def messages(self, records: np.ndarray, channel_ids: np.ndarray, log_times: np.ndarray, offsets: np.ndarray) -> None:
+    def messages(self, records: np.ndarray, channel_ids: np.ndarray, log_times: np.ndarray,
+                 offsets: np.ndarray) -> None:
         """Add message records (``recordings.encoding``) to the open chunk: ``records`` holds them one after the
         other, at ``offsets``, of ``channel_ids`` at ``log_times``; the chunk is written out once it holds
         ``chunk_bytes``."""
