@@ -6,13 +6,13 @@ The oracle is the generic loop on the same scene (``compiled_steps`` patched to 
 message path and with a Zenoh run tests/manager/test_direct.py and tests/manager/test_buses.py check."""
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import zencosim.manager.scheme.jacobi as jacobi_module
+import zencosim.subsystems.models.external.fmu as fmu_module
 from tests.manager.frames_recorder import FramesRecorder
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import DirectCalls, run_in_process
@@ -171,18 +171,35 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
     assert len(wall) == 4500 and (np.diff(wall) >= 0).all() and (step_wall >= 0).all() and (step_wall <= wall).all()
 
 
-@pytest.mark.parametrize("name", ["two_mass_damped_fmu", "double_oscillator_fmu"])
-def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(examples, name, monkeypatch):
-    """The example C FMUs' calls (set, doStep at the same times, get) written into the loop: the same arrays."""
-    scene = str(examples / f"{name}.toml")
-    record, subsystems, compiled = _run(scene, ["manager.duration=1.2"], True, monkeypatch)
-    expected, expected_subsystems, _ = _run(scene, ["manager.duration=1.2"], False, monkeypatch)
+def _fmi_calls(calls: str, monkeypatch) -> None:
+    """The generated loop makes an FMU's step one call of the compiled ``fmi2_steps_run`` (``"one call"``: there must
+    be a C compiler, as for the example FMUs) or a ctypes call per FMI call (``"one by one"``: none found)."""
+    if calls == "one by one":
+        monkeypatch.setattr(fmu_module, "steps_function", lambda: None)
+    else:
+        assert fmu_module.steps_function() is not None
+
+
+@pytest.mark.parametrize("calls", ["one call", "one by one"])
+@pytest.mark.parametrize("name, overrides", [("two_mass_damped_fmu", []), ("double_oscillator_fmu", []),
+                                             ("two_mass_damped_fmu", ["subsystems.S1.micro_step=0.00025"])],
+                         ids=["two_mass_damped_fmu", "double_oscillator_fmu", "four micro-steps"])
+def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(examples, name, overrides, calls,
+                                                                             monkeypatch):
+    """The example C FMUs' calls (set, doStep at the same times, get) written into the loop, as one call or a call
+    each: the same arrays."""
+    scene, overrides = str(examples / f"{name}.toml"), ["manager.duration=1.2", *overrides]
+    expected, expected_subsystems, _ = _run(scene, overrides, False, monkeypatch)
+    _fmi_calls(calls, monkeypatch)
+    record, subsystems, compiled = _run(scene, overrides, True, monkeypatch)
     assert compiled
     _assert_same_run((record, subsystems), (expected, expected_subsystems))
 
 
+@pytest.mark.parametrize("calls", ["one call", "one by one"])
 @pytest.mark.parametrize("fail_at, duration", [(0.7005, 1.2), (0.0, 0.1)], ids=["mid-run", "first step"])
-def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(examples, fail_at, duration, monkeypatch):
+def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(examples, fail_at, duration, calls,
+                                                                          monkeypatch):
     """An FMU whose doStep fails at ``fail_at`` (the example's parameter): the same one line (the subsystem, the
     step, the FMI call, its status, the time) and a recording of each holds the same messages, up to the failing
     step's commands."""
@@ -191,6 +208,7 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
     failing.write_text(text.replace("start = { m = 1.0, k = 1000.0,", f"start = {{ fail_at = {fail_at}, m = 1.0, "
                                     "k = 1000.0,"))
     said, recorded, ran = [], [], []
+    _fmi_calls(calls, monkeypatch)
     for compiled in (True, False):
         scene = load_scene(str(failing), [f"manager.duration={duration}"])
         plan, subsystems = plan_scene(scene)

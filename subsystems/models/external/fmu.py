@@ -14,7 +14,9 @@ inside reproduces the built-in model), and the micro-step is the scene's to choo
 
 Values are exchanged through ctypes arrays allocated once per instance; FMI calls go through fmpy's
 low-level functions, which raise on an error status; that error is re-raised as :class:`FmuError`
-naming the FMU, the call, the status and the simulated time.
+naming the FMU, the call, the status and the simulated time. A step written into a generated loop
+(``FmuCoSimulation.step_text``) makes its FMI calls in one foreign call where a C compiler is at hand
+(``fmi2_steps``).
 """
 from __future__ import annotations
 
@@ -30,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
+from zencosim.subsystems.models.external.fmi2_steps import Fmi2Steps, steps_function
 from zencosim.subsystems.straight_line import StepText
 from zencosim.subsystems.units import BASE, UnitError, exponents
 
@@ -354,11 +357,20 @@ class FmuCoSimulation(_FmuInstance):
         calls ``do_step`` and ``outputs`` make, with the same arguments — per micro-step the inputs set, then
         ``fmi2DoStep`` at ``t = (start + j h) × 1e-9`` s, and the outputs read at the end without setting the same
         inputs again — each status checked as they check it, a failure raised as the same :class:`FmuError`.
-        FMI 2.0 with real inputs and outputs only; else None."""
+        Those calls are one call of ``fmi2_steps_run`` where it could be compiled (``fmi2_steps``), else a ctypes call
+        each. FMI 2.0 with real inputs and outputs only; else None."""
         if self.version != "2" or self._discrete_u or self._discrete_y:
             return None
         p, n_u, n_y = prefix, len(self._u_view), len(self._y_view)
         inputs, outputs = tuple(f"{p}c{i}" for i in range(n_u)), tuple(f"{p}y{i}" for i in range(n_y))
+
+        def failed(function: str, status: int, t: float, what: str) -> None:
+            self.time = t
+            raise self.failure(self.FailedCall(function=function, status=status), what)
+
+        run_steps = steps_function()
+        if run_steps is not None:
+            return self._steps_text(p, start_ns, micro_steps, h_ns, inputs, outputs, run_steps, failed)
         lines = []
         for j in range(micro_steps):
             t = f"({start_ns} + {j * h_ns}) * 1e-9"
@@ -375,14 +387,35 @@ class FmuCoSimulation(_FmuInstance):
                        "'reading its outputs')"),
                       *(f"{name} = {p}y[{i}]" for i, name in enumerate(outputs))]
 
-        def failed(function: str, status: int, t: float, what: str) -> None:
-            self.time = t
-            raise self.failure(self.FailedCall(function=function, status=status), what)
-
         namespace = {f"{p}u": self._u, f"{p}y": self._y, f"{p}set_real": self._set, f"{p}get_real": self._get,
                      f"{p}set_arguments": self._set_arguments, f"{p}get_arguments": self._get_arguments,
                      f"{p}do_step": self._step, f"{p}instance": self._instance, f"{p}time": ctypes.c_double(),
                      f"{p}h": ctypes.c_double(h_ns * 1e-9), f"{p}false": FMI2_FALSE, f"{p}failed": failed}
+        return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
+
+    def _steps_text(self, p: str, start_ns: str, micro_steps: int, h_ns: int, inputs: tuple[str, ...],
+                    outputs: tuple[str, ...], run_steps, failed) -> StepText:
+        """``step_text``'s statements with the step's FMI calls as one call of ``run_steps`` (``fmi2_steps``), which
+        makes the same calls with the same arguments from :class:`Fmi2Steps`; a failure raised as they raise it."""
+        address = ctypes.addressof
+        steps = Fmi2Steps(set_real=ctypes.cast(self._set, ctypes.c_void_p).value,
+                          do_step=ctypes.cast(self._step, ctypes.c_void_p).value,
+                          get_real=ctypes.cast(self._get, ctypes.c_void_p).value, instance=self._instance.value,
+                          inputs=address(self._inputs), n_inputs=len(inputs), u=address(self._u),
+                          outputs=address(self._outputs), n_outputs=len(outputs), y=address(self._y), h_ns=h_ns,
+                          h=h_ns * 1e-9, micro_steps=micro_steps)
+
+        def failed_step(status: int) -> None:
+            call = steps.failed_call
+            failed((self._set.__name__, "fmi2DoStep", self._get.__name__)[call], status, steps.failed_time,
+                   "reading its outputs" if call == 2 else "doStep")
+
+        lines = [f"{p}u[{i}] = {name}" for i, name in enumerate(inputs)]
+        lines += [f"{p}start.value = {start_ns}", f"{p}status = {p}run_steps({p}steps, {p}start)",
+                  f"if {p}status: {p}failed_step({p}status)"]
+        lines += [f"{name} = {p}y[{i}]" for i, name in enumerate(outputs)]
+        namespace = {f"{p}u": self._u, f"{p}y": self._y, f"{p}run_steps": run_steps, f"{p}steps": ctypes.pointer(steps),
+                     f"{p}start": ctypes.c_longlong(), f"{p}failed_step": failed_step}
         return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
 
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
