@@ -12,6 +12,8 @@ function, less the same loop with nothing in it:
 * ``pydll``: the same handle loaded through ``ctypes.PyDLL``, which keeps the GIL during the call;
 * ``cffi``: the same call in cffi's ABI mode (where cffi is installed);
 * ``step``: one FMU step as the generated loop makes it: set the inputs, ``fmi2DoStep``, get the outputs;
+* ``step_glue``: the same three calls as zencosim's generated loop now makes them, one call of ``fmi2_steps_run``
+  (``subsystems/models/external/fmi2_steps.c``, compiled at first use);
 * ``step_numba``: the same three calls compiled into one numba function, the FMU's addresses passed as integers
   (where numba is installed; its import and compilation, the same in both runs, cancel out).
 
@@ -61,6 +63,14 @@ def steps(n):
         get(*get_arguments)
 
 
+def glue_steps(n):
+    namespace = fmu.step_text("p_", "0", 1, 1_000_000).namespace
+    run_steps, steps, start = namespace["p_run_steps"], namespace["p_steps"], namespace["p_start"]
+    for tick in range(n):
+        start.value = tick * 1_000_000
+        run_steps(steps, start)
+
+
 def numba_steps(n):
     from numba import njit
     word = ctypes.c_uint64  # a pointer, passed as the integer it is (the same register on 64-bit platforms)
@@ -99,6 +109,8 @@ elif what == "cffi":
                  len(fmu._outputs), ffi.from_buffer("double[]", fmu._y)), n)
 elif what == "step":
     steps(n)
+elif what == "step_glue":
+    glue_steps(n)
 else:
     numba_steps(n)
 """
@@ -106,6 +118,7 @@ OPTIONAL = {"cffi": "cffi", "step_numba": "numba"}  # kinds counted only where t
 LABELS = {"ctypes": "fmi2GetReal through ctypes, as zencosim calls it",
           "pydll": "the same through ctypes.PyDLL (GIL kept)", "cffi": "the same in cffi's ABI mode",
           "step": "one FMU step: set, fmi2DoStep, get (three ctypes calls)",
+          "step_glue": "the same three calls as one call of fmi2_steps_run (zencosim's)",
           "step_numba": "the same three calls in one numba function"}
 
 
