@@ -13,7 +13,7 @@ function, less the same loop with nothing in it:
 * ``cffi``: the same call in cffi's ABI mode (where cffi is installed);
 * ``step``: one FMU step as the generated loop makes it: set the inputs, ``fmi2DoStep``, get the outputs;
 * ``step_glue``: the same three calls as zencosim's generated loop now makes them, one call of ``fmi2_steps_run``
-  (``subsystems/models/external/fmi2_steps.c``, compiled at first use);
+  (``subsystems/models/external/fmi_steps.c``, compiled at first use);
 * ``step_numba``: the same three calls compiled into one numba function, the FMU's addresses passed as integers
   (where numba is installed; its import and compilation, the same in both runs, cancel out).
 

@@ -172,38 +172,45 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
 
 
 def _fmi_calls(calls: str, monkeypatch) -> None:
-    """The generated loop makes an FMU's step one call of the compiled ``fmi2_steps_run`` (``"one call"``: there must
-    be a C compiler, as for the example FMUs) or a ctypes call per FMI call (``"one by one"``: none found)."""
+    """The generated loop makes an FMU's step one call of the compiled ``fmi2_steps_run`` or ``fmi3_steps_run``
+    (``"one call"``: there must be a C compiler, as for the example FMUs), or, where none is found (``"one by one"``),
+    a ctypes call per FMI call for FMI 2.0, and FMI 3.0 FMUs step in the scheme's own loop."""
     if calls == "one by one":
-        monkeypatch.setattr(fmu_module, "steps_function", lambda: None)
+        monkeypatch.setattr(fmu_module, "steps_function", lambda version: None)
     else:
-        assert fmu_module.steps_function() is not None
+        assert fmu_module.steps_function("2") is not None and fmu_module.steps_function("3") is not None
+
+
+FOUR_MICRO_STEPS = ["subsystems.S1.micro_step=0.00025"]
 
 
 @pytest.mark.parametrize("calls", ["one call", "one by one"])
 @pytest.mark.parametrize("name, overrides", [("two_mass_damped_fmu", []), ("double_oscillator_fmu", []),
-                                             ("two_mass_damped_fmu", ["subsystems.S1.micro_step=0.00025"])],
-                         ids=["two_mass_damped_fmu", "double_oscillator_fmu", "four micro-steps"])
+                                             ("two_mass_damped_fmu", FOUR_MICRO_STEPS), ("two_mass_damped_fmu3", []),
+                                             ("two_mass_damped_fmu3", FOUR_MICRO_STEPS)],
+                         ids=["two_mass_damped_fmu", "double_oscillator_fmu", "four micro-steps", "FMI 3.0",
+                              "FMI 3.0, four micro-steps"])
 def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(examples, name, overrides, calls,
                                                                              monkeypatch):
-    """The example C FMUs' calls (set, doStep at the same times, get) written into the loop, as one call or a call
-    each: the same arrays."""
+    """The example C FMUs' calls (set, step at the same times, get) written into the loop, as one call or a call
+    each: the same arrays. An FMI 3.0 FMU without the compiled call steps in the scheme's own loop."""
     scene, overrides = str(examples / f"{name}.toml"), ["manager.duration=1.2", *overrides]
     expected, expected_subsystems, _ = _run(scene, overrides, False, monkeypatch)
     _fmi_calls(calls, monkeypatch)
     record, subsystems, compiled = _run(scene, overrides, True, monkeypatch)
-    assert compiled
+    assert compiled == (calls == "one call" or not name.endswith("fmu3"))
     _assert_same_run((record, subsystems), (expected, expected_subsystems))
 
 
 @pytest.mark.parametrize("calls", ["one call", "one by one"])
+@pytest.mark.parametrize("version", ["2", "3"])
 @pytest.mark.parametrize("fail_at, duration", [(0.7005, 1.2), (0.0, 0.1)], ids=["mid-run", "first step"])
-def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(examples, fail_at, duration, calls,
+def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(examples, fail_at, duration, version, calls,
                                                                           monkeypatch):
-    """An FMU whose doStep fails at ``fail_at`` (the example's parameter): the same one line (the subsystem, the
+    """An FMU whose step fails at ``fail_at`` (the example's parameter): the same one line (the subsystem, the
     step, the FMI call, its status, the time) and a recording of each holds the same messages, up to the failing
     step's commands."""
-    text = (examples / "two_mass_damped_fmu.toml").read_text()
+    text = (examples / f"two_mass_damped_fmu{'3' if version == '3' else ''}.toml").read_text()
     failing = examples / "failing_fmu.toml"
     failing.write_text(text.replace("start = { m = 1.0, k = 1000.0,", f"start = {{ fail_at = {fail_at}, m = 1.0, "
                                     "k = 1000.0,"))
@@ -221,9 +228,9 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
         recorder.flush(last=True)
         said.append(str(failure.value))
         recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
-    assert ran == [True, False]
+    assert ran == [calls == "one call" or version == "2", False]
     assert said[0] == said[1] and said[0].startswith("subsystem S2: failed at step "), said
-    assert "fmi2DoStep failed with status" in said[0]
+    assert f"fmi{version}DoStep failed with status" in said[0]
     assert recorded[0] == recorded[1] and len(recorded[0]) >= 4
 
 

@@ -16,7 +16,7 @@ Values are exchanged through ctypes arrays allocated once per instance; FMI call
 low-level functions, which raise on an error status; that error is re-raised as :class:`FmuError`
 naming the FMU, the call, the status and the simulated time. A step written into a generated loop
 (``FmuCoSimulation.step_text``) makes its FMI calls in one foreign call where a C compiler is at hand
-(``fmi2_steps``).
+(``fmi_steps``).
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
-from zencosim.subsystems.models.external.fmi2_steps import Fmi2Steps, steps_function
+from zencosim.subsystems.models.external.fmi_steps import TERMINATE, FmiSteps, steps_function
 from zencosim.subsystems.straight_line import StepText
 from zencosim.subsystems.units import BASE, UnitError, exponents
 
@@ -349,7 +349,11 @@ class FmuCoSimulation(_FmuInstance):
         except self.FailedCall as error:
             raise self.failure(error, "doStep") from None
         if result[1]:  # terminateSimulation
-            raise FmuError(f"FMU {self.path.name}: asked to terminate the simulation at t = {t:.9g} s")
+            raise self.asked_to_terminate(t)
+
+    def asked_to_terminate(self, t: float) -> FmuError:
+        """The FMU's ``fmi3DoStep`` at ``t`` [s] set terminateSimulation."""
+        return FmuError(f"FMU {self.path.name}: asked to terminate the simulation at t = {t:.9g} s")
 
     def step_text(self, prefix: str, start_ns: str, micro_steps: int, h_ns: int) -> StepText | None:
         """One communication step of ``micro_steps`` micro-steps of ``h_ns`` with zero-order inputs as statements
@@ -357,9 +361,10 @@ class FmuCoSimulation(_FmuInstance):
         calls ``do_step`` and ``outputs`` make, with the same arguments — per micro-step the inputs set, then
         ``fmi2DoStep`` at ``t = (start + j h) × 1e-9`` s, and the outputs read at the end without setting the same
         inputs again — each status checked as they check it, a failure raised as the same :class:`FmuError`.
-        Those calls are one call of ``fmi2_steps_run`` where it could be compiled (``fmi2_steps``), else a ctypes call
-        each. FMI 2.0 with real inputs and outputs only; else None."""
-        if self.version != "2" or self._discrete_u or self._discrete_y:
+        Those calls are one call of ``fmi2_steps_run`` or ``fmi3_steps_run`` where they could be compiled
+        (``fmi_steps``), else, for FMI 2.0, a ctypes call each. Real inputs and outputs only; else None, and so for
+        FMI 3.0 without the compiled function."""
+        if self._discrete_u or self._discrete_y:
             return None
         p, n_u, n_y = prefix, len(self._u_view), len(self._y_view)
         inputs, outputs = tuple(f"{p}c{i}" for i in range(n_u)), tuple(f"{p}y{i}" for i in range(n_y))
@@ -368,9 +373,11 @@ class FmuCoSimulation(_FmuInstance):
             self.time = t
             raise self.failure(self.FailedCall(function=function, status=status), what)
 
-        run_steps = steps_function()
+        run_steps = steps_function(self.version)
         if run_steps is not None:
             return self._steps_text(p, start_ns, micro_steps, h_ns, inputs, outputs, run_steps, failed)
+        if self.version != "2":
+            return None
         lines = []
         for j in range(micro_steps):
             t = f"({start_ns} + {j * h_ns}) * 1e-9"
@@ -395,19 +402,25 @@ class FmuCoSimulation(_FmuInstance):
 
     def _steps_text(self, p: str, start_ns: str, micro_steps: int, h_ns: int, inputs: tuple[str, ...],
                     outputs: tuple[str, ...], run_steps, failed) -> StepText:
-        """``step_text``'s statements with the step's FMI calls as one call of ``run_steps`` (``fmi2_steps``), which
-        makes the same calls with the same arguments from :class:`Fmi2Steps`; a failure raised as they raise it."""
+        """``step_text``'s statements with the step's FMI calls as one call of ``run_steps`` (``fmi_steps``), which
+        makes the same calls with the same arguments from :class:`FmiSteps`; a failure raised as ``do_step`` and
+        ``outputs`` raise it."""
         address = ctypes.addressof
-        steps = Fmi2Steps(set_real=ctypes.cast(self._set, ctypes.c_void_p).value,
-                          do_step=ctypes.cast(self._step, ctypes.c_void_p).value,
-                          get_real=ctypes.cast(self._get, ctypes.c_void_p).value, instance=self._instance.value,
-                          inputs=address(self._inputs), n_inputs=len(inputs), u=address(self._u),
-                          outputs=address(self._outputs), n_outputs=len(outputs), y=address(self._y), h_ns=h_ns,
-                          h=h_ns * 1e-9, micro_steps=micro_steps)
+        do_step = f"fmi{self.version}DoStep"
+
+        def function(handle) -> int:
+            return ctypes.cast(handle, ctypes.c_void_p).value
+        steps = FmiSteps(set=function(self._set), do_step=function(self.fmu.dll[do_step]), get=function(self._get),
+                         instance=self._instance.value, inputs=address(self._inputs), n_inputs=len(inputs),
+                         u=address(self._u), outputs=address(self._outputs), n_outputs=len(outputs),
+                         y=address(self._y), h_ns=h_ns, h=h_ns * 1e-9, micro_steps=micro_steps)
 
         def failed_step(status: int) -> None:
-            call = steps.failed_call
-            failed((self._set.__name__, "fmi2DoStep", self._get.__name__)[call], status, steps.failed_time,
+            call, t = steps.failed_call, steps.failed_time
+            if status == TERMINATE:
+                self.time = t
+                raise self.asked_to_terminate(t)
+            failed((self._set.__name__, do_step, self._get.__name__)[call], status, t,
                    "reading its outputs" if call == 2 else "doStep")
 
         lines = [f"{p}u[{i}] = {name}" for i, name in enumerate(inputs)]
