@@ -14,7 +14,8 @@ were 80 instructions apart, with the seed fixed 1). ``--tree DIR``
 (repeatable) counts the in-process step of another source tree too (see bench_runtime.py).
 ``--recording`` counts what recording adds to the stepping loop: the loop alone, with the manager's
 status, and with the status and the recorder's tap (its frames dropped: no recorder process). ``--fmu`` counts
-the same system with both subsystems as the example C FMUs (``zencosim examples``: two_mass_damped_fmu.toml) and,
+the same system with both subsystems as the example C FMUs (``zencosim examples``: two_mass_damped_fmu.toml, and
+the FMI 3.0 ones of two_mass_damped_fmu3.toml) and,
 where libcosimpy is installed, libcosim stepping the same two FMUs from an OSP file of that scene (issue 26's
 reference: 9,382 instructions per step). ``--replicas`` counts what the two subsystem processes of a Zenoh run
 compute per step besides Zenoh (``replicas.py``: their replicas in one thread, each reply handed to the other);
@@ -36,6 +37,9 @@ STEPS = (500, 2500)
 # the floor's runs lie further apart: its 2,000-step difference is 7.6 M instructions, where the noise of a run's
 # start (a few million instructions) moved its per-step count between 3,755 and 4,869; 40,000 steps dilute it
 FLOOR_STEPS = (500, 40_500)
+# the FMU pairs' too: a run compiles the one-call step (``fmi_steps``, a compiler as a child process) at its start,
+# and two counts of the same 2,000-step difference were 2,641 and 13,735 instructions per step apart
+FMU_STEPS = (500, 10_500)
 ONE_RUN = """
 import sys
 sys.path.insert(0, {benchmarks!r})
@@ -47,9 +51,9 @@ else:
     from zencosim.manager.run import execute
     from zencosim.manager.scene.load import load_scene
 scene = load_scene("two_mass_damped", [f"manager.duration={{int(sys.argv[2]) / 1000}}"])
-if sys.argv[1] == "fmu":  # the example FMUs' scene, in the directory argv[4]
-    execute(load_scene(sys.argv[4] + "/two_mass_damped_fmu.toml", [f"manager.duration={{int(sys.argv[2]) / 1000}}"]),
-            "inproc")
+if sys.argv[1].startswith("fmu"):  # the example FMUs' scene (fmu3: the FMI 3.0 ones), in the directory argv[4]
+    execute(load_scene(sys.argv[4] + f"/two_mass_damped_{{sys.argv[1]}}.toml",
+                       [f"manager.duration={{int(sys.argv[2]) / 1000}}"]), "inproc")
 elif sys.argv[1] == "libcosim":  # the same FMUs stepped by libcosim from the OSP file in argv[4]
     from libcosimpy.CosimExecution import CosimExecution
     execution = CosimExecution.from_osp_config_file(sys.argv[4])
@@ -99,7 +103,7 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str
 
 
 def per_step(what: str, pythonpath: str = "", layout: str = "package", where: str = "") -> float:
-    steps = FLOOR_STEPS if what == "floor" else STEPS
+    steps = FLOOR_STEPS if what == "floor" else FMU_STEPS if what.startswith(("fmu", "libcosim")) else STEPS
     low, high = (instructions(what, n, pythonpath, layout, where) for n in steps)
     return (high - low) / (steps[1] - steps[0])
 
@@ -111,6 +115,7 @@ def fmu_pair(show) -> None:
         write_examples(Path(directory))
         zencosim_count = per_step("fmu", where=directory)
         show("in-process step, two C FMUs", zencosim_count)
+        show("in-process step, two C FMUs, FMI 3.0", per_step("fmu3", where=directory))
         try:
             import libcosimpy  # noqa: F401
             sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
