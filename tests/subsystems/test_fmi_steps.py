@@ -18,6 +18,7 @@ import sys
 
 import pytest
 
+from zencosim.subsystems.models.external import fmi_steps
 from zencosim.subsystems.models.external.fmi_steps import TERMINATE, FmiSteps, steps_function
 
 FAKE_FMI = r"""
@@ -157,3 +158,22 @@ def test_without_a_working_compiler_there_is_no_step_function(environment):
     result = subprocess.run([sys.executable, "-c", program], env={**os.environ, **environment}, capture_output=True,
                             text=True, check=True)
     assert result.stdout.strip() == "None None"
+
+
+@pytest.mark.parametrize("where, error", [("tempfile.TemporaryDirectory", PermissionError(13, "Permission denied")),
+                                          ("ctypes.CDLL", OSError("failed to map segment from shared object"))],
+                         ids=["no writable temporary directory", "a temporary directory mounted noexec"])
+def test_where_the_compiled_step_cannot_be_written_or_loaded_there_is_none(where, error, monkeypatch):
+    """A temporary directory that cannot be written, or whose files cannot be mapped to run (``noexec``): None, as
+    without a compiler, not an error that ends the run."""
+    module, name = where.split(".")
+
+    def fails(*args, **kwargs):
+        raise error
+    monkeypatch.setattr(getattr(fmi_steps, module), name, fails)
+    fmi_steps._library.cache_clear()
+    try:
+        assert steps_function("2") is None and steps_function("3") is None
+    finally:
+        monkeypatch.undo()
+        fmi_steps._library.cache_clear()  # the next caller compiles it again

@@ -54,14 +54,12 @@ def _library() -> ctypes.CDLL | None:
     if compiler is None:
         return None
     source = resources.files("zencosim.subsystems.models.external").joinpath("fmi_steps.c").read_bytes()
-    with tempfile.TemporaryDirectory(prefix="zencosim-fmi-") as directory:
-        c_file, library = Path(directory) / "fmi_steps.c", Path(directory) / "fmi_steps.so"
-        c_file.write_bytes(source)
-        try:
+    try:  # a temporary directory that cannot be written, or whose files cannot be mapped (noexec): none
+        with tempfile.TemporaryDirectory(prefix="zencosim-fmi-") as directory:
+            c_file, library = Path(directory) / "fmi_steps.c", Path(directory) / "fmi_steps.so"
+            c_file.write_bytes(source)
             built = subprocess.run([compiler, "-O2", "-shared", "-fPIC", str(c_file), "-o", str(library)],
                                    capture_output=True, timeout=COMPILE_TIMEOUT_S, check=False)
-        except (OSError, subprocess.TimeoutExpired):
-            return None
-        if built.returncode != 0:
-            return None
-        return ctypes.CDLL(str(library))  # loaded: the file can go
+            return ctypes.CDLL(str(library)) if built.returncode == 0 else None  # loaded: the file can go
+    except (OSError, subprocess.TimeoutExpired):
+        return None
