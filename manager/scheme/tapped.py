@@ -130,42 +130,12 @@ class StepsBlock:
     last: bool  # the run's last block
 
 
-class TakenSteps:
-    """What :class:`Taken` hands its tap, as a :class:`StepsBlock` to ``tap.take_steps`` at the first schedule period
-    that starts after ``BLOCK_STEPS`` requests, when the run ends and when it fails. The initialisation's rounds go
-    to ``tap.exchange`` as :class:`Taken` hands them, and so do the replies of its last round, with a request that
-    sends nothing (``start``; a replica hands them with the first request of the stepping loop: the same messages,
-    in the same order).
+class _InBlocks:
+    """What :class:`TakenSteps` and :class:`TakenRows` share: the initialisation goes to ``tap`` exchange by exchange
+    (:class:`Taken`), the stepping loop's exchanges in blocks (each subclass's ``flush``)."""
 
-    The stepping loop calls nothing here per step: it appends to flat lists of numbers (``manager.scheme.jacobi``) —
-    each request's tick and shape to ``ticks`` and ``shapes`` (after its commands), each command's polynomial
-    (its values, rows after rows) to ``commands`` and each reply's outputs to ``outputs`` of its subsystem — and
-    calls ``flush`` where a period starts after a full block. Flat lists of floats, not a list per message: the
-    cyclic garbage collector walks every list a block keeps alive, and with a list per message that walk cost more
-    than the rest of the tap. The rest follows from the schedule: a request of shape ``phase × stages + stage``
-    commands the subsystems that start there and awaits those due there (``jacobi.schedule``), a status comes with
-    each stage-0 request but the run's first, and a subsystem's k-th reply answers its k-th command (its step: the
-    command's tick plus its ratio). A generated loop (``manager.scheme.compiled``) hands its rows to
-    :class:`TakenRows` instead."""
-
-    def __init__(self, tap, plan: Plan, status: bool, stages: list[tuple]) -> None:
+    def __init__(self, tap, plan: Plan) -> None:
         self.tap = tap
-        self.plan = plan
-        n = len(plan.subsystems)
-        self.names = tuple(s.name for s in plan.subsystems)
-        self.status = status  # the run reports its status (each stage-0 request but the first carries it)
-        self.n_stages = len(plan.stages)
-        # per request shape: the subsystems it commands and those whose replies it awaits (plan indices; and as masks)
-        shaped = [stage for phase_stages, _ in stages for stage in phase_stages]
-        self.commanded = [tuple(s.index for s in stage[0]) for stage in shaped]
-        self.awaited = [tuple(s.index for s in stage[2]) for stage in shaped]
-        self.commands_mask = np.array([[i in c for i in range(n)] for c in self.commanded], dtype=bool).reshape(-1, n)
-        self.awaits_mask = np.array([[i in a for i in range(n)] for a in self.awaited], dtype=bool).reshape(-1, n)
-        self.layout_of: dict[tuple, int] = {}  # layout → its number in every block
-        self.ticks: list[int] = []  # the block's requests: their ticks
-        self.shapes: list[int | None] = []  # and their shapes
-        self.commands: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its polynomials' values, flat
-        self.outputs: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its replies' outputs, flat
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
 
     def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
@@ -184,6 +154,44 @@ class TakenSteps:
     def failed(self) -> None:
         """The run ended in the last request: the block up to its commands (the replies it awaits never came)."""
         self.flush(answered=False)
+
+
+class TakenSteps(_InBlocks):
+    """What :class:`Taken` hands its tap, as a :class:`StepsBlock` to ``tap.take_steps`` at the first schedule period
+    that starts after ``BLOCK_STEPS`` requests, when the run ends and when it fails. The initialisation's rounds go
+    to ``tap.exchange`` as :class:`Taken` hands them, and so do the replies of its last round, with a request that
+    sends nothing (``start``; a replica hands them with the first request of the stepping loop: the same messages,
+    in the same order).
+
+    The stepping loop calls nothing here per step: it appends to flat lists of numbers (``manager.scheme.jacobi``) —
+    each request's tick and shape to ``ticks`` and ``shapes`` (after its commands), each command's polynomial
+    (its values, rows after rows) to ``commands`` and each reply's outputs to ``outputs`` of its subsystem — and
+    calls ``flush`` where a period starts after a full block. Flat lists of floats, not a list per message: the
+    cyclic garbage collector walks every list a block keeps alive, and with a list per message that walk cost more
+    than the rest of the tap. The rest follows from the schedule: a request of shape ``phase × stages + stage``
+    commands the subsystems that start there and awaits those due there (``jacobi.schedule``), a status comes with
+    each stage-0 request but the run's first, and a subsystem's k-th reply answers its k-th command (its step: the
+    command's tick plus its ratio). A generated loop (``manager.scheme.compiled``) hands its rows to
+    :class:`TakenRows` instead."""
+
+    def __init__(self, tap, plan: Plan, status: bool, stages: list[tuple]) -> None:
+        super().__init__(tap, plan)
+        self.plan = plan
+        n = len(plan.subsystems)
+        self.names = tuple(s.name for s in plan.subsystems)
+        self.status = status  # the run reports its status (each stage-0 request but the first carries it)
+        self.n_stages = len(plan.stages)
+        # per request shape: the subsystems it commands and those whose replies it awaits (plan indices; and as masks)
+        shaped = [stage for phase_stages, _ in stages for stage in phase_stages]
+        self.commanded = [tuple(s.index for s in stage[0]) for stage in shaped]
+        self.awaited = [tuple(s.index for s in stage[2]) for stage in shaped]
+        self.commands_mask = np.array([[i in c for i in range(n)] for c in self.commanded], dtype=bool).reshape(-1, n)
+        self.awaits_mask = np.array([[i in a for i in range(n)] for a in self.awaited], dtype=bool).reshape(-1, n)
+        self.layout_of: dict[tuple, int] = {}  # layout → its number in every block
+        self.ticks: list[int] = []  # the block's requests: their ticks
+        self.shapes: list[int | None] = []  # and their shapes
+        self.commands: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its polynomials' values, flat
+        self.outputs: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its replies' outputs, flat
 
     def flush(self, last: bool = False, answered: bool = True, status: bool = False) -> None:
         """Hand the block over (nothing when it holds no request), ended by the replies of its last request
@@ -294,7 +302,7 @@ def rows_status_steps(first: int, requests: int, end_status: bool, status: bool)
     return range(max(first, 1), first + requests + end_status) if status else range(0)
 
 
-class TakenRows:
+class TakenRows(_InBlocks):
     """What a generated loop (``manager.scheme.compiled``) hands a tap that takes rows (``tap.take_rows``): the rows it
     makes anyway for the run's windows, a :class:`RowsBlock` about every ``TAP_BLOCK_STEPS`` steps, when the run
     ends and when it fails. The messages are built from them by the recorder's processes
@@ -302,23 +310,13 @@ class TakenRows:
     initialisation goes exchange by exchange, as :class:`TakenSteps` hands it."""
 
     def __init__(self, tap, plan: Plan, status: bool) -> None:
-        self.tap = tap
+        super().__init__(tap, plan)
         self.status = status
-        self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
         self.first = 0  # the first request of the block
         self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (rows, released, completed) appended
         self.carried: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # the row before the block's first
         self.start_ns = 0  # the release of step 0
         self.pending = False  # a request made after the rows, never answered
-
-    def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
-        """As :meth:`Taken.initial`."""
-        self.initial_replies.initial(request, outputs)
-
-    def start(self) -> None:
-        """As :meth:`TakenSteps.start`."""
-        if self.initial_replies.last:
-            self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
 
     def starts_from(self, outputs: list[float], width: int) -> None:
         """The loop starts from ``outputs`` (every subsystem's at t_0, flat) in rows of ``width``."""
@@ -340,14 +338,6 @@ class TakenRows:
     def requests(self) -> int:
         """Requests appended since the last block was handed over."""
         return sum(len(rows) for rows, _, _ in self.blocks) + self.pending
-
-    def end(self, status: int | None) -> None:
-        """As :meth:`TakenSteps.end`."""
-        self.flush(last=True, status=status is not None)
-
-    def failed(self) -> None:
-        """As :meth:`TakenSteps.failed`: the last request made is not answered."""
-        self.flush(answered=False)
 
     def flush(self, last: bool = False, answered: bool = True, status: bool = False) -> None:
         """Hand the block over (nothing when it holds no request); the arguments as :meth:`TakenSteps.flush`'s."""
