@@ -24,12 +24,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from bench_instructions import counted
 
 CALLS = (1_000, 21_000)
 ONE_RUN = """
@@ -123,14 +123,8 @@ LABELS = {"ctypes": "fmi2GetReal through ctypes, as zencosim calls it",
 
 
 def instructions(what: str, calls: int, directory: str) -> int:
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
-    result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-                             sys.executable, "-c", ONE_RUN, what, str(calls), directory],
-                            env=env, capture_output=True, text=True, cwd=tempfile.gettempdir())
-    if result.returncode != 0:
-        raise SystemExit(f"bench_ffi: {what} of {calls} calls failed under valgrind with status "
-                         f"{result.returncode}:\n{result.stderr[-2000:]}")
-    return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
+    return counted(ONE_RUN, [what, str(calls), directory], os.environ.get("PYTHONPATH", ""),
+                   f"bench_ffi: {what} of {calls} calls")
 
 
 def per_iteration(what: str, directory: str) -> float:

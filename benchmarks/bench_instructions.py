@@ -37,8 +37,8 @@ STEPS = (500, 2500)
 # the floor's runs lie further apart: its 2,000-step difference is 7.6 M instructions, where the noise of a run's
 # start (a few million instructions) moved its per-step count between 3,755 and 4,869; 40,000 steps dilute it
 FLOOR_STEPS = (500, 40_500)
-# the FMU pairs' too: a run compiles the one-call step (``fmi_steps``, a compiler as a child process) at its start,
-# and two counts of the same 2,000-step difference were 2,641 and 13,735 instructions per step apart
+# the FMU pairs' too: a run also compiles the one-call step at its start (``fmi_steps``: a compiler as a child
+# process), and two counts of the same 2,000-step difference came out 2,641 and 13,735 instructions per step
 FMU_STEPS = (500, 10_500)
 ONE_RUN = """
 import sys
@@ -83,23 +83,28 @@ else:  # the stepping loop: "plain", with the "status", with the status and the 
 """
 
 
-def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str = "") -> int:
-    program = ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent))
+def counted(program: str, arguments: list[str], pythonpath: str, label: str) -> int:
+    """The instructions valgrind counts in ``python -c program *arguments`` (PYTHONPATH ``pythonpath``); ``label``
+    names the run where it fails. bench_ffi.py counts with it too."""
     env = {**os.environ, "PYTHONPATH": pythonpath, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
            "PYTHONHASHSEED": "0"}
     # `python -c` imports from its working directory first (from the repository's root: this tree's zencosim,
     # whatever PYTHONPATH says), so it runs in the temporary directory; and once without valgrind first: a module
     # changed since its last import is compiled to bytecode then, not in the first of the two counted runs (which
     # made the floor's count 1,400 instructions per step too low)
-    subprocess.run([sys.executable, "-c", program, what, "10", layout, where], env=env, capture_output=True,
+    subprocess.run([sys.executable, "-c", program, *arguments], env=env, capture_output=True,
                    cwd=tempfile.gettempdir(), check=False)
     result = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-                             sys.executable, "-c", program, what, str(steps), layout, where],
+                             sys.executable, "-c", program, *arguments],
                             env=env, capture_output=True, text=True, cwd=tempfile.gettempdir())
     if result.returncode != 0:  # name the run and show why, instead of a bare CalledProcessError
-        raise SystemExit(f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'}) failed under "
-                         f"valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
+        raise SystemExit(f"{label} failed under valgrind with status {result.returncode}:\n{result.stderr[-2000:]}")
     return int(re.search(r"I\s+refs:\s+([\d,]+)", result.stderr).group(1).replace(",", ""))
+
+
+def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str = "") -> int:
+    return counted(ONE_RUN.format(benchmarks=str(Path(__file__).resolve().parent)), [what, str(steps), layout, where],
+                   pythonpath, f"bench_instructions: {what} of {steps} steps ({pythonpath or 'this tree'})")
 
 
 def per_step(what: str, pythonpath: str = "", layout: str = "package", where: str = "") -> float:
