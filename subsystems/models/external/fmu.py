@@ -359,8 +359,9 @@ class FmuCoSimulation(_FmuInstance):
         """One communication step of ``micro_steps`` micro-steps of ``h_ns`` with zero-order inputs as statements
         (``subsystems.subsystem.Subsystem.step_text``; ``start_ns``: the text of the step's start [ns], an int): the
         calls ``do_step`` and ``outputs`` make, with the same arguments — per micro-step the inputs set, then
-        ``fmi2DoStep`` at ``t = (start + j h) × 1e-9`` s, and the outputs read at the end without setting the same
-        inputs again — each status checked as they check it, a failure raised as the same :class:`FmuError`.
+        ``fmi2DoStep`` (``fmi3DoStep``) at ``t = (start + j h) × 1e-9`` s, and the outputs read at the end without
+        setting the same inputs again — each status checked as they check it, a failure raised as the same
+        :class:`FmuError`.
         Those calls are one call of ``fmi2_steps_run`` or ``fmi3_steps_run`` where they could be compiled
         (``fmi_steps``), else, for FMI 2.0, a ctypes call each. Real inputs and outputs only; else None, and so for
         FMI 3.0 without the compiled function."""
