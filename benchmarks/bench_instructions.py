@@ -40,6 +40,10 @@ FLOOR_STEPS = (500, 40_500)
 # the FMU pairs' too: a run also compiles the one-call step at its start (``fmi_steps``: a compiler as a child
 # process), and two counts of the same 2,000-step difference came out 2,641 and 13,735 instructions per step
 FMU_STEPS = (500, 10_500)
+# a run as a user makes it: both runs longer than the spike detector's 2 s window, so that the difference counts
+# its steady work per point; at (500, 2,500) the shorter run judged no point, and the difference held one-time
+# costs (stop 36's detector: 3,200 instructions per step counted from 500 to 2,500 steps, 2,373 from 10,000 to 30,000)
+USER_STEPS = (3000, 13_000)
 ONE_RUN = """
 import sys
 sys.path.insert(0, {benchmarks!r})
@@ -108,7 +112,8 @@ def instructions(what: str, steps: int, pythonpath: str, layout: str, where: str
 
 
 def per_step(what: str, pythonpath: str = "", layout: str = "package", where: str = "") -> float:
-    steps = FLOOR_STEPS if what == "floor" else FMU_STEPS if what.startswith(("fmu", "libcosim")) else STEPS
+    steps = (FLOOR_STEPS if what == "floor" else FMU_STEPS if what.startswith(("fmu", "libcosim"))
+             else USER_STEPS if what == "user" else STEPS)
     low, high = (instructions(what, n, pythonpath, layout, where) for n in steps)
     return (high - low) / (steps[1] - steps[0])
 

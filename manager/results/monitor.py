@@ -31,7 +31,9 @@ from zencosim.manager.scheme.window import row_blocks
 
 HORIZON = 8192  # points decided with numpy at a time
 AFTER_FLAG = 64  # points decided one by one after a flagged one (a burst flags many in a row)
-WINDOW_SIZES = 3  # windows of at most this many sizes are decided with numpy (more: irregular times)
+WINDOW_SIZES = 3  # windows of at most this many sizes go through scipy's rank filters (more: one by one)
+SUSPECTS = 64  # more than one point in this many above its floor: the windows' lower middles by rank filters first
+FLOOR_RANK = 0.375  # the quantile of a block that bounds a window's median from below (median_floors)
 
 
 @dataclass(frozen=True)
@@ -56,7 +58,8 @@ class SpikeMonitor:
         self.window, self.threshold, self.merge_gap = window, threshold, merge_gap
         self.times: deque[float] = deque()  # the times of the unflagged points in the window
         self.magnitudes: deque[float] = deque()  # and their |δP|
-        self.ordered: list[float] = []  # the same magnitudes, sorted (a running median in O(log n) + memmove)
+        # the same magnitudes, sorted (a running median in O(log n) + memmove); None: sort them when next needed
+        self.ordered: list[float] | None = []
         self.start: float | None = None
         self.intervals: list[SpikeInterval] = []
         self.open: list | None = None  # the interval being grown: [start, end, peak time, peak, points]
@@ -65,11 +68,11 @@ class SpikeMonitor:
         """Boolean mask of the flagged points among the next points ``t`` [s], ``p_res`` [W].
 
         Stretches without a flagged point are decided with numpy (:meth:`_stretch`): there every point's window is
-        the points before it within ``window``, whose running median scipy's rank filters give. A flagged point
-        leaves the windows of the points after it, so after one the next ``AFTER_FLAG`` points go one by one
-        (:meth:`_one_by_one`: the running median kept in a sorted list), and so do series whose times are not in
-        order, whose values are not finite or whose windows hold more than ``WINDOW_SIZES`` numbers of points
-        (irregular times)."""
+        the points before it within ``window``, and only the points above a lower bound of its median need the
+        median itself. A flagged point leaves the windows of the points after it, so after one the next
+        ``AFTER_FLAG`` points go one by one (:meth:`_one_by_one`: the running median kept in a sorted list), and so
+        do series whose times are not in order or whose values are not finite, and stretches with many points above
+        their bound whose windows hold more than ``WINDOW_SIZES`` numbers of points (irregular times)."""
         t = np.asarray(t, dtype=float)
         magnitudes = np.abs(np.asarray(p_res, dtype=float))
         flagged = np.zeros(len(t), dtype=bool)
@@ -86,36 +89,40 @@ class SpikeMonitor:
     def _stretch(self, t: np.ndarray, magnitudes: np.ndarray, flagged: np.ndarray, i: int) -> tuple[int, bool]:
         """Decide points ``i`` … (at most ``HORIZON``) with numpy, up to the first flagged one (flagged here);
         returns the first point not decided, and False where the windows hold too many numbers of points (nothing
-        decided)."""
+        decided).
+
+        A point can only be flagged above ``threshold`` times a lower bound of its baseline (:func:`median_floors`);
+        the few points above it are judged by their window's median itself. Where many are (a baseline that changes
+        fast within its window), scipy's rank filters give every window's lower middle first."""
         stop = min(len(t), i + HORIZON)
         held = len(self.times)  # the unflagged points of the window so far, then the new ones
-        times = np.concatenate((np.array(self.times), t[i:stop]))
-        values = np.concatenate((np.array(self.magnitudes), magnitudes[i:stop]))
+        times = np.concatenate((np.fromiter(self.times, float, held), t[i:stop]))
+        values = np.concatenate((np.fromiter(self.magnitudes, float, held), magnitudes[i:stop]))
         new = np.arange(held, len(times))
         sizes = new - np.searchsorted(times, times[new] - self.window, side="left")  # the window: the points before
         judged = (times[new] - self.start >= self.window) & (sizes > 0)  # a full window of history, not empty
-        kinds = np.unique(sizes[judged]).tolist()
-        if len(kinds) > WINDOW_SIZES:
-            return i, False
-        baseline = np.zeros(len(new))
-        for size in kinds:  # the median of each window of ``size`` points: its middle one, or the lower middle one
-            at = judged & (sizes == size)
-            ends = new[at] - size + size // 2  # where a centred filter of ``size`` sees the points before new[at]
-            baseline[at] = ndimage.rank_filter(values, (size - 1) // 2, size=size)[ends]
-        decided = len(new)  # up to the first spike: an even window's median, the mean of its middle two, is not below
-        for k in np.flatnonzero(judged & (values[new] > self.threshold * baseline)).tolist():  # the lower one
-            if sizes[k] % 2 == 0:
-                window = np.sort(values[new[k] - sizes[k]:new[k]])
-                if not values[new[k]] > self.threshold * (0.5 * (window[sizes[k] // 2 - 1] + window[sizes[k] // 2])):
-                    continue
-            decided = k
-            break
+        suspects = judged & (values[new] > self.threshold * median_floors(values, new - sizes, new))
+        if np.count_nonzero(suspects) > len(new) // SUSPECTS:
+            kinds = np.unique(sizes[judged]).tolist()
+            if len(kinds) > WINDOW_SIZES:
+                return i, False
+            lower = np.zeros(len(new))
+            for size in kinds:  # the median of each window of ``size`` points: its middle one, or the lower middle one
+                at = judged & (sizes == size)
+                ends = new[at] - size + size // 2  # where a centred filter of ``size`` sees the points before new[at]
+                lower[at] = ndimage.rank_filter(values, (size - 1) // 2, size=size)[ends]
+            suspects &= values[new] > self.threshold * lower
+        decided = len(new)  # up to the first spike
+        for k in np.flatnonzero(suspects).tolist():
+            if values[new[k]] > self.threshold * _median(values[new[k] - sizes[k]:new[k]]):
+                decided = k
+                break
         end = held + decided  # the unflagged points, as the one-by-one loop leaves its window after the last
         if end:
             first = int(np.searchsorted(times[:end], times[end - 1] - self.window, side="left"))
             self.times = deque(times[first:end].tolist())
             self.magnitudes = deque(values[first:end].tolist())
-            self.ordered = sorted(self.magnitudes)
+            self.ordered = None
         if decided < len(new):
             flagged[i + decided] = True
             return i + decided + 1, True
@@ -124,6 +131,8 @@ class SpikeMonitor:
     def _one_by_one(self, t: np.ndarray, magnitudes: np.ndarray, flagged: np.ndarray, i: int, stop: int) -> int:
         """Decide points ``i`` … ``stop - 1`` one by one; returns where it stopped."""
         stop = min(stop, len(t))
+        if self.ordered is None and i < stop:
+            self.ordered = sorted(self.magnitudes)
         times, kept, ordered = self.times, self.magnitudes, self.ordered
         window, threshold, start = self.window, self.threshold, self.start
         insort, position = bisect.insort, bisect.bisect_left
@@ -165,6 +174,40 @@ class SpikeMonitor:
         if self.open is not None:
             self.intervals.append(SpikeInterval(*self.open))
             self.open = None
+
+
+def median_floors(values: np.ndarray, first: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """For each window ``values[first[k]:end[k]]`` (not empty; ``first`` and ``end`` not decreasing), a number not
+    above its lower middle value, the ``(n - 1) // 2``-th smallest of its ``n``: the least of the
+    ``FLOOR_RANK``-quantiles of the blocks of ``n // 32`` points (counted from ``values[0]``) that lie wholly in the
+    windows of its group of as many windows. At most ``FLOOR_RANK`` of a block's points lie below its quantile, so at
+    most that many per block, and the points of the window outside those blocks, lie below the least of them; where
+    that is not fewer than the lower middle's rank, or a block would hold fewer than 4 points, the floor is 0."""
+    floors, inner = np.zeros(len(end)), np.zeros(len(end), dtype=np.int64)
+    sizes = end - first
+    block = int(sizes.min()) // 32 if len(sizes) else 0
+    if block < 4:
+        return floors
+    rank = int(FLOOR_RANK * block)  # at most ``rank`` points of a block lie below its ``rank``-th smallest
+    count = len(values) // block
+    quantiles = np.partition(values[:count * block].reshape(count, block), rank, axis=1)[:, rank].tolist()
+    for group in range(0, len(end), block):  # the blocks inside the windows of all the group's points
+        last = min(group + block, len(end))
+        inside = quantiles[-(-int(first[last - 1]) // block):int(end[group]) // block]
+        if inside:
+            floors[group:last] = min(inside)
+            inner[group:last] = len(inside)
+    floors[inner * rank + (sizes - inner * block) > (sizes - 1) // 2] = 0.0
+    return floors
+
+
+def _median(window: np.ndarray) -> float:
+    """The median of ``window`` as the one-by-one loop takes it: its middle value, or the mean of its middle two."""
+    middle = len(window) // 2
+    if len(window) % 2:
+        return float(np.partition(window, middle)[middle])
+    lower, upper = np.partition(window, (middle - 1, middle))[middle - 1:middle + 1].tolist()
+    return 0.5 * (lower + upper)
 
 
 def flag_spikes(t: np.ndarray, p_res: np.ndarray, window: float, threshold: float) -> np.ndarray:

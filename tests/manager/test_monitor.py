@@ -85,3 +85,47 @@ def test_the_detector_fed_in_blocks_flags_what_its_rule_flags(n, seed, window, t
         flags.append(monitor.flags(t[at:at + size], p[at:at + size]))
         at += size
     assert np.concatenate(flags).tolist() == _flags_by_definition(t, p, window, threshold)
+
+
+def _windows(n: int, sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Windows ending at n - len(sizes) … n - 1 with the given sizes, made non-decreasing at both ends."""
+    end = np.arange(n - len(sizes), n)
+    first = np.maximum.accumulate(np.maximum(end - sizes, 0))
+    return first, end
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["uniform", "zeros", "sorted", "bursts"]),
+       st.sampled_from([130, 600, 2000]), st.booleans(), st.sampled_from([None, 0.9]))
+def test_median_floors_are_not_above_the_lower_middle(seed, kind, size, irregular, rank):
+    """The bound that lets most points skip their window's median: never above the lower middle, the
+    ((n - 1) // 2)-th smallest of the window's n values, on values with runs of zeros, sorted stretches and bursts,
+    windows of one size or of drifting sizes, and with a block quantile (0.9) too high to be a bound by itself (the
+    count of points below it must then give 0)."""
+    from zencosim.manager.results import monitor
+    rng = np.random.default_rng(seed)
+    n = 3 * size
+    values = {"uniform": rng.uniform(0, 1, n), "zeros": rng.uniform(0, 1, n) * (rng.uniform(0, 1, n) < 0.45),
+              "sorted": np.sort(rng.exponential(1, n)), "bursts": rng.exponential(1, n) * 10.0 ** (
+                  6 * (rng.uniform(0, 1, n) < 0.1))}[kind]
+    sizes = rng.integers(size, int(1.5 * size), 2 * size) if irregular else np.full(2 * size, size)
+    first, end = _windows(n, sizes)
+    saved = monitor.FLOOR_RANK
+    monitor.FLOOR_RANK = rank or saved
+    try:
+        floors = monitor.median_floors(values, first, end)
+    finally:
+        monitor.FLOOR_RANK = saved
+    lower = np.array([np.partition(values[a:b], (b - a - 1) // 2)[(b - a - 1) // 2] for a, b in zip(first, end)])
+    assert (floors <= lower).all()
+
+
+def test_median_floors_bound_most_windows_of_a_steady_series():
+    """The floors are a bound worth having: on a noisy oscillation's |δP| over 2 s windows of 1 ms points, nonzero
+    everywhere and within a factor 50 of the median (so a point far below the threshold needs no median)."""
+    from zencosim.manager.results import monitor
+    magnitudes = np.abs(_oscillating(4))
+    first, end = _windows(len(magnitudes), np.full(len(magnitudes) - 2000, 2000))
+    floors = monitor.median_floors(magnitudes, first, end)
+    medians = np.array([np.median(magnitudes[a:b]) for a, b in zip(first[::97], end[::97])])
+    assert (floors > 0).all() and (floors[::97] > medians / 50).all()
