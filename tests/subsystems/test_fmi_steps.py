@@ -18,7 +18,7 @@ import sys
 
 import pytest
 
-from zencosim.subsystems.models.external import fmi_steps
+from zencosim.subsystems import native
 from zencosim.subsystems.models.external.fmi_steps import TERMINATE, FmiSteps, steps_function
 
 FAKE_FMI = r"""
@@ -170,10 +170,10 @@ def test_where_the_compiled_step_cannot_be_written_or_loaded_there_is_none(where
 
     def fails(*args, **kwargs):
         raise error
-    monkeypatch.setattr(getattr(fmi_steps, module), name, fails)
-    fmi_steps._library.cache_clear()
+    monkeypatch.setattr(getattr(native, module), name, fails)
+    native.library.cache_clear()
     try:
         assert steps_function("2") is None and steps_function("3") is None
     finally:
         monkeypatch.undo()
-        fmi_steps._library.cache_clear()  # the next caller compiles it again
+        native.library.cache_clear()  # the next caller compiles it again
