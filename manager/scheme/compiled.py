@@ -35,6 +35,7 @@ import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import PROGRESS_EVERY, OutputReader, SubsystemCalls
+from zencosim.manager.scheme.register_loop import STAMP_STATEMENT, register_loop
 from zencosim.manager.scheme.residual import residual_power_text
 from zencosim.manager.scheme.tapped import BLOCK_STEPS, TakenRows
 from zencosim.manager.scheme.window import RowWindow
@@ -44,6 +45,7 @@ from zencosim.subsystems.straight_line import StepText, define, unpacked
 # steps in a block handed to a recorder's tap: a generated loop's step costs about an eighth of the scheme's loop's,
 # so that its blocks hold about the run time of the scheme's (BLOCK_STEPS) and cost as little per step
 TAP_BLOCK_STEPS = 8 * BLOCK_STEPS
+REGISTER_LOOP = True  # a loop of float arithmetic only runs as a register program in C (register_loop)
 
 
 class CompiledSteps:
@@ -51,7 +53,7 @@ class CompiledSteps:
     scheme's loop."""
 
     def __init__(self, plan: Plan, direct: SubsystemCalls, texts: list[StepText]) -> None:
-        self.plan, self.direct = plan, direct
+        self.plan, self.direct, self.texts = plan, direct, texts
         self.width = [len(s.outputs) for s in plan.subsystems]
         self.output_ends = np.cumsum(self.width)
         self.bonds_start = int(self.output_ends[-1])  # the bonds' δP, then their δE
@@ -61,6 +63,13 @@ class CompiledSteps:
         for text in texts:
             namespace.update(text.namespace)
         self.steps = define(self.source, "steps", "<compiled macro-steps>", namespace)
+        self.registers = register_loop(self._initial(), _step_statements(plan, texts), _row(plan, texts)) \
+            if REGISTER_LOOP else None
+
+    def _initial(self) -> list[str]:
+        """The names that hold values before the first step: the state, the newest outputs, the bonds' energies."""
+        return [name for t in self.texts for name in t.state] + [name for t in self.texts for name in t.outputs] \
+            + _energies(self.plan)
 
     def run(self, readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
             release_times: RowWindow, progress: Callable[[int], None] | None, taken: TakenRows | None = None) -> int:
@@ -76,43 +85,60 @@ class CompiledSteps:
         energies = [0.0] * len(plan.bonds)
         if taken is not None:
             taken.starts_from([y for outputs in newest for y in outputs], self.row_width)
+        registers = self.registers
+        if registers is not None:
+            registers.set(self._initial(), [z for values in state for z in values]
+                          + [y for values in newest for y in values] + energies)
         first = 0
         while first < n_ticks:
             last = min(n_ticks, _next(first, PROGRESS_EVERY), _next(first, TAP_BLOCK_STEPS) if taken else n_ticks)
             if taken is not None and taken.requests >= TAP_BLOCK_STEPS:  # where a period starts, as the scheme does
                 taken.flush()
-            rows, times = [], []
-            try:
-                state, newest, energies, inputs_at_end = self.steps(first, last, state, newest, energies,
-                                                                    rows.extend, times.append, time.perf_counter_ns)
-            except Stopped as stopped:
-                self._stopped(stopped, first, rows, times, readers, residual_power, residual_energy, release_times,
-                              taken)
-            self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
+            if registers is not None:
+                block, released = registers.steps(last - first)
+                newest = [registers.get(t.outputs) for t in self.texts]
+            else:
+                rows, times = [], []
+                try:
+                    state, newest, energies, inputs_at_end = self.steps(first, last, state, newest, energies,
+                                                                        rows.extend, times.append,
+                                                                        time.perf_counter_ns)
+                except Stopped as stopped:
+                    self._stopped(stopped, first, rows, times, readers, residual_power, residual_energy,
+                                  release_times, taken)
+                block, released = self._block(rows, times)
+            self._hand_over(first, block, released, time.perf_counter_ns(), readers, residual_power, residual_energy,
                             release_times, taken)
             for reader, values in zip(readers, newest):
                 reader.newest = values
             first = last
             if progress is not None and last % PROGRESS_EVERY == 0:
                 progress(last)
+        if registers is not None:
+            state, inputs_at_end = ([registers.get(names) for names in (t.state for t in self.texts)],
+                                    [registers.get(t.inputs_at_end) for t in self.texts])
         if n_ticks:  # the subsystems take the state the last step left (a run of no step leaves them where they are)
             for s, z, w in zip(plan.subsystems, state, inputs_at_end):
                 self.direct.took_steps(s, n_ticks, z, w)
         return n_ticks
 
-    def _hand_over(self, first: int, rows: list[float], times: list[int], done_ns: int, readers: list[OutputReader],
-                   residual_power: RowWindow, residual_energy: RowWindow, release_times: RowWindow,
-                   taken: TakenRows | None) -> int:
-        """The steps from ``first`` whose ``rows`` the loop extended (whole steps) to the run's windows and the tap;
-        ``times``: their releases (and perhaps one more), ``done_ns``: when the last completed. Returns how many."""
-        n_bonds = len(self.plan.bonds)
+    def _block(self, rows: list[float], times: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The Python loop's rows (whole steps) as an array, a row per step, and the steps' release times (``times``
+        may hold one more: the step that raised)."""
         block = float64s(rows).reshape(len(rows) // self.row_width, self.row_width)
+        return block, int64s(times)[:len(block)]
+
+    def _hand_over(self, first: int, block: np.ndarray, released: np.ndarray, done_ns: int,
+                   readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
+                   release_times: RowWindow, taken: TakenRows | None) -> int:
+        """The steps from ``first`` whose rows ``block`` holds (a row per step) to the run's windows and the tap;
+        ``released``: their release times, ``done_ns``: when the last completed. Returns how many."""
+        n_bonds = len(self.plan.bonds)
         count = len(block)
         for reader, values in zip(readers, _columns(block, self.output_ends, self.width)):
             reader.window.put_rows(first + 1, values)
         residual_power.put_rows(first + 1, block[:, self.bonds_start:self.bonds_start + n_bonds])
         residual_energy.put_rows(first + 1, block[:, self.bonds_start + n_bonds:])
-        released = int64s(times)[:count]
         release_times.put_rows(first, released)
         if taken is not None:  # a step completed where the next was released (the loop's next statement)
             taken.append_rows(block, released, np.append(released[1:], done_ns)[:count])
@@ -123,8 +149,8 @@ class CompiledSteps:
                  taken: TakenRows | None) -> None:
         """Hand over the steps before the one that raised and raise what the scheme's loop raises: as it, the tap
         gets that step's request (its commands, the outputs at its start), not its replies."""
-        count = self._hand_over(first, rows, times, time.perf_counter_ns(), readers, residual_power, residual_energy,
-                                release_times, taken)
+        count = self._hand_over(first, *self._block(rows, times), time.perf_counter_ns(), readers, residual_power,
+                                residual_energy, release_times, taken)
         if taken is not None:
             taken.unanswered()
         if stopped.subsystem is None:
@@ -169,19 +195,30 @@ def _loop_text(plan: Plan, texts: list[StepText]) -> str:
     ``last - 1`` from each subsystem's ``state`` and ``newest`` outputs and each bond's energy, each step's release
     time stamped, its row (every subsystem's outputs, the bonds' δP, their δE) extended; it returns the state, the
     newest outputs, the energies and the input values at the last step's end."""
-    subs = plan.subsystems
-    step_s = plan.base_step_ns * 1e-9
     head = ["def steps(first, last, state, newest, energies, extend, stamp, perf):"]
-    for s, text in zip(subs, texts):
+    for s, text in zip(plan.subsystems, texts):
         if text.state:
             head.append(f"    {unpacked(text.state)} = state[{s.index}]")
         if text.outputs:
             head.append(f"    {unpacked(text.outputs)} = newest[{s.index}]")
-    powers = [f"b{b}_power" for b in range(len(plan.bonds))]
-    energies = [f"b{b}_energy" for b in range(len(plan.bonds))]
+    energies = _energies(plan)
     if energies:
         head.append(f"    {unpacked(energies)} = energies")
-    body = ["stamp(perf())"]
+    body = _step_statements(plan, texts) + [f"extend(({', '.join(_row(plan, texts))},))"]
+    lines = head + ["    stepping = None", "    try:", "        for tick in range(first, last):"]
+    lines += [f"            {line}" for line in body]
+    lines += ["    except BaseException as error:", "        raise Stopped(stepping, error) from None"]
+    lines.append(f"    return [{', '.join(f'[{_listed(t.state)}]' for t in texts)}], "
+                 f"[{', '.join(f'[{_listed(t.outputs)}]' for t in texts)}], [{_listed(energies)}], "
+                 f"[{', '.join(f'[{_listed(t.inputs_at_end)}]' for t in texts)}]")
+    return "\n".join(lines)
+
+
+def _step_statements(plan: Plan, texts: list[StepText]) -> list[str]:
+    """One macro-step: its release time stamped, stage after stage (Jacobi: one) the commands from the newest
+    outputs and the subsystems' steps, then every bond's δP and δE."""
+    subs = plan.subsystems
+    body = [STAMP_STATEMENT]
     for stage in plan.stages:  # stage after stage (Jacobi: one), its commands from the newest outputs, then its steps
         for i in stage:
             body.extend(f"{c} = {texts[source].outputs[output]}"
@@ -191,6 +228,7 @@ def _loop_text(plan: Plan, texts: list[StepText]) -> str:
             body.extend(texts[i].statements)
             body.extend(f"{z} = {n}" for z, n in zip(texts[i].state, texts[i].new_state))
     body.append("stepping = None")
+    step_s = plan.base_step_ns * 1e-9
     for b, bond in enumerate(plan.bonds):
         force_side, motion_side = texts[bond.force_side], texts[bond.motion_side]
         power = "0.0"  # as the scheme adds the components up, from 0.0
@@ -198,17 +236,19 @@ def _loop_text(plan: Plan, texts: list[StepText]) -> str:
             term = residual_power_text(force_side.outputs[force], force_side.coefficients[velocity_input],
                                        motion_side.coefficients[force_input], motion_side.outputs[velocity])
             power = f"{power} + ({term})"
-        body.append(f"{powers[b]} = {power}")
-        body.append(f"{energies[b]} = {energies[b]} + {powers[b]} * {step_s!r}")
-    row = [name for text in texts for name in text.outputs] + powers + energies
-    body.append(f"extend(({', '.join(row)},))")
-    lines = head + ["    stepping = None", "    try:", "        for tick in range(first, last):"]
-    lines += [f"            {line}" for line in body]
-    lines += ["    except BaseException as error:", "        raise Stopped(stepping, error) from None"]
-    lines.append(f"    return [{', '.join(f'[{_listed(t.state)}]' for t in texts)}], "
-                 f"[{', '.join(f'[{_listed(t.outputs)}]' for t in texts)}], [{_listed(energies)}], "
-                 f"[{', '.join(f'[{_listed(t.inputs_at_end)}]' for t in texts)}]")
-    return "\n".join(lines)
+        body.append(f"b{b}_power = {power}")
+        body.append(f"b{b}_energy = b{b}_energy + b{b}_power * {step_s!r}")
+    return body
+
+
+def _energies(plan: Plan) -> list[str]:
+    return [f"b{b}_energy" for b in range(len(plan.bonds))]
+
+
+def _row(plan: Plan, texts: list[StepText]) -> list[str]:
+    """A step's row: every subsystem's outputs, the bonds' δP, their δE."""
+    return [name for text in texts for name in text.outputs] + [f"b{b}_power" for b in range(len(plan.bonds))] \
+        + _energies(plan)
 
 
 def _listed(names) -> str:

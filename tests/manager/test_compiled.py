@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import zencosim.manager.scheme.compiled as compiled_module
 import zencosim.manager.scheme.jacobi as jacobi_module
 import zencosim.subsystems.models.external.fmu as fmu_module
 from tests.manager.frames_recorder import FramesRecorder
@@ -20,6 +21,7 @@ from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.compiled import compiled_steps
+from zencosim.manager.scheme.register_loop import register_loop
 from zencosim.manager.scheme.residual import residual_power, residual_power_text
 from zencosim.manager.wire.protocol import HEADER, decode
 from zencosim.manager.wire.status import StatusReport
@@ -32,6 +34,21 @@ GENERIC = {"FOH": ("two_mass_damped", ["manager.extrapolation=1"]),
                                                 "subsystems.M2.micro_step=0.0001"]),
            "nonlinear": ("hydraulic_crane", []),
            "input table": ("two_mass_chirp", [])}
+
+
+@pytest.fixture(params=["registers", "python"])
+def loop(request, monkeypatch):
+    """The generated loop of straight-line steps run as a register program in C (``register_loop``: there must be a
+    C compiler, as for the example FMUs) or as the Python loop itself; each run of it was the one asked for."""
+    made = []
+
+    def noted(*args):
+        made.append(register_loop(*args))
+        return made[-1]
+    monkeypatch.setattr(compiled_module, "register_loop", noted)
+    monkeypatch.setattr(compiled_module, "REGISTER_LOOP", request.param == "registers")
+    yield request.param
+    assert all(program is not None for program in made) and bool(made) == (request.param == "registers")
 
 
 def _run(name: str, overrides: list[str], compiled: bool, monkeypatch, keep: bool | None = None, progress=None):
@@ -77,7 +94,7 @@ def _assert_same_run(ours, theirs) -> None:
 
 @pytest.mark.parametrize("name, scheme", [*((name, "jacobi") for name in COMPILED),
                                           ("two_mass_damped", "gauss-seidel"), ("mass_chain", "gauss-seidel")])
-def test_the_generated_loop_computes_the_generic_loops_arrays_bit_for_bit(name, scheme, monkeypatch):
+def test_the_generated_loop_computes_the_generic_loops_arrays_bit_for_bit(name, scheme, loop, monkeypatch):
     overrides = ["manager.duration=1.2", f"manager.scheme={scheme}"]  # 1,200 steps or more: blocks of 500
     record, subsystems, compiled = _run(name, overrides, True, monkeypatch)
     expected, expected_subsystems, generic_compiled = _run(name, overrides, False, monkeypatch)
@@ -85,7 +102,7 @@ def test_the_generated_loop_computes_the_generic_loops_arrays_bit_for_bit(name, 
     _assert_same_run((record, subsystems), (expected, expected_subsystems))
 
 
-def test_a_long_run_spilled_to_files_is_the_same(monkeypatch):
+def test_a_long_run_spilled_to_files_is_the_same(loop, monkeypatch):
     """Past the windows' memory (spilled every 8,192 rows) the generated loop's rows land where the generic loop's do;
     and progress is reported at the same steps."""
     overrides = ["manager.duration=20.0"]
@@ -125,10 +142,12 @@ def linear_chains(draw) -> list[str]:
     return overrides
 
 
+@pytest.mark.parametrize("registers", [True, False], ids=["registers", "python"])
 @settings(max_examples=15, deadline=None)
 @given(linear_chains())
-def test_on_generated_chains_the_generated_loop_is_the_generic_loop_bit_for_bit(overrides):
+def test_on_generated_chains_the_generated_loop_is_the_generic_loop_bit_for_bit(registers, overrides):
     with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(compiled_module, "REGISTER_LOOP", registers)
         ours = _run("mass_chain", overrides, True, monkeypatch)
         theirs = _run("mass_chain", overrides, False, monkeypatch)
     assert ours[2]
@@ -145,7 +164,7 @@ def test_the_residual_powers_text_is_its_function_bit_for_bit(values):
     assert np.signbit(evaluated) == np.signbit(expected)
 
 
-def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_messages(monkeypatch):
+def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_messages(loop, monkeypatch):
     """With a status and a recorder's tap of blocks (``TakenSteps``) the generated loop runs the steps, and the
     recorder gets every message of the generic loop (each status's residuals included, not its wall times), in
     order, in the same frames; its statuses' wall times are the steps' own (a step completes before the next is
@@ -235,7 +254,7 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
 
 
 @pytest.mark.parametrize("at", [500, 2500], ids=["first block", "second block"])
-def test_an_interrupted_recorded_run_hands_the_recorder_what_the_generic_loop_hands_it(at, monkeypatch):
+def test_an_interrupted_recorded_run_hands_the_recorder_what_the_generic_loop_hands_it(at, loop, monkeypatch):
     """An interrupt between two steps (from the progress report after step ``at``; blocks of 2,048 steps): the
     recorder gets the same messages from the generated loop's rows as from the generic loop, up to the commands of
     the last request, whose replies the scheme took but never handed over."""

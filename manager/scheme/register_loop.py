@@ -1,0 +1,159 @@
+"""A generated macro-step loop run in C as a register program (``register_loop.c``; issue 26).
+
+The loop that ``manager.scheme.compiled`` writes for a scene of small linear models is float arithmetic only: each
+statement assigns a sum, difference or product of float names and constants to a name. Python runs it at about
+8,600 instructions per macro-step of two_mass_damped (valgrind), most of them the interpreter's, where the
+arithmetic is some sixty operations. Here each statement becomes three-address operations over one array of
+doubles, the *registers* (the loop's names, its constants, the intermediate values), in Python's order of
+evaluation, and ``register_loop_run`` (compiled when first needed, ``subsystems.native``) runs them step after step.
+Each operation is one IEEE-754 double operation with nothing fused, as Python's float does it, so the registers hold
+what the names would, bit for bit (tests/manager/test_register_loop.py).
+
+:func:`register_loop` returns None where a statement is anything else — a call (an FMU's step), a division (which
+raises in Python where C gives an infinity), an integer — or where there is no C compiler: the Python loop runs.
+``stepping = …`` statements, which say which subsystem a Python exception came from, are left out: float addition,
+subtraction and multiplication do not raise.
+"""
+from __future__ import annotations
+
+import ast
+import ctypes
+import struct
+from collections.abc import Iterable
+
+import numpy as np
+
+from zencosim.subsystems.native import library
+
+ADD, SUBTRACT, MULTIPLY, NEGATE, COPY, STAMP = range(6)  # register_loop.c's operation codes
+BINARY = {ast.Add: ADD, ast.Sub: SUBTRACT, ast.Mult: MULTIPLY}
+STAMP_STATEMENT = "stamp(perf())"  # the release time of the step (``time.perf_counter_ns``: CLOCK_MONOTONIC)
+
+
+class Operation(ctypes.Structure):
+    """``operation`` of ``register_loop.c``: ``registers[target] = registers[left] <code> registers[right]``."""
+
+    _fields_ = [("code", ctypes.c_int), ("target", ctypes.c_int), ("left", ctypes.c_int), ("right", ctypes.c_int)]
+
+
+class NotArithmetic(Exception):
+    """A statement the register program cannot run as Python would."""
+
+
+class RegisterLoop:
+    """A macro-step's statements as a register program: set the names, run steps, read the names."""
+
+    def __init__(self, run, operations: list[tuple[int, int, int, int]], registers: list[float],
+                 names: dict[str, int], row: list[int]) -> None:
+        self._run = run
+        self._operations = (Operation * len(operations))(*operations)
+        self.registers = np.array(registers, dtype=np.float64)
+        self.names = names
+        self._row = np.array(row, dtype=np.intc)
+
+    def set(self, names: Iterable[str], values: Iterable[float]) -> None:
+        for name, value in zip(names, values, strict=True):
+            self.registers[self.names[name]] = value
+
+    def get(self, names: Iterable[str]) -> list[float]:
+        return self.registers[[self.names[name] for name in names]].tolist()
+
+    def steps(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """Run ``count`` macro-steps; their rows (``count`` × the row's width) and release times [ns]."""
+        rows = np.empty((count, len(self._row)))
+        times = np.zeros(count, dtype=np.int64)
+        self._run(self._operations, len(self._operations), self.registers.ctypes.data, self._row.ctypes.data,
+                  len(self._row), count, rows.ctypes.data, times.ctypes.data)
+        return rows, times
+
+
+def register_loop(initial: list[str], statements: list[str], row: list[str]) -> RegisterLoop | None:
+    """The register program of a macro-step: the names ``initial`` hold values before the first step, one step is
+    ``statements`` (``manager.scheme.compiled``'s loop body), its row the names ``row``. None where a statement is
+    not float arithmetic or there is no C compiler (see the module text)."""
+    try:
+        translation = _Translation(initial)
+        for statement in statements:
+            translation.statement(statement)
+        row_registers = [translation.read(name) for name in row]
+    except NotArithmetic:
+        return None
+    compiled = library("zencosim.manager.scheme", "register_loop.c")
+    if compiled is None:
+        return None
+    run = compiled.register_loop_run
+    run.restype = None
+    run.argtypes = [ctypes.POINTER(Operation), ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p,
+                    ctypes.c_longlong, ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p]
+    return RegisterLoop(run, translation.operations, translation.registers, translation.names, row_registers)
+
+
+class _Translation:
+    """Statements to operations: a name's register is assigned at its first assignment, a constant's at its first
+    use (one per value, -0.0 apart from 0.0), an intermediate value's where it is computed."""
+
+    def __init__(self, initial: list[str]) -> None:
+        self.names = {name: i for i, name in enumerate(initial)}
+        self.registers = [0.0] * len(initial)
+        self.constants: dict[bytes, int] = {}
+        self.operations: list[tuple[int, int, int, int]] = []
+
+    def statement(self, text: str) -> None:
+        if text == STAMP_STATEMENT:
+            self.operations.append((STAMP, 0, 0, 0))
+            return
+        (node,) = ast.parse(text).body
+        if not (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)):
+            raise NotArithmetic(text)
+        name = node.targets[0].id
+        if name == "stepping":
+            return
+        target = self.names.get(name)
+        if target is None:
+            target = self._new(0.0)
+        if isinstance(node.value, (ast.BinOp, ast.UnaryOp)) and _constant(node.value) is None:
+            self._value(node.value, target)  # its last operation writes the name, after its operands were read
+        else:
+            self.operations.append((COPY, target, self._value(node.value), 0))
+        self.names[name] = target
+
+    def read(self, name: str) -> int:
+        if name not in self.names:  # read before any assignment: a NameError in Python
+            raise NotArithmetic(name)
+        return self.names[name]
+
+    def _value(self, node: ast.expr, target: int | None = None) -> int:
+        """The register that holds ``node``'s value, computed into ``target`` where it is an operation."""
+        value = _constant(node)
+        if value is not None:
+            key = struct.pack("<d", value)
+            if key not in self.constants:
+                self.constants[key] = self._new(value)
+            return self.constants[key]
+        if isinstance(node, ast.Name):
+            return self.read(node.id)
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+            operand = self._value(node.operand)
+            target = self._new(0.0) if target is None else target
+            self.operations.append((NEGATE, target, operand, 0))
+            return target
+        if isinstance(node, ast.BinOp) and type(node.op) in BINARY:
+            left, right = self._value(node.left), self._value(node.right)
+            target = self._new(0.0) if target is None else target
+            self.operations.append((BINARY[type(node.op)], target, left, right))
+            return target
+        raise NotArithmetic(ast.unparse(node))
+
+    def _new(self, value: float) -> int:
+        self.registers.append(value)
+        return len(self.registers) - 1
+
+
+def _constant(node: ast.expr) -> float | None:
+    """A float literal's value, or a negated one's (Python folds ``-0.11`` into a constant); else None."""
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        value = _constant(node.operand)
+        return None if value is None else -value
+    if isinstance(node, ast.Constant) and type(node.value) is float:
+        return node.value
+    return None
