@@ -171,7 +171,7 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
     released)."""
     seen, ran = [], []
     for compiled in (True, False):
-        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])  # blocks of 2,048 steps and a shorter one
+        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])  # blocks of 2,000 steps and a shorter one
         plan, subsystems = plan_scene(scene)
         status = StatusReport(plan, False)
         recorder = FramesRecorder(plan, status)
@@ -255,7 +255,7 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
 
 @pytest.mark.parametrize("at", [500, 2500], ids=["first block", "second block"])
 def test_an_interrupted_recorded_run_hands_the_recorder_what_the_generic_loop_hands_it(at, loop, monkeypatch):
-    """An interrupt between two steps (from the progress report after step ``at``; blocks of 2,048 steps): the
+    """An interrupt between two steps (from the progress report after step ``at``; blocks of 2,000 steps): the
     recorder gets the same messages from the generated loop's rows as from the generic loop, up to the commands of
     the last request, whose replies the scheme took but never handed over."""
     recorded, ran = [], []
