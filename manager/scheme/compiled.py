@@ -16,6 +16,11 @@ digest are therefore the generic loop's and the message path's, bit for bit (tes
 Gauss–Seidel runs the same way, stage after stage: a stage's commands are made from the newest outputs, those of
 the stages before it already taken this step (``Plan.lead``), then its subsystems step.
 
+Where every statement of a step is float arithmetic (every subsystem a straight-line linear step: no FMU, whose
+step is calls), the same statements run as a register program in C (``manager.scheme.register_loop``): the same
+operations on the same values: an in-process run of two_mass_damped takes about 1,900 instructions per macro-step,
+against 10,000 with the Python loop (valgrind). Without a C compiler the Python loop runs.
+
 The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``) and, in a recorded run, where
 it hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps); after each, the
 block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, and the
