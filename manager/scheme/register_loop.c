@@ -9,13 +9,14 @@
    times[k]; then the row (the registers listed in row) stored in rows[k * width ...]. */
 #include <time.h>
 
-enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5 };
+enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5, ADD_PRODUCT = 6 };
 
 typedef struct {
     int code; /* one of the enum above */
     int target;
     int left;
     int right;
+    int factor; /* ADD_PRODUCT: target = left + right * factor, the product rounded first, as Python's a + b * c */
 } operation;
 
 void register_loop_run(const operation *operations, long long n_operations, double *registers, const int *row,
@@ -29,16 +30,20 @@ void register_loop_run(const operation *operations, long long n_operations, doub
                 times[k] = (long long)now.tv_sec * 1000000000LL + now.tv_nsec;
                 continue;
             }
-            const double left = registers[o->left], right = registers[o->right];
-            double value;
+            const double left = registers[o->left];
+            double right = registers[o->right], value;
             switch (o->code) {
+            case ADD_PRODUCT:
+                right = right != right ? right : right * registers[o->factor];
+                value = left + right;
+                break;
             case ADD: value = left + right; break;
             case SUBTRACT: value = left - right; break;
             case MULTIPLY: value = left * right; break;
             case NEGATE: value = -left; break;
             default: value = left; break; /* COPY */
             }
-            registers[o->target] = left != left && o->code <= MULTIPLY ? left : value; /* a NaN on the left: it */
+            registers[o->target] = left != left && (o->code <= MULTIPLY || o->code == ADD_PRODUCT) ? left : value;
         }
         double *out = rows + k * width;
         for (long long j = 0; j < width; ++j) out[j] = registers[row[j]];

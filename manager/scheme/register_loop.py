@@ -25,15 +25,17 @@ import numpy as np
 
 from zencosim.subsystems.native import library
 
-ADD, SUBTRACT, MULTIPLY, NEGATE, COPY, STAMP = range(6)  # register_loop.c's operation codes
+ADD, SUBTRACT, MULTIPLY, NEGATE, COPY, STAMP, ADD_PRODUCT = range(7)  # register_loop.c's operation codes
 BINARY = {ast.Add: ADD, ast.Sub: SUBTRACT, ast.Mult: MULTIPLY}
 STAMP_STATEMENT = "stamp(perf())"  # the release time of the step (``time.perf_counter_ns``: CLOCK_MONOTONIC)
 
 
 class Operation(ctypes.Structure):
-    """``operation`` of ``register_loop.c``: ``registers[target] = registers[left] <code> registers[right]``."""
+    """``operation`` of ``register_loop.c``: ``registers[target] = registers[left] <code> registers[right]``
+    (``ADD_PRODUCT``: ``registers[left] + registers[right] * registers[factor]``)."""
 
-    _fields_ = [("code", ctypes.c_int), ("target", ctypes.c_int), ("left", ctypes.c_int), ("right", ctypes.c_int)]
+    _fields_ = [("code", ctypes.c_int), ("target", ctypes.c_int), ("left", ctypes.c_int), ("right", ctypes.c_int),
+                ("factor", ctypes.c_int)]
 
 
 class NotArithmetic(Exception):
@@ -43,7 +45,7 @@ class NotArithmetic(Exception):
 class RegisterLoop:
     """A macro-step's statements as a register program: set the names, run steps, read the names."""
 
-    def __init__(self, run, operations: list[tuple[int, int, int, int]], registers: list[float],
+    def __init__(self, run, operations: list[tuple[int, int, int, int, int]], registers: list[float],
                  names: dict[str, int], row: list[int]) -> None:
         self._run = run
         self._operations = (Operation * len(operations))(*operations)
@@ -96,11 +98,11 @@ class _Translation:
         self.names = {name: i for i, name in enumerate(initial)}
         self.registers = [0.0] * len(initial)
         self.constants: dict[bytes, int] = {}
-        self.operations: list[tuple[int, int, int, int]] = []
+        self.operations: list[tuple[int, int, int, int, int]] = []
 
     def statement(self, text: str) -> None:
         if text == STAMP_STATEMENT:
-            self.operations.append((STAMP, 0, 0, 0))
+            self.operations.append((STAMP, 0, 0, 0, 0))
             return
         (node,) = ast.parse(text).body
         if not (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)):
@@ -114,7 +116,7 @@ class _Translation:
         if isinstance(node.value, (ast.BinOp, ast.UnaryOp)) and _constant(node.value) is None:
             self._value(node.value, target)  # its last operation writes the name, after its operands were read
         else:
-            self.operations.append((COPY, target, self._value(node.value), 0))
+            self.operations.append((COPY, target, self._value(node.value), 0, 0))
         self.names[name] = target
 
     def read(self, name: str) -> int:
@@ -135,12 +137,18 @@ class _Translation:
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
             operand = self._value(node.operand)
             target = self._new(0.0) if target is None else target
-            self.operations.append((NEGATE, target, operand, 0))
+            self.operations.append((NEGATE, target, operand, 0, 0))
+            return target
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add) and isinstance(node.right, ast.BinOp) \
+                and isinstance(node.right.op, ast.Mult):  # a + b * c, a linear combination's next term: one operation
+            left, right, factor = self._value(node.left), self._value(node.right.left), self._value(node.right.right)
+            target = self._new(0.0) if target is None else target
+            self.operations.append((ADD_PRODUCT, target, left, right, factor))
             return target
         if isinstance(node, ast.BinOp) and type(node.op) in BINARY:
             left, right = self._value(node.left), self._value(node.right)
             target = self._new(0.0) if target is None else target
-            self.operations.append((BINARY[type(node.op)], target, left, right))
+            self.operations.append((BINARY[type(node.op)], target, left, right, 0))
             return target
         raise NotArithmetic(ast.unparse(node))
 
