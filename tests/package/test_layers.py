@@ -21,7 +21,7 @@ LAYERS = (
     ("models", ("zencosim.subsystems.params", "zencosim.subsystems.ports", "zencosim.subsystems.inputs",
                 "zencosim.subsystems.units", "zencosim.subsystems.sketch",
                 "zencosim.subsystems.effects", "zencosim.subsystems.integrators", "zencosim.subsystems.models",
-                "zencosim.subsystems.straight_line",
+                "zencosim.subsystems.straight_line", "zencosim.subsystems.native",
                 "zencosim.subsystems.subsystem")),
     ("scene", ("zencosim.manager.scene",)),
     ("plan", ("zencosim.manager.plan",)),
