@@ -148,7 +148,9 @@ class CompiledSteps:
         residual_energy.put_rows(first + 1, block[:, self.bonds_start + n_bonds:])
         release_times.put_rows(first, released)
         if taken is not None:  # a step completed where the next was released (the loop's next statement)
-            taken.append_rows(block, released, np.append(released[1:], done_ns)[:count])
+            completed = np.empty(count, dtype=np.int64)
+            completed[:-1], completed[-1:] = released[1:count], done_ns
+            taken.append_rows(block, released, completed)
         return count
 
     def _stopped(self, stopped: Stopped, first: int, rows: list[float], times: list[int], readers: list[OutputReader],
