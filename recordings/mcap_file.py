@@ -180,12 +180,12 @@ class McapFile:
         times = np.concatenate([pairs[:, 0] for pairs in indexes.values()])
         first, last = int(times.min()), int(times.max())
         self._times = (min(first, self._times[0]), max(last, self._times[1])) if self._times else (first, last)
-        data = bytes(self._chunk)
-        compressed = self._compress(data)
+        records = bytes(self._chunk)
+        compressed = self._compress(records)
         start = self._stream.tell()
         self._stream.write(_record(Chunk(compression="zstd", data=compressed, message_start_time=first,
-                                         message_end_time=last, uncompressed_crc=zlib.crc32(data),
-                                         uncompressed_size=len(data))))
+                                         message_end_time=last, uncompressed_crc=zlib.crc32(records),
+                                         uncompressed_size=len(records))))
         index_start = self._stream.tell()
         offsets = {}
         for channel_id, pairs in indexes.items():
@@ -198,6 +198,6 @@ class McapFile:
             message_start_time=first, message_end_time=last, chunk_start_offset=start,
             chunk_length=index_start - start, message_index_offsets=offsets,
             message_index_length=self._stream.tell() - index_start, compression="zstd",
-            compressed_size=len(compressed), uncompressed_size=len(data)))
+            compressed_size=len(compressed), uncompressed_size=len(records)))
         self._chunk = bytearray()
         self._indexes = defaultdict(list)

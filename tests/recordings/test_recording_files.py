@@ -291,3 +291,23 @@ def test_a_format_1_recording_is_still_read_and_verified(recorded, tmp_path):
                     [c.spec for c in recording.channels.values()]).finish("completed", {})
     result = _zencosim("inspect", str(newer))
     assert result.returncode == 2 and "recording format 'zencosim-recording/9'" in result.stderr, result.stderr
+
+
+def test_the_summary_indexes_each_chunk_as_the_chunk_describes_itself(recorded):
+    """Each chunk index of the summary, read with the mcap library, says what its chunk record says: where it starts,
+    its compressed and uncompressed sizes and its first and last log times (until stop 37 an index gave as the
+    uncompressed size that of the chunk's last message index)."""
+    from mcap.reader import make_reader
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+    path = recorded[0]
+    with open(path, "rb") as file:
+        indexes = make_reader(file).get_summary().chunk_indexes
+        assert indexes
+        for index in indexes:
+            file.seek(index.chunk_start_offset)
+            chunk = next(iter(StreamReader(file, skip_magic=True, emit_chunks=True).records))
+            assert isinstance(chunk, Chunk)
+            assert (index.compressed_size, index.uncompressed_size) == (len(chunk.data), chunk.uncompressed_size)
+            assert (index.message_start_time, index.message_end_time) == (chunk.message_start_time,
+                                                                        chunk.message_end_time)
