@@ -6,6 +6,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -13,6 +14,7 @@ from pathlib import Path
 import pytest
 
 import zencosim
+from zencosim.subsystems.native import CACHE_DIR
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -31,6 +33,13 @@ def pytest_configure(config):
     # tests of interruption send it. The suite's processes start as from a terminal: SIGINT acts.
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    # the compiled C loops (subsystems.native) are kept in a cache of the session's own, which the processes it
+    # starts share, not in the user's
+    os.environ[CACHE_DIR] = tempfile.mkdtemp(prefix="zencosim-test-cache-")
+
+
+def pytest_unconfigure(config):
+    shutil.rmtree(os.environ.pop(CACHE_DIR, ""), ignore_errors=True)
 
 
 def pytest_generate_tests(metafunc):

@@ -163,9 +163,10 @@ def test_without_a_working_compiler_there_is_no_step_function(environment):
 @pytest.mark.parametrize("where, error", [("tempfile.TemporaryDirectory", PermissionError(13, "Permission denied")),
                                           ("ctypes.CDLL", OSError("failed to map segment from shared object"))],
                          ids=["no writable temporary directory", "a temporary directory mounted noexec"])
-def test_where_the_compiled_step_cannot_be_written_or_loaded_there_is_none(where, error, monkeypatch):
+def test_where_the_compiled_step_cannot_be_written_or_loaded_there_is_none(where, error, monkeypatch, tmp_path):
     """A temporary directory that cannot be written, or whose files cannot be mapped to run (``noexec``): None, as
-    without a compiler, not an error that ends the run."""
+    without a compiler, not an error that ends the run (with nothing in the cache to load instead)."""
+    monkeypatch.setenv(native.CACHE_DIR, str(tmp_path / "empty cache"))
     module, name = where.split(".")
 
     def fails(*args, **kwargs):
