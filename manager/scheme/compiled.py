@@ -18,8 +18,8 @@ the stages before it already taken this step (``Plan.lead``), then its subsystem
 
 Where every statement of a step is float arithmetic (every subsystem a straight-line linear step: no FMU, whose
 step is calls), the same statements run as a register program in C (``manager.scheme.register_loop``): the same
-operations on the same values: an in-process run of two_mass_damped takes about 1,900 instructions per macro-step,
-against 10,000 with the Python loop (valgrind). Without a C compiler the Python loop runs.
+operations on the same values: an in-process run of two_mass_damped takes about 1,700 instructions per macro-step,
+against 9,900 with the Python loop (valgrind). Without a C compiler the Python loop runs.
 
 The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``) and, in a recorded run, where
 it hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps); after each, the
@@ -122,8 +122,8 @@ class CompiledSteps:
             if progress is not None and last % PROGRESS_EVERY == 0:
                 progress(last)
         if registers is not None:
-            state, inputs_at_end = ([registers.get(names) for names in (t.state for t in self.texts)],
-                                    [registers.get(t.inputs_at_end) for t in self.texts])
+            state = [registers.get(t.state) for t in self.texts]
+            inputs_at_end = [registers.get(t.inputs_at_end) for t in self.texts]
         if n_ticks:  # the subsystems take the state the last step left (a run of no step leaves them where they are)
             for s, z, w in zip(plan.subsystems, state, inputs_at_end):
                 self.direct.took_steps(s, n_ticks, z, w)
