@@ -65,13 +65,14 @@ class CompiledSteps:
         self.output_ends = np.cumsum(self.width)
         self.bonds_start = int(self.output_ends[-1])  # the bonds' δP, then their δE
         self.row_width = self.bonds_start + 2 * len(plan.bonds)
-        self.source = _loop_text(plan, texts)
-        namespace = {"Stopped": Stopped}
-        for text in texts:
-            namespace.update(text.namespace)
-        self.steps = define(self.source, "steps", "<compiled macro-steps>", namespace)
-        self.registers = register_loop(self._initial(), _step_statements(plan, texts), _row(plan, texts)) \
-            if REGISTER_LOOP else None
+        statements, row = _step_statements(plan, texts), _row(plan, texts)
+        self.registers = register_loop(self._initial(), statements, row) if REGISTER_LOOP else None
+        self.steps = None  # the Python loop, where there is no register program
+        if self.registers is None:
+            namespace = {"Stopped": Stopped}
+            for text in texts:
+                namespace.update(text.namespace)
+            self.steps = define(_loop_text(plan, texts, statements, row), "steps", "<compiled macro-steps>", namespace)
 
     def _initial(self) -> list[str]:
         """The names that hold values before the first step: the state, the newest outputs, the bonds' energies."""
@@ -199,11 +200,11 @@ def compiled_steps(plan: Plan, direct: SubsystemCalls, tapped: bool = False) -> 
     return CompiledSteps(plan, direct, texts)
 
 
-def _loop_text(plan: Plan, texts: list[StepText]) -> str:
+def _loop_text(plan: Plan, texts: list[StepText], statements: list[str], row: list[str]) -> str:
     """The source of ``steps(first, last, state, newest, energies, extend, stamp, perf)``: macro-steps ``first`` …
-    ``last - 1`` from each subsystem's ``state`` and ``newest`` outputs and each bond's energy, each step's release
-    time stamped, its row (every subsystem's outputs, the bonds' δP, their δE) extended; it returns the state, the
-    newest outputs, the energies and the input values at the last step's end."""
+    ``last - 1`` (each one ``statements``, :func:`_step_statements`) from each subsystem's ``state`` and ``newest``
+    outputs and each bond's energy, each step's ``row`` (:func:`_row`) extended; it returns the state, the newest
+    outputs, the energies and the input values at the last step's end."""
     head = ["def steps(first, last, state, newest, energies, extend, stamp, perf):"]
     for s, text in zip(plan.subsystems, texts):
         if text.state:
@@ -213,7 +214,7 @@ def _loop_text(plan: Plan, texts: list[StepText]) -> str:
     energies = _energies(plan)
     if energies:
         head.append(f"    {unpacked(energies)} = energies")
-    body = _step_statements(plan, texts) + [f"extend(({', '.join(_row(plan, texts))},))"]
+    body = statements + [f"extend(({', '.join(row)},))"]
     lines = head + ["    stepping = None", "    try:", "        for tick in range(first, last):"]
     lines += [f"            {line}" for line in body]
     lines += ["    except BaseException as error:", "        raise Stopped(stepping, error) from None"]
