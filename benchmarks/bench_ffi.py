@@ -2,8 +2,9 @@
 
     python benchmarks/bench_ffi.py [--json out.json]
 
-zencosim steps a co-simulation FMU with one foreign call per FMI call (``subsystems/models/external/fmu.py``):
-six per macro-step for two FMUs, where libcosim makes the same six calls from C. This counts what one costs.
+zencosim stepped a co-simulation FMU with one foreign call per FMI call, six per macro-step for two FMUs, where
+libcosim makes the same six calls from C; it now makes a step's calls in one foreign call where a C compiler is at
+hand (``subsystems/models/external/fmi_steps.c``). This counts what each way costs.
 The example FMU (``zencosim examples``) is opened as ``two_mass_damped_fmu.toml``'s subsystem S2; each figure is
 the difference of two runs under ``valgrind --tool=cachegrind`` (``CALLS`` apart) per iteration of a loop in a
 function, less the same loop with nothing in it:

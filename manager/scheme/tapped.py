@@ -314,7 +314,6 @@ class TakenRows(_InBlocks):
         self.status = status
         self.first = 0  # the first request of the block
         self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (rows, released, completed) appended
-        self.appended = 0  # the rows of those blocks
         self.carried: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # the row before the block's first
         self.start_ns = 0  # the release of step 0
         self.pending = False  # a request made after the rows, never answered
@@ -330,7 +329,6 @@ class TakenRows(_InBlocks):
         if not self.blocks and self.first == 0 and len(released):
             self.start_ns = int(released[0])
         self.blocks.append((rows, released, completed))
-        self.appended += len(rows)
 
     def unanswered(self) -> None:
         """The loop made one more request after its rows (its commands: the last row's outputs), which failed."""
@@ -339,7 +337,7 @@ class TakenRows(_InBlocks):
     @property
     def requests(self) -> int:
         """Requests appended since the last block was handed over."""
-        return self.appended + self.pending
+        return sum(len(rows) for rows, _, _ in self.blocks) + self.pending
 
     def flush(self, last: bool = False, answered: bool = True, status: bool = False) -> None:
         """Hand the block over (nothing when it holds no request); the arguments as :meth:`TakenSteps.flush`'s."""
@@ -355,6 +353,6 @@ class TakenRows(_InBlocks):
             rows, released, completed = self.blocks[-1]
             self.carried = (rows[-1:], released[-1:], completed[-1:])
         self.first += requests
-        self.blocks, self.appended = [], 0
+        self.blocks = []
         self.pending = False
         self.tap.take_rows(block)

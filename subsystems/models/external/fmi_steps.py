@@ -32,14 +32,9 @@ class FmiSteps(ctypes.Structure):
 def steps_function(version: str):
     """``fmi{version}_steps_run(fmi_steps *, long long start_ns) -> int`` (the failing status, ``TERMINATE``, else
     0) for FMI ``version`` ``"2"`` or ``"3"``; None where no C compiler is found or it fails."""
-    library = _library()
-    if library is None:
+    compiled = library("zencosim.subsystems.models.external", "fmi_steps.c")
+    if compiled is None:
         return None
-    function = library[f"fmi{version}_steps_run"]
+    function = compiled[f"fmi{version}_steps_run"]
     function.restype = ctypes.c_int
     return function
-
-
-def _library() -> ctypes.CDLL | None:
-    """``fmi_steps.c`` compiled and loaded (``subsystems.native``); None where no C compiler is found or it fails."""
-    return library("zencosim.subsystems.models.external", "fmi_steps.c")
