@@ -49,7 +49,7 @@ from zencosim.subsystems.straight_line import StepText, define, unpacked
 
 # steps in a block handed to a recorder's tap: a whole number of the loop's own blocks, which end where a progress
 # report is due, so that the tap adds no block of its own (8 × 256 did, one per tap block: +13 % of the register
-# loop's instructions per step, against +8 % now); about 2,000 steps, as many as 8 × BLOCK_STEPS were, where a
+# loop's instructions per step, against +9 % now); about 2,000 steps, as many as 8 × BLOCK_STEPS were, where a
 # generated loop's step cost an eighth of the scheme's loop's
 TAP_BLOCK_STEPS = 4 * PROGRESS_EVERY
 REGISTER_LOOP = True  # a loop of float arithmetic only runs as a register program in C (register_loop)
