@@ -13,8 +13,9 @@ function, less the same loop with nothing in it:
 * ``pydll``: the same handle loaded through ``ctypes.PyDLL``, which keeps the GIL during the call;
 * ``cffi``: the same call in cffi's ABI mode (where cffi is installed);
 * ``step``: one FMU step as the generated loop makes it: set the inputs, ``fmi2DoStep``, get the outputs;
-* ``step_glue``: the same three calls as zencosim's generated loop now makes them, one call of ``fmi2_steps_run``
-  (``subsystems/models/external/fmi_steps.c``, compiled at first use);
+* ``step_glue``: the same three calls as the generated Python loop makes them, one call of ``fmi2_steps_run``
+  (``subsystems/models/external/fmi_steps.c``, compiled at first use); where the loop runs as a register program,
+  that call is made from C (``manager/scheme/register_loop.c``: ``bench_instructions.py --fmu`` counts it);
 * ``step_numba``: the same three calls compiled into one numba function, the FMU's addresses passed as integers
   (where numba is installed; its import and compilation, the same in both runs, cancel out).
 
@@ -119,7 +120,7 @@ OPTIONAL = {"cffi": "cffi", "step_numba": "numba"}  # kinds counted only where t
 LABELS = {"ctypes": "fmi2GetReal through ctypes, as zencosim calls it",
           "pydll": "the same through ctypes.PyDLL (GIL kept)", "cffi": "the same in cffi's ABI mode",
           "step": "one FMU step: set, fmi2DoStep, get (three ctypes calls)",
-          "step_glue": "the same three calls as one call of fmi2_steps_run (zencosim's)",
+          "step_glue": "the same three calls as one call of fmi2_steps_run (the Python loop's)",
           "step_numba": "the same three calls in one numba function"}
 
 

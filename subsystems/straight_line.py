@@ -27,12 +27,27 @@ StraightLineStep = Callable[[np.ndarray, list[float]], tuple[list[float], list[f
 
 
 @dataclass(frozen=True)
+class NativeStep:
+    """A step that a compiled function makes in one call, ``int function(void *argument, long long start_ns)`` (an
+    FMU's, ``subsystems.models.external.fmi_steps``), for a loop that runs the steps in C
+    (``manager.scheme.register_loop``): the step's inputs written into the array ``u`` before the call, its outputs
+    read from ``y`` after it, and a nonzero status the model's failure, ``failure(status)``."""
+
+    function: object  # a ctypes function
+    argument: object  # a ctypes object, passed by reference
+    u: object  # ctypes arrays of doubles
+    y: object
+    failure: Callable[[int], BaseException]
+
+
+@dataclass(frozen=True)
 class StepText:
     """A subsystem's step as statements over float names with one prefix: it reads the state ``state`` and the
     input coefficients ``coefficients`` (row after row) and leaves the state at the step's end in ``new_state``, the
     input values there in ``inputs_at_end`` and the outputs in ``outputs`` (a linear model's: the linear ones, then
     the energy). ``namespace``: the objects the statements call, by their (prefixed) names (a model's own step:
-    ``subsystems.models.external.fmu``)."""
+    ``subsystems.models.external.fmu``). ``native``: the same step as one call of a compiled function, where it is
+    one (the statements then make that call)."""
 
     statements: tuple[str, ...]
     state: tuple[str, ...]
@@ -41,6 +56,7 @@ class StepText:
     inputs_at_end: tuple[str, ...]
     outputs: tuple[str, ...]
     namespace: dict = field(default_factory=dict)
+    native: NativeStep | None = None
 
 
 def step_text(Phi_m: np.ndarray, Psi: np.ndarray, rows: int, span_s: float, G: np.ndarray, n_linear: int,

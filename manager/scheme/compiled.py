@@ -16,13 +16,16 @@ digest are therefore the generic loop's and the message path's, bit for bit (tes
 Gauss–Seidel runs the same way, stage after stage: a stage's commands are made from the newest outputs, those of
 the stages before it already taken this step (``Plan.lead``), then its subsystems step.
 
-Where every statement of a step is float arithmetic (every subsystem a straight-line linear step: no FMU, whose
-step is calls), the same statements run as a register program in C (``manager.scheme.register_loop``): the same
-operations on the same values: an in-process run of two_mass_damped takes about 1,700 instructions per macro-step,
-against 9,900 with the Python loop (valgrind). Without a C compiler the Python loop runs.
+Where every statement of a step is float arithmetic, or a subsystem's step is one call of a compiled function
+(``StepText.native``: a co-simulation FMU's FMI calls, ``fmi_steps``), the same statements run as a register
+program in C (``manager.scheme.register_loop``): the same operations on the same values, the same calls with the
+same arguments. An in-process run of two_mass_damped takes about 1,700 instructions per macro-step, against 9,900
+with the Python loop, and of two C FMUs about 1,500, against 14,800 with the Python loop and libcosim's 9,600
+(valgrind). Without a C compiler the Python loop runs.
 
-The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``) and, in a recorded run, where
-it hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps); after each, the
+The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``), in a recorded run where it
+hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps), and as a register
+program also once its steps have taken the program's time budget (slow models' steps); after each, the
 block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, and the
 rows with their times to the tap (``TakenRows``), from which the recorder's processes build the messages and
 statuses the scheme's loop would have handed it: a recorded run's loop is the unrecorded one's. At the end the
@@ -40,7 +43,7 @@ import numpy as np
 
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.scheme.base import PROGRESS_EVERY, OutputReader, SubsystemCalls
-from zencosim.manager.scheme.register_loop import STAMP_STATEMENT, register_loop
+from zencosim.manager.scheme.register_loop import NATIVE_CALL, STAMP_STATEMENT, NativeCall, register_loop
 from zencosim.manager.scheme.residual import residual_power_text
 from zencosim.manager.scheme.tapped import TakenRows
 from zencosim.manager.scheme.window import RowWindow
@@ -65,14 +68,18 @@ class CompiledSteps:
         self.output_ends = np.cumsum(self.width)
         self.bonds_start = int(self.output_ends[-1])  # the bonds' δP, then their δE
         self.row_width = self.bonds_start + 2 * len(plan.bonds)
-        statements, row = _step_statements(plan, texts), _row(plan, texts)
-        self.registers = register_loop(self._initial(), statements, row) if REGISTER_LOOP else None
+        row = _row(plan, texts)
+        self.natives = [i for i, text in enumerate(texts) if text.native is not None]  # their subsystems, in order
+        natives = [NativeCall(texts[i].native, texts[i].coefficients, texts[i].outputs) for i in self.natives]
+        self.registers = register_loop(self._initial(), _step_statements(plan, texts, self.natives), row, natives,
+                                       plan.base_step_ns) if REGISTER_LOOP else None
         self.steps = None  # the Python loop, where there is no register program
         if self.registers is None:
             namespace = {"Stopped": Stopped}
             for text in texts:
                 namespace.update(text.namespace)
-            self.steps = define(_loop_text(plan, texts, statements, row), "steps", "<compiled macro-steps>", namespace)
+            self.steps = define(_loop_text(plan, texts, _step_statements(plan, texts), row), "steps",
+                                "<compiled macro-steps>", namespace)
 
     def _initial(self) -> list[str]:
         """The names that hold values before the first step: the state, the newest outputs, the bonds' energies."""
@@ -103,7 +110,11 @@ class CompiledSteps:
             if taken is not None and taken.requests >= TAP_BLOCK_STEPS:  # where a period starts, as the scheme does
                 taken.flush()
             if registers is not None:
-                block, released = registers.steps(last - first)
+                block, released, failed = registers.steps(first, last - first)
+                if failed is not None:
+                    self._stopped(Stopped(self.natives[failed.native], registers.failure(failed)), first, block,
+                                  released, readers, residual_power, residual_energy, release_times, taken)
+                last = first + len(block)  # all of them, or those within the program's time budget
                 newest = [registers.get(t.outputs) for t in self.texts]
             else:
                 rows, times = [], []
@@ -112,8 +123,8 @@ class CompiledSteps:
                                                                         rows.extend, times.append,
                                                                         time.perf_counter_ns)
                 except Stopped as stopped:
-                    self._stopped(stopped, first, rows, times, readers, residual_power, residual_energy,
-                                  release_times, taken)
+                    self._stopped(stopped, first, *self._block(rows, times), readers, residual_power,
+                                  residual_energy, release_times, taken)
                 block, released = self._block(rows, times)
             self._hand_over(first, block, released, time.perf_counter_ns(), readers, residual_power, residual_energy,
                             release_times, taken)
@@ -154,12 +165,13 @@ class CompiledSteps:
             taken.append_rows(block, released, completed)
         return count
 
-    def _stopped(self, stopped: Stopped, first: int, rows: list[float], times: list[int], readers: list[OutputReader],
-                 residual_power: RowWindow, residual_energy: RowWindow, release_times: RowWindow,
-                 taken: TakenRows | None) -> None:
-        """Hand over the steps before the one that raised and raise what the scheme's loop raises: as it, the tap
-        gets that step's request (its commands, the outputs at its start), not its replies."""
-        count = self._hand_over(first, *self._block(rows, times), time.perf_counter_ns(), readers, residual_power,
+    def _stopped(self, stopped: Stopped, first: int, block: np.ndarray, released: np.ndarray,
+                 readers: list[OutputReader], residual_power: RowWindow, residual_energy: RowWindow,
+                 release_times: RowWindow, taken: TakenRows | None) -> None:
+        """Hand over the steps before the one that raised (``block``, ``released``: as ``_hand_over`` takes them)
+        and raise what the scheme's loop raises: as it, the tap gets that step's request (its commands, the outputs
+        at its start), not its replies."""
+        count = self._hand_over(first, block, released, time.perf_counter_ns(), readers, residual_power,
                                 residual_energy, release_times, taken)
         if taken is not None:
             taken.unanswered()
@@ -224,9 +236,10 @@ def _loop_text(plan: Plan, texts: list[StepText], statements: list[str], row: li
     return "\n".join(lines)
 
 
-def _step_statements(plan: Plan, texts: list[StepText]) -> list[str]:
+def _step_statements(plan: Plan, texts: list[StepText], natives: list[int] = ()) -> list[str]:
     """One macro-step: its release time stamped, stage after stage (Jacobi: one) the commands from the newest
-    outputs and the subsystems' steps, then every bond's δP and δE."""
+    outputs and the subsystems' steps, then every bond's δP and δE; the step of ``natives[k]`` as ``native(k)``
+    (``register_loop``)."""
     subs = plan.subsystems
     body = [STAMP_STATEMENT]
     for stage in plan.stages:  # stage after stage (Jacobi: one), its commands from the newest outputs, then its steps
@@ -235,7 +248,7 @@ def _step_statements(plan: Plan, texts: list[StepText]) -> list[str]:
                         for c, (source, output) in zip(texts[i].coefficients, subs[i].zero_order_sources))
         for i in stage:
             body.append(f"stepping = {i}")
-            body.extend(texts[i].statements)
+            body.extend([f"{NATIVE_CALL}({natives.index(i)})"] if i in natives else texts[i].statements)
             body.extend(f"{z} = {n}" for z, n in zip(texts[i].state, texts[i].new_state))
     body.append("stepping = None")
     step_s = plan.base_step_ns * 1e-9

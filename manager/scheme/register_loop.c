@@ -6,10 +6,15 @@
    the hardware returns whichever NaN operand the compiler put first, CPython's specialized float operations and numpy
    the left one (CPython's generic float_add the right one: a NaN's sign is not Python's to give). Per step: the
    operations in order, STAMP storing the step's release time (CLOCK_MONOTONIC, Python's perf_counter_ns) in
-   times[k]; then the row (the registers listed in row) stored in rows[k * width ...]. */
+   times[k], NATIVE making a subsystem's step as one call (natives[left]: an FMU's, subsystems/models/external/
+   fmi_steps.c) with its inputs copied from the registers before it and its outputs into them after it; then the
+   row (the registers listed in row) stored in rows[k * width ...]. A native step that fails (returns a nonzero
+   status) ends the run at that step, its row not stored: failure[0] is its index in natives, failure[1] the status.
+   The run also ends after a step released more than budget_ns after the first (a slow model's steps: the caller
+   sees an interrupt between runs). Returns the number of steps whose rows were stored. */
 #include <time.h>
 
-enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5, ADD_PRODUCT = 6 };
+enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5, ADD_PRODUCT = 6, NATIVE = 7 };
 
 typedef struct {
     int code; /* one of the enum above */
@@ -19,33 +24,59 @@ typedef struct {
     int factor; /* ADD_PRODUCT: target = left + right * factor, the product rounded first, as Python's a + b * c */
 } operation;
 
-void register_loop_run(const operation *operations, long long n_operations, double *registers, const int *row,
-                       long long width, long long steps, double *rows, long long *times) {
+typedef struct {
+    int (*run)(void *argument, long long start_ns); /* the step from start_ns [ns]: 0, else the failure's status */
+    void *argument;
+    double *u; /* the step's inputs, copied from registers inputs[0 ... n_inputs - 1] before it */
+    const int *inputs;
+    long long n_inputs;
+    const double *y; /* its outputs, copied to registers outputs[0 ... n_outputs - 1] after it */
+    const int *outputs;
+    long long n_outputs;
+} native_step;
+
+long long register_loop_run(const operation *operations, long long n_operations, double *registers, const int *row,
+                            long long width, long long steps, double *rows, long long *times,
+                            const native_step *natives, long long first_tick, long long tick_ns, long long budget_ns,
+                            long long *failure) {
     struct timespec now;
     for (long long k = 0; k < steps; ++k) {
         for (long long i = 0; i < n_operations; ++i) {
             const operation *o = operations + i;
-            if (o->code == STAMP) {
+            double left, right, value;
+            switch (o->code) {
+            case ADD_PRODUCT:
+                left = registers[o->left];
+                right = registers[o->right];
+                value = left + (right != right ? right : right * registers[o->factor]);
+                break;
+            case ADD: left = registers[o->left]; value = left + registers[o->right]; break;
+            case SUBTRACT: left = registers[o->left]; value = left - registers[o->right]; break;
+            case MULTIPLY: left = registers[o->left]; value = left * registers[o->right]; break;
+            case NEGATE: registers[o->target] = -registers[o->left]; continue;
+            case COPY: registers[o->target] = registers[o->left]; continue;
+            case STAMP:
                 clock_gettime(CLOCK_MONOTONIC, &now);
                 times[k] = (long long)now.tv_sec * 1000000000LL + now.tv_nsec;
                 continue;
+            default: { /* NATIVE */
+                const native_step *s = natives + o->left;
+                for (long long j = 0; j < s->n_inputs; ++j) s->u[j] = registers[s->inputs[j]];
+                const int status = s->run(s->argument, (first_tick + k) * tick_ns);
+                if (status) {
+                    failure[0] = o->left;
+                    failure[1] = status;
+                    return k;
+                }
+                for (long long j = 0; j < s->n_outputs; ++j) registers[s->outputs[j]] = s->y[j];
+                continue;
             }
-            const double left = registers[o->left];
-            double right = registers[o->right], value;
-            switch (o->code) {
-            case ADD_PRODUCT:
-                right = right != right ? right : right * registers[o->factor];
-                value = left + right;
-                break;
-            case ADD: value = left + right; break;
-            case SUBTRACT: value = left - right; break;
-            case MULTIPLY: value = left * right; break;
-            case NEGATE: value = -left; break;
-            default: value = left; break; /* COPY */
             }
-            registers[o->target] = left != left && (o->code <= MULTIPLY || o->code == ADD_PRODUCT) ? left : value;
+            registers[o->target] = left != left ? left : value; /* a sum, difference or product */
         }
         double *out = rows + k * width;
         for (long long j = 0; j < width; ++j) out[j] = registers[row[j]];
+        if (times[k] - times[0] > budget_ns) return k + 1;
     }
+    return steps;
 }

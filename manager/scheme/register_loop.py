@@ -13,6 +13,13 @@ what the names would, bit for bit (tests/manager/test_register_loop.py).
 raises in Python where C gives an infinity), an integer — or where there is no C compiler: the Python loop runs.
 ``stepping = …`` statements, which say which subsystem a Python exception came from, are left out: float addition,
 subtraction and multiplication do not raise.
+
+A subsystem whose step is one call of a compiled function (``subsystems.straight_line.NativeStep``: an FMU's, its
+FMI calls made by ``fmi_steps.c``) is one operation, written ``native(k)`` among the statements: the program copies
+its inputs from the registers, calls the function with the step's start and copies its outputs into the
+registers, as the Python loop's statements do with the same values. A nonzero status ends a block of steps at that
+step (:meth:`RegisterLoop.steps`). A block also ends once its steps have taken ``BUDGET_NS``: a Python loop is
+interrupted (Ctrl-C) between two statements, a register program between two blocks, and a model's step may be slow.
 """
 from __future__ import annotations
 
@@ -20,14 +27,18 @@ import ast
 import ctypes
 import struct
 from collections.abc import Iterable
+from typing import NamedTuple
 
 import numpy as np
 
 from zencosim.subsystems.native import library
+from zencosim.subsystems.straight_line import NativeStep
 
-ADD, SUBTRACT, MULTIPLY, NEGATE, COPY, STAMP, ADD_PRODUCT = range(7)  # register_loop.c's operation codes
+ADD, SUBTRACT, MULTIPLY, NEGATE, COPY, STAMP, ADD_PRODUCT, NATIVE = range(8)  # register_loop.c's operation codes
 BINARY = {ast.Add: ADD, ast.Sub: SUBTRACT, ast.Mult: MULTIPLY}
 STAMP_STATEMENT = "stamp(perf())"  # the release time of the step (``time.perf_counter_ns``: CLOCK_MONOTONIC)
+NATIVE_CALL = "native"  # ``native(k)``: the k-th native step (``NativeCall``)
+BUDGET_NS = 100_000_000  # a block of steps ends after a step released this long after its first
 
 
 class Operation(ctypes.Structure):
@@ -38,6 +49,29 @@ class Operation(ctypes.Structure):
                 ("factor", ctypes.c_int)]
 
 
+class NativeStepC(ctypes.Structure):
+    """``native_step`` of ``register_loop.c``."""
+
+    _fields_ = [("run", ctypes.c_void_p), ("argument", ctypes.c_void_p), ("u", ctypes.c_void_p),
+                ("inputs", ctypes.c_void_p), ("n_inputs", ctypes.c_longlong), ("y", ctypes.c_void_p),
+                ("outputs", ctypes.c_void_p), ("n_outputs", ctypes.c_longlong)]
+
+
+class NativeCall(NamedTuple):
+    """A native step of a macro-step: the step, the names its inputs are read from and its outputs written to."""
+
+    step: NativeStep
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+
+class Failed(NamedTuple):
+    """A native step that failed: its index among the program's ``NativeCall`` and the status it returned."""
+
+    native: int
+    status: int
+
+
 class NotArithmetic(Exception):
     """A statement the register program cannot run as Python would."""
 
@@ -46,12 +80,23 @@ class RegisterLoop:
     """A macro-step's statements as a register program: set the names, run steps, read the names."""
 
     def __init__(self, run, operations: list[tuple[int, int, int, int, int]], registers: list[float],
-                 names: dict[str, int], row: list[int]) -> None:
+                 names: dict[str, int], row: list[int], natives: list[tuple[NativeStep, list[int], list[int]]],
+                 tick_ns: int) -> None:
         self._run = run
         self._operations = (Operation * len(operations))(*operations)
         self.registers = np.array(registers, dtype=np.float64)
         self.names = names
         self._row = np.array(row, dtype=np.intc)
+        self._indices = [(np.array(inputs, dtype=np.intc), np.array(outputs, dtype=np.intc))
+                         for _, inputs, outputs in natives]  # kept: the C structs point into them
+        self._steps = [step for step, _, _ in natives]
+        self._natives = (NativeStepC * max(len(natives), 1))(*(
+            NativeStepC(ctypes.cast(step.function, ctypes.c_void_p).value, ctypes.addressof(step.argument),
+                        ctypes.addressof(step.u), inputs.ctypes.data, len(inputs), ctypes.addressof(step.y),
+                        outputs.ctypes.data, len(outputs))
+            for step, (inputs, outputs) in zip(self._steps, self._indices)))
+        self._tick_ns = tick_ns
+        self._failure = (ctypes.c_longlong * 2)()  # set by a native step that fails
 
     def set(self, names: Iterable[str], values: Iterable[float]) -> None:
         for name, value in zip(names, values, strict=True):
@@ -60,21 +105,33 @@ class RegisterLoop:
     def get(self, names: Iterable[str]) -> list[float]:
         return self.registers[[self.names[name] for name in names]].tolist()
 
-    def steps(self, count: int) -> tuple[np.ndarray, np.ndarray]:
-        """Run ``count`` macro-steps; their rows (``count`` × the row's width) and release times [ns]."""
+    def steps(self, first: int, count: int) -> tuple[np.ndarray, np.ndarray, Failed | None]:
+        """Run up to ``count`` macro-steps from tick ``first``: the rows (a row per step) and release times [ns] of
+        those that completed — all of them, those within ``BUDGET_NS``, or those before a native step failed
+        (:class:`Failed`, else None)."""
         rows = np.empty((count, len(self._row)))
         times = np.zeros(count, dtype=np.int64)
-        self._run(self._operations, len(self._operations), self.registers.ctypes.data, self._row.ctypes.data,
-                  len(self._row), count, rows.ctypes.data, times.ctypes.data)
-        return rows, times
+        done = self._run(self._operations, len(self._operations), self.registers.ctypes.data, self._row.ctypes.data,
+                         len(self._row), count, rows.ctypes.data, times.ctypes.data, self._natives, first,
+                         self._tick_ns, BUDGET_NS, self._failure)
+        failed = None
+        if self._failure[1]:
+            failed, self._failure[1] = Failed(*self._failure), 0
+        return rows[:done], times[:done], failed
+
+    def failure(self, failed: Failed) -> BaseException:
+        """What the native step that failed says of its failure."""
+        return self._steps[failed.native].failure(failed.status)
 
 
-def register_loop(initial: list[str], statements: list[str], row: list[str]) -> RegisterLoop | None:
+def register_loop(initial: list[str], statements: list[str], row: list[str], natives: list[NativeCall] = (),
+                  tick_ns: int = 0) -> RegisterLoop | None:
     """The register program of a macro-step: the names ``initial`` hold values before the first step, one step is
-    ``statements`` (``manager.scheme.compiled``'s loop body), its row the names ``row``. None where a statement is
-    not float arithmetic or there is no C compiler (see the module text)."""
+    ``statements`` (``manager.scheme.compiled``'s loop body), its row the names ``row``; ``native(k)`` among them is
+    ``natives[k]``, called with the start of its step (tick × ``tick_ns``). None where a statement is not float
+    arithmetic or there is no C compiler (see the module text)."""
     try:
-        translation = _Translation(initial)
+        translation = _Translation(initial, natives)
         for statement in statements:
             translation.statement(statement)
         row_registers = [translation.read(name) for name in row]
@@ -84,27 +141,36 @@ def register_loop(initial: list[str], statements: list[str], row: list[str]) -> 
     if compiled is None:
         return None
     run = compiled.register_loop_run
-    run.restype = None
+    run.restype = ctypes.c_longlong
     run.argtypes = [ctypes.POINTER(Operation), ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p,
-                    ctypes.c_longlong, ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p]
-    return RegisterLoop(run, translation.operations, translation.registers, translation.names, row_registers)
+                    ctypes.c_longlong, ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p,
+                    ctypes.POINTER(NativeStepC), ctypes.c_longlong, ctypes.c_longlong, ctypes.c_longlong,
+                    ctypes.POINTER(ctypes.c_longlong)]
+    return RegisterLoop(run, translation.operations, translation.registers, translation.names, row_registers,
+                        translation.natives, tick_ns)
 
 
 class _Translation:
     """Statements to operations: a name's register is assigned at its first assignment, a constant's at its first
     use (one per value, -0.0 apart from 0.0), an intermediate value's where it is computed."""
 
-    def __init__(self, initial: list[str]) -> None:
+    def __init__(self, initial: list[str], natives: list[NativeCall]) -> None:
         self.names = {name: i for i, name in enumerate(initial)}
         self.registers = [0.0] * len(initial)
         self.constants: dict[bytes, int] = {}
         self.operations: list[tuple[int, int, int, int, int]] = []
+        self.calls = natives
+        self.natives: list[tuple[NativeStep, list[int], list[int]]] = []  # each with its input and output registers
 
     def statement(self, text: str) -> None:
         if text == STAMP_STATEMENT:
             self.operations.append((STAMP, 0, 0, 0, 0))
             return
         (node,) = ast.parse(text).body
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) \
+                and isinstance(node.value.func, ast.Name) and node.value.func.id == NATIVE_CALL:
+            self._native(node.value)
+            return
         if not (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)):
             raise NotArithmetic(text)
         name = node.targets[0].id
@@ -118,6 +184,22 @@ class _Translation:
         else:
             self.operations.append((COPY, target, self._value(node.value), 0, 0))
         self.names[name] = target
+
+    def _native(self, call: ast.Call) -> None:
+        """``native(k)``: the k-th native step, its inputs read from their names' registers, its outputs written to
+        theirs."""
+        index = call.args[0].value if len(call.args) == 1 and isinstance(call.args[0], ast.Constant) else None
+        if type(index) is not int or not 0 <= index < len(self.calls):
+            raise NotArithmetic(ast.unparse(call))
+        step, inputs, outputs = self.calls[index]
+        input_registers = [self.read(name) for name in inputs]
+        output_registers = []
+        for name in outputs:
+            if name not in self.names:
+                self.names[name] = self._new(0.0)
+            output_registers.append(self.names[name])
+        self.operations.append((NATIVE, 0, len(self.natives), 0, 0))
+        self.natives.append((step, input_registers, output_registers))
 
     def read(self, name: str) -> int:
         if name not in self.names:  # read before any assignment: a NameError in Python

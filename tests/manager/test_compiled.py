@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 import zencosim.manager.scheme.compiled as compiled_module
 import zencosim.manager.scheme.jacobi as jacobi_module
+import zencosim.manager.scheme.register_loop as register_loop_module
 import zencosim.subsystems.models.external.fmu as fmu_module
 from tests.manager.frames_recorder import FramesRecorder
 from zencosim.manager.assembly import make_scheme, plan_scene
@@ -36,19 +37,31 @@ GENERIC = {"FOH": ("two_mass_damped", ["manager.extrapolation=1"]),
            "input table": ("two_mass_chirp", [])}
 
 
-@pytest.fixture(params=["registers", "python"])
+@pytest.fixture(params=["registers", "registers, a step a block", "python"])
 def loop(request, monkeypatch):
     """The generated loop of straight-line steps run as a register program in C (``register_loop``: there must be a
-    C compiler, as for the example FMUs) or as the Python loop itself; each run of it was the one asked for."""
+    C compiler, as for the example FMUs) or as the Python loop itself; each run of it was the one asked for. A
+    register program's block of steps ends once they have taken its time budget (a slow model's steps): with a
+    budget that every step exceeds, every block is one step."""
+    registers = request.param.startswith("registers")
+    made = _programs(registers, monkeypatch)
+    if request.param == "registers, a step a block":
+        monkeypatch.setattr(register_loop_module, "BUDGET_NS", -1)
+    yield request.param
+    assert all(program is not None for program in made) and bool(made) == registers
+
+
+def _programs(registers: bool, monkeypatch) -> list:
+    """The generated loop as a register program where it can be one (``registers``), else as the Python loop; the
+    register programs made are noted in the list returned."""
     made = []
 
     def noted(*args):
         made.append(register_loop(*args))
         return made[-1]
     monkeypatch.setattr(compiled_module, "register_loop", noted)
-    monkeypatch.setattr(compiled_module, "REGISTER_LOOP", request.param == "registers")
-    yield request.param
-    assert all(program is not None for program in made) and bool(made) == (request.param == "registers")
+    monkeypatch.setattr(compiled_module, "REGISTER_LOOP", registers)
+    return made
 
 
 def _run(name: str, overrides: list[str], compiled: bool, monkeypatch, keep: bool | None = None, progress=None):
@@ -190,20 +203,26 @@ def test_a_recorded_run_is_run_by_the_generated_loop_with_the_generic_loops_mess
     assert len(wall) == 4500 and (np.diff(wall) >= 0).all() and (step_wall >= 0).all() and (step_wall <= wall).all()
 
 
-def _fmi_calls(calls: str, monkeypatch) -> None:
+def _fmi_calls(calls: str, monkeypatch) -> list:
     """The generated loop makes an FMU's step one call of the compiled ``fmi2_steps_run`` or ``fmi3_steps_run``
-    (``"one call"``: there must be a C compiler, as for the example FMUs), or, where none is found (``"one by one"``),
-    a ctypes call per FMI call for FMI 2.0, and FMI 3.0 FMUs step in the scheme's own loop."""
+    (there must be a C compiler, as for the example FMUs): from the register program (``"in C"``,
+    ``register_loop``'s native step) or from the Python loop (``"one call"``); or, where none is found
+    (``"one by one"``), the Python loop makes a ctypes call per FMI call for FMI 2.0, and FMI 3.0 FMUs step in the
+    scheme's own loop. Returns the register programs made (:func:`_programs`)."""
     if calls == "one by one":
         monkeypatch.setattr(fmu_module, "steps_function", lambda version: None)
     else:
         assert fmu_module.steps_function("2") is not None and fmu_module.steps_function("3") is not None
+    return _programs(calls == "in C", monkeypatch)
+
+
+FMI_CALLS = ["in C", "one call", "one by one"]
 
 
 FOUR_MICRO_STEPS = ["subsystems.S1.micro_step=0.00025"]
 
 
-@pytest.mark.parametrize("calls", ["one call", "one by one"])
+@pytest.mark.parametrize("calls", FMI_CALLS)
 @pytest.mark.parametrize("name, overrides", [("two_mass_damped_fmu", []), ("double_oscillator_fmu", []),
                                              ("two_mass_damped_fmu", FOUR_MICRO_STEPS), ("two_mass_damped_fmu3", []),
                                              ("two_mass_damped_fmu3", FOUR_MICRO_STEPS)],
@@ -212,16 +231,18 @@ FOUR_MICRO_STEPS = ["subsystems.S1.micro_step=0.00025"]
 def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(examples, name, overrides, calls,
                                                                              monkeypatch):
     """The example C FMUs' calls (set, step at the same times, get) written into the loop, as one call or a call
-    each: the same arrays. An FMI 3.0 FMU without the compiled call steps in the scheme's own loop."""
+    each, from the register program or the Python loop: the same arrays. An FMI 3.0 FMU without the compiled call
+    steps in the scheme's own loop."""
     scene, overrides = str(examples / f"{name}.toml"), ["manager.duration=1.2", *overrides]
     expected, expected_subsystems, _ = _run(scene, overrides, False, monkeypatch)
-    _fmi_calls(calls, monkeypatch)
+    made = _fmi_calls(calls, monkeypatch)
     record, subsystems, compiled = _run(scene, overrides, True, monkeypatch)
-    assert compiled == (calls == "one call" or not name.endswith("fmu3"))
+    assert compiled == (calls != "one by one" or not name.endswith("fmu3"))
+    assert all(program is not None for program in made) and len(made) == (calls == "in C")
     _assert_same_run((record, subsystems), (expected, expected_subsystems))
 
 
-@pytest.mark.parametrize("calls", ["one call", "one by one"])
+@pytest.mark.parametrize("calls", FMI_CALLS)
 @pytest.mark.parametrize("version", ["2", "3"])
 @pytest.mark.parametrize("fail_at, duration", [(0.7005, 1.2), (0.0, 0.1)], ids=["mid-run", "first step"])
 def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(examples, fail_at, duration, version, calls,
@@ -234,7 +255,7 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
     failing.write_text(text.replace("start = { m = 1.0, k = 1000.0,", f"start = {{ fail_at = {fail_at}, m = 1.0, "
                                     "k = 1000.0,"))
     said, recorded, ran = [], [], []
-    _fmi_calls(calls, monkeypatch)
+    made = _fmi_calls(calls, monkeypatch)
     for compiled in (True, False):
         scene = load_scene(str(failing), [f"manager.duration={duration}"])
         plan, subsystems = plan_scene(scene)
@@ -247,7 +268,8 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
         recorder.flush(last=True)
         said.append(str(failure.value))
         recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
-    assert ran == [calls == "one call" or version == "2", False]
+    assert ran == [calls != "one by one" or version == "2", False]
+    assert all(program is not None for program in made) and len(made) == (calls == "in C")
     assert said[0] == said[1] and said[0].startswith("subsystem S2: failed at step "), said
     assert f"fmi{version}DoStep failed with status" in said[0]
     assert recorded[0] == recorded[1] and len(recorded[0]) >= 4

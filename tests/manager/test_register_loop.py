@@ -5,6 +5,7 @@ compiler, gives no program (the Python loop runs); each step's release time is r
 The oracle is Python running the same statements."""
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 import struct
@@ -17,7 +18,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zencosim.manager.scheme.register_loop import STAMP_STATEMENT, register_loop
+import zencosim.manager.scheme.register_loop as register_loop_module
+from zencosim.manager.scheme.register_loop import STAMP_STATEMENT, Failed, NativeCall, register_loop
+from zencosim.subsystems.straight_line import NativeStep
 
 NAMES = ["a", "b", "c", "d"]
 floats = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from([0.0, -0.0, 5e-324, 1e308, -1e308])
@@ -70,7 +73,7 @@ def test_a_register_program_leaves_every_name_as_python_does_bit_for_bit(assignm
     program = register_loop(NAMES, statements, NAMES)
     assert program is not None
     program.set(NAMES, values)
-    rows, _ = program.steps(steps)
+    rows, _, _ = program.steps(0, steps)
     expected, expected_rows = _python(dict(zip(NAMES, values)), statements, steps)
     assert _bits(program.get(NAMES)) == _bits(expected[name] for name in NAMES)
     assert [_bits(row) for row in rows.tolist()] == [_bits(row) for row in expected_rows]
@@ -94,7 +97,7 @@ def test_signed_zeros_are_two_constants():
     """0.0 and -0.0 compare equal but are different constants: each keeps its sign."""
     program = register_loop(NAMES, ["a = 0.0 * b", "c = -0.0 * b", "d = -0.0"], NAMES)
     program.set(NAMES, [9.0, 1.0, 9.0, 9.0])
-    program.steps(1)
+    program.steps(0, 1)
     assert _bits(program.get(NAMES)) == _bits([0.0, 1.0, -0.0, -0.0])
 
 
@@ -104,19 +107,108 @@ def test_of_two_nans_the_left_ones_sign_is_kept():
     negative, positive = -math.nan, math.nan
     program = register_loop(NAMES, ["c = a + b", "d = b * a", "b = a - b"], NAMES)
     program.set(NAMES, [negative, positive, 0.0, 0.0])
-    program.steps(1)
+    program.steps(0, 1)
     assert [math.copysign(1.0, value) for value in program.get(NAMES)] == [-1.0, -1.0, -1.0, 1.0]
 
 
-def test_each_steps_release_time_is_read_from_pythons_perf_counter():
+def test_each_steps_release_time_is_read_from_pythons_perf_counter(monkeypatch):
     """STAMP reads CLOCK_MONOTONIC, ``time.perf_counter_ns``'s clock: the times lie between two readings of it,
-    in order, one per step."""
+    in order, one per step (all 1,000 in one block: no time budget, whatever the machine's load)."""
+    monkeypatch.setattr(register_loop_module, "BUDGET_NS", 1 << 62)
     program = register_loop(NAMES, [STAMP_STATEMENT, "a = a + 1.0"], NAMES)
     before = time.perf_counter_ns()
-    rows, times = program.steps(1000)
+    rows, times, _ = program.steps(0, 1000)
     after = time.perf_counter_ns()
     assert before <= times[0] and times[-1] <= after and (np.diff(times) >= 0).all()
     assert rows[:, 0].tolist() == [float(k) for k in range(1, 1001)]
+
+
+class _Model:
+    """A native step made by a Python function called from C (ctypes): y0 = 2 u0 - u1, y1 = start [s]; it notes its
+    calls' start times and fails with ``status`` at ``failing_ns``."""
+
+    FUNCTION = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_longlong)
+
+    def __init__(self, failing_ns: int = -1, status: int = 3) -> None:
+        self.u, self.y = (ctypes.c_double * 2)(), (ctypes.c_double * 2)()
+        self.starts: list[int] = []
+        self.failing_ns, self.status = failing_ns, status
+        self.function = self.FUNCTION(self._step)
+        self.step = NativeStep(self.function, ctypes.c_int(), self.u, self.y, lambda status: ValueError(status))
+
+    def _step(self, _argument, start_ns: int) -> int:
+        self.starts.append(start_ns)
+        if start_ns == self.failing_ns:
+            return self.status
+        self.y[0], self.y[1] = 2.0 * self.u[0] - self.u[1], start_ns * 1e-9
+        return 0
+
+
+NATIVE_STATEMENTS = ["c = a + 1.0", "native(0)", "a = a + d * 0.5", "b = b + 1.0"]
+
+
+def _native_python(values: list[float], first: int, steps: int, tick_ns: int) -> list[list[float]]:
+    """What the statements above leave, in Python, the native step computed as ``_Model`` computes it."""
+    a, b, c, d = values
+    rows = []
+    for tick in range(first, first + steps):
+        c = a + 1.0
+        d, e = 2.0 * c - b, tick * tick_ns * 1e-9
+        a = a + d * 0.5
+        b = b + 1.0
+        rows.append([a, b, c, d, e])
+    return rows
+
+
+def test_a_native_step_is_called_with_its_inputs_and_its_steps_start_and_its_outputs_are_read():
+    """``native(k)``: the inputs copied from their names' registers before the call, the call made with the start
+    of the step (tick × tick_ns), the outputs copied into their names' registers after it; each step's row and the
+    names left as Python leaves them, from a block that starts at tick 7."""
+    model = _Model()
+    program = register_loop(NAMES, NATIVE_STATEMENTS, [*NAMES, "e"], [NativeCall(model.step, ("c", "b"), ("d", "e"))],
+                            tick_ns=250_000)
+    values = [0.3, -1.5, 0.0, 0.0]
+    program.set(NAMES, values)
+    rows, _, failed = program.steps(7, 5)
+    expected = _native_python(values, 7, 5, 250_000)
+    assert failed is None and model.starts == [tick * 250_000 for tick in range(7, 12)]
+    assert _bits(rows.ravel().tolist()) == _bits(np.ravel(expected).tolist())
+    assert _bits(program.get([*NAMES, "e"])) == _bits(expected[-1])
+
+
+def test_a_native_step_that_fails_ends_the_block_at_its_step():
+    """A nonzero status: the rows of the steps before it, the failing step's index and status, and the step's own
+    account of its failure; the statements after the call are not run."""
+    model = _Model(failing_ns=3 * 1000, status=4)
+    program = register_loop(NAMES, NATIVE_STATEMENTS, [*NAMES, "e"], [NativeCall(model.step, ("c", "b"), ("d", "e"))],
+                            tick_ns=1000)
+    program.set(NAMES, [1.0, 2.0, 0.0, 0.0])
+    rows, times, failed = program.steps(0, 10)
+    expected = _native_python([1.0, 2.0, 0.0, 0.0], 0, 3, 1000)
+    assert failed == Failed(0, 4) and len(rows) == len(times) == 3 and model.starts == [0, 1000, 2000, 3000]
+    assert _bits(rows.ravel().tolist()) == _bits(np.ravel(expected).tolist())
+    assert program.get(["a", "b"]) == expected[-1][:2]  # the failing step's statements after the call did not run
+    error = program.failure(failed)
+    assert isinstance(error, ValueError) and error.args == (4,)
+
+
+@pytest.mark.parametrize("statement", ["native(1)", "native(-1)", "native('0')", "native(0, 1)", "native()"])
+def test_a_native_call_that_names_no_native_step_gives_no_program(statement):
+    assert register_loop(NAMES, [statement], NAMES, [NativeCall(_Model().step, ("a",), ("b",))]) is None
+
+
+def test_a_block_ends_after_its_time_budget_and_the_next_goes_on_from_there(monkeypatch):
+    """With a budget that every step exceeds, a block is one step; blocks one after the other give the rows of one
+    long block."""
+    monkeypatch.setattr(register_loop_module, "BUDGET_NS", -1)
+    model = _Model()
+    program = register_loop(NAMES, [STAMP_STATEMENT, *NATIVE_STATEMENTS], [*NAMES, "e"],
+                            [NativeCall(model.step, ("c", "b"), ("d", "e"))], tick_ns=10)
+    program.set(NAMES, [0.5, 0.25, 0.0, 0.0])
+    blocks = [program.steps(tick, 4) for tick in range(4)]
+    assert [len(rows) for rows, _, _ in blocks] == [1, 1, 1, 1] and all(failed is None for _, _, failed in blocks)
+    expected = _native_python([0.5, 0.25, 0.0, 0.0], 0, 4, 10)
+    assert _bits(np.concatenate([rows for rows, _, _ in blocks]).ravel().tolist()) == _bits(np.ravel(expected).tolist())
 
 
 def test_without_a_working_compiler_there_is_no_program():

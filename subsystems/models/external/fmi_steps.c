@@ -4,7 +4,8 @@
    same arguments and times, that would otherwise be one ctypes call each (subsystems/models/external/fmu.py,
    step_text), where each call cost about 3,700 instructions (benchmarks/bench_ffi.py). A status worse than a warning
    stops it, and so does an FMI 3.0 FMU that asks to terminate: the call (0 set, 1 step, 2 get) and its time are left
-   in the struct, and the status is returned (TERMINATE when asked to terminate); else 0. */
+   in the struct, and the status is returned (TERMINATE when asked to terminate); else 0. The struct is passed as a
+   void *: a register program calls these functions as it calls any native step (manager/scheme/register_loop.c). */
 #include <stdbool.h>
 #include <stddef.h>
 
@@ -45,7 +46,8 @@ static double micro_step_time(const fmi_steps *f, long long start_ns, long long 
     return (double)(start_ns + j * f->h_ns) * 1e-9;
 }
 
-int fmi2_steps_run(fmi_steps *f, long long start_ns) {
+int fmi2_steps_run(void *steps, long long start_ns) {
+    fmi_steps *f = steps;
     int status;
     long long j;
     for (j = 0; j < f->micro_steps; j++) {
@@ -64,7 +66,8 @@ int fmi2_steps_run(fmi_steps *f, long long start_ns) {
     return 0;
 }
 
-int fmi3_steps_run(fmi_steps *f, long long start_ns) {
+int fmi3_steps_run(void *steps, long long start_ns) {
+    fmi_steps *f = steps;
     int status;
     long long j;
     bool event_handling_needed, terminate, early_return;

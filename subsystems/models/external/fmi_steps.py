@@ -4,9 +4,11 @@ A co-simulation FMU's step as statements (``fmu.FmuCoSimulation.step_text``) set
 and gets the outputs: as one ctypes call per FMI call, about 3,700 instructions each (``benchmarks/bench_ffi.py``),
 six per macro-step for two FMUs, where libcosim makes the same calls from C. ``fmi2_steps_run`` and
 ``fmi3_steps_run`` make those calls, with the same arguments and times, from a struct (:class:`FmiSteps`) that
-points at the instance's preallocated arrays, so that a step is one call. They are compiled with the C compiler
-when first needed (``subsystems.native``). Where there is no compiler, or it fails, :func:`steps_function` is None:
-an FMI 2.0 FMU's calls are then written one by one, and an FMI 3.0 FMU steps in the scheme's own loop.
+points at the instance's preallocated arrays, so that a step is one call: from the generated Python loop, or from
+the register program that runs the loop in C (``manager.scheme.register_loop``, a native step, with no Python
+between two steps). They are compiled with the C compiler when first needed (``subsystems.native``). Where there
+is no compiler, or it fails, :func:`steps_function` is None: an FMI 2.0 FMU's calls are then written one by one,
+and an FMI 3.0 FMU steps in the scheme's own loop.
 """
 from __future__ import annotations
 

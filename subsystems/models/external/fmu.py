@@ -33,7 +33,7 @@ import numpy as np
 
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
 from zencosim.subsystems.models.external.fmi_steps import TERMINATE, FmiSteps, steps_function
-from zencosim.subsystems.straight_line import StepText
+from zencosim.subsystems.straight_line import NativeStep, StepText
 from zencosim.subsystems.units import BASE, UnitError, exponents
 
 INTERFACES = {"co-simulation": "coSimulation", "model-exchange": "modelExchange"}
@@ -376,7 +376,7 @@ class FmuCoSimulation(_FmuInstance):
 
         run_steps = steps_function(self.version)
         if run_steps is not None:
-            return self._steps_text(p, start_ns, micro_steps, h_ns, inputs, outputs, run_steps, failed)
+            return self._steps_text(p, start_ns, micro_steps, h_ns, inputs, outputs, run_steps)
         if self.version != "2":
             return None
         lines = []
@@ -402,10 +402,10 @@ class FmuCoSimulation(_FmuInstance):
         return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
 
     def _steps_text(self, p: str, start_ns: str, micro_steps: int, h_ns: int, inputs: tuple[str, ...],
-                    outputs: tuple[str, ...], run_steps, failed) -> StepText:
+                    outputs: tuple[str, ...], run_steps) -> StepText:
         """``step_text``'s statements with the step's FMI calls as one call of ``run_steps`` (``fmi_steps``), which
         makes the same calls with the same arguments from :class:`FmiSteps`; a failure raised as ``do_step`` and
-        ``outputs`` raise it."""
+        ``outputs`` raise it. The same call is the text's ``native`` step, for a loop that runs in C."""
         address = ctypes.addressof
         do_step = f"fmi{self.version}DoStep"
 
@@ -416,21 +416,22 @@ class FmuCoSimulation(_FmuInstance):
                          u=address(self._u), outputs=address(self._outputs), n_outputs=len(outputs),
                          y=address(self._y), h_ns=h_ns, h=h_ns * 1e-9, micro_steps=micro_steps)
 
-        def failed_step(status: int) -> None:
+        def step_failure(status: int) -> FmuError:
             call, t = steps.failed_call, steps.failed_time
+            self.time = t
             if status == TERMINATE:
-                self.time = t
-                raise self.asked_to_terminate(t)
-            failed((self._set.__name__, do_step, self._get.__name__)[call], status, t,
-                   "reading its outputs" if call == 2 else "doStep")
+                return self.asked_to_terminate(t)
+            return self.failure(self.FailedCall(function=(self._set.__name__, do_step, self._get.__name__)[call],
+                                                status=status), "reading its outputs" if call == 2 else "doStep")
 
         lines = [f"{p}u[{i}] = {name}" for i, name in enumerate(inputs)]
         lines += [f"{p}start.value = {start_ns}", f"{p}status = {p}run_steps({p}steps, {p}start)",
-                  f"if {p}status: {p}failed_step({p}status)"]
+                  f"if {p}status: raise {p}step_failure({p}status)"]
         lines += [f"{name} = {p}y[{i}]" for i, name in enumerate(outputs)]
         namespace = {f"{p}u": self._u, f"{p}y": self._y, f"{p}run_steps": run_steps, f"{p}steps": ctypes.pointer(steps),
-                     f"{p}start": ctypes.c_longlong(), f"{p}failed_step": failed_step}
-        return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
+                     f"{p}start": ctypes.c_longlong(), f"{p}step_failure": step_failure}
+        return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace,
+                        NativeStep(run_steps, steps, self._u, self._y, step_failure))
 
     def outputs(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         self.time = t
