@@ -31,13 +31,16 @@ class NativeStep:
     """A step that a compiled function makes in one call, ``int function(void *argument, long long start_ns)`` (an
     FMU's, ``subsystems.models.external.fmi_steps``), for a loop that runs the steps in C
     (``manager.scheme.register_loop``): the step's inputs written into the array ``u`` before the call, its outputs
-    read from ``y`` after it, and a nonzero status the model's failure, ``failure(status)``."""
+    read from ``y`` after it, and a nonzero status the model's failure, ``failure(status)``. In a watched run the
+    call is marked on the watch's page ``marks`` as subsystem number ``mark`` (``manager.bus.watchdog``)."""
 
     function: object  # a ctypes function
     argument: object  # a ctypes object, passed by reference
     u: object  # ctypes arrays of doubles
     y: object
     failure: Callable[[int], BaseException]
+    marks: object = None  # a writable buffer of int64 slots: ``ModelWatch.slots``
+    mark: int = -1
 
 
 @dataclass(frozen=True)

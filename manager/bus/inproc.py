@@ -69,14 +69,16 @@ class DirectCalls:
 
     def step_text(self, s: SubsystemPlan, prefix: str, start_ns: str) -> StepText | None:
         """``s``'s zero-order step as statements (``Subsystem.step_text``), or None; in a watched run, a model that is
-        not zencosim's own marks its step as ``step`` does (``ModelWatch.marking_statements``)."""
+        not zencosim's own marks its step as ``step`` does (``ModelWatch.marking_statements``; its native step, the
+        register program's call of it: ``NativeStep.marks``)."""
         text = self.subsystems[s.index].step_text(self.comm_step_ns[s.index], prefix, start_ns)
         mark = self.marks[s.index]
         if text is None or mark is None:
             return text
         before, after = self.watch.marking_statements(mark, start_ns, f"{prefix}watched")
+        native = None if text.native is None else replace(text.native, marks=self.watch.slots, mark=mark)
         return replace(text, statements=(*before, *text.statements, *after),
-                       namespace={**text.namespace, f"{prefix}watched": self.watch.slots})
+                       namespace={**text.namespace, f"{prefix}watched": self.watch.slots}, native=native)
 
     def state(self, s: SubsystemPlan) -> list[float]:
         return self.subsystems[s.index].z.tolist()

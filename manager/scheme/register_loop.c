@@ -7,7 +7,8 @@
    the left one (CPython's generic float_add the right one: a NaN's sign is not Python's to give). Per step: the
    operations in order, STAMP storing the step's release time (CLOCK_MONOTONIC, Python's perf_counter_ns) in
    times[k], NATIVE making a subsystem's step as one call (natives[left]: an FMU's, subsystems/models/external/
-   fmi_steps.c) with its inputs copied from the registers before it and its outputs into them after it; then the
+   fmi_steps.c) with its inputs copied from the registers before it and its outputs into them after it, in a
+   watched run marked on the watch's page as ModelWatch.marking marks a call (manager/bus/watchdog.py); then the
    row (the registers listed in row) stored in rows[k * width ...]. A native step that fails (returns a nonzero
    status) ends the run at that step, its row not stored: failure[0] is its index in natives, failure[1] the status.
    The run also ends after a step released more than budget_ns after the first (a slow model's steps: the caller
@@ -15,6 +16,7 @@
 #include <time.h>
 
 enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5, ADD_PRODUCT = 6, NATIVE = 7 };
+enum { SUBSYSTEM = 0, PHASE = 1, CALLS = 2, T_NS = 3, STEPPING = 2 }; /* the watch's slots, and its phase of a step */
 
 typedef struct {
     int code; /* one of the enum above */
@@ -33,6 +35,8 @@ typedef struct {
     const double *y; /* its outputs, copied to registers outputs[0 ... n_outputs - 1] after it */
     const int *outputs;
     long long n_outputs;
+    volatile long long *marks; /* a watched run's page of slots, else NULL */
+    long long mark;            /* the subsystem's number on it */
 } native_step;
 
 long long register_loop_run(const operation *operations, long long n_operations, double *registers, const int *row,
@@ -61,13 +65,21 @@ long long register_loop_run(const operation *operations, long long n_operations,
                 continue;
             default: { /* NATIVE */
                 const native_step *s = natives + o->left;
+                const long long start_ns = (first_tick + k) * tick_ns;
                 for (long long j = 0; j < s->n_inputs; ++j) s->u[j] = registers[s->inputs[j]];
-                const int status = s->run(s->argument, (first_tick + k) * tick_ns);
-                if (status) {
+                if (s->marks) {
+                    s->marks[SUBSYSTEM] = s->mark;
+                    s->marks[PHASE] = STEPPING;
+                    s->marks[T_NS] = start_ns;
+                    s->marks[CALLS] += 1;
+                }
+                const int status = s->run(s->argument, start_ns);
+                if (status) { /* the mark is left, as a step that raises leaves it */
                     failure[0] = o->left;
                     failure[1] = status;
                     return k;
                 }
+                if (s->marks) s->marks[SUBSYSTEM] = -1;
                 for (long long j = 0; j < s->n_outputs; ++j) registers[s->outputs[j]] = s->y[j];
                 continue;
             }

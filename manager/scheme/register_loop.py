@@ -54,7 +54,8 @@ class NativeStepC(ctypes.Structure):
 
     _fields_ = [("run", ctypes.c_void_p), ("argument", ctypes.c_void_p), ("u", ctypes.c_void_p),
                 ("inputs", ctypes.c_void_p), ("n_inputs", ctypes.c_longlong), ("y", ctypes.c_void_p),
-                ("outputs", ctypes.c_void_p), ("n_outputs", ctypes.c_longlong)]
+                ("outputs", ctypes.c_void_p), ("n_outputs", ctypes.c_longlong), ("marks", ctypes.c_void_p),
+                ("mark", ctypes.c_longlong)]
 
 
 class NativeCall(NamedTuple):
@@ -93,7 +94,7 @@ class RegisterLoop:
         self._natives = (NativeStepC * max(len(natives), 1))(*(
             NativeStepC(ctypes.cast(step.function, ctypes.c_void_p).value, ctypes.addressof(step.argument),
                         ctypes.addressof(step.u), inputs.ctypes.data, len(inputs), ctypes.addressof(step.y),
-                        outputs.ctypes.data, len(outputs))
+                        outputs.ctypes.data, len(outputs), _address(step.marks), step.mark)
             for step, (inputs, outputs) in zip(self._steps, self._indices)))
         self._tick_ns = tick_ns
         self._failure = (ctypes.c_longlong * 2)()  # set by a native step that fails
@@ -122,6 +123,11 @@ class RegisterLoop:
     def failure(self, failed: Failed) -> BaseException:
         """What the native step that failed says of its failure."""
         return self._steps[failed.native].failure(failed.status)
+
+
+def _address(buffer) -> int | None:
+    """The address of a writable buffer (a watch's page: ``NativeStep.marks``), None for None."""
+    return None if buffer is None else ctypes.addressof(ctypes.c_char.from_buffer(buffer))
 
 
 def register_loop(initial: list[str], statements: list[str], row: list[str], natives: list[NativeCall] = (),

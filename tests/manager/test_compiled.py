@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import zencosim.manager.bus.inproc as inproc_module
 import zencosim.manager.scheme.compiled as compiled_module
 import zencosim.manager.scheme.jacobi as jacobi_module
 import zencosim.manager.scheme.register_loop as register_loop_module
@@ -18,6 +19,7 @@ import zencosim.subsystems.models.external.fmu as fmu_module
 from tests.manager.frames_recorder import FramesRecorder
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import DirectCalls, run_in_process
+from zencosim.manager.bus.watchdog import CALLS, SUBSYSTEM, T_NS, ModelWatch
 from zencosim.manager.results.summary import digest
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
@@ -240,6 +242,26 @@ def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(exa
     assert compiled == (calls != "one by one" or not name.endswith("fmu3"))
     assert all(program is not None for program in made) and len(made) == (calls == "in C")
     _assert_same_run((record, subsystems), (expected, expected_subsystems))
+
+
+def test_a_watched_run_marks_every_fmu_step_that_the_register_program_makes(examples, monkeypatch):
+    """In a watched run (the command line's in-process run, ``manager.bus.watchdog``) the register program still makes
+    the FMUs' steps and marks each on the watch's page as the Python loop's statements mark it: as many calls, the
+    last from the same start, no subsystem in a call at the end; and the same arrays."""
+    scene, overrides = str(examples / "two_mass_damped_fmu.toml"), ["manager.duration=1.2"]
+    runs, pages = [], []
+    for calls in ("in C", "one call"):
+        with monkeypatch.context() as patched:
+            watch = ModelWatch(shared=True)
+            watch.start(["S1", "S2"], 10.0)
+            patched.setattr(inproc_module, "model_watch", lambda: watch)
+            made = _fmi_calls(calls, patched)
+            record, subsystems, compiled = _run(scene, overrides, True, patched)
+        assert compiled and len(made) == (calls == "in C") and all(program is not None for program in made)
+        runs.append((record, subsystems))
+        pages.append([watch.slots[slot] for slot in (SUBSYSTEM, CALLS, T_NS)])
+    assert pages[0] == pages[1] and pages[0][0] == -1 and pages[0][1] > 2 * 1200, pages
+    _assert_same_run(*runs)
 
 
 @pytest.mark.parametrize("calls", FMI_CALLS)

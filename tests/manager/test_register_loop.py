@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import zencosim.manager.scheme.register_loop as register_loop_module
+from zencosim.manager.bus.watchdog import CALLS, STEPPING, SUBSYSTEM, ModelWatch
 from zencosim.manager.scheme.register_loop import STAMP_STATEMENT, Failed, NativeCall, register_loop
 from zencosim.subsystems.straight_line import NativeStep
 
@@ -129,15 +130,19 @@ class _Model:
 
     FUNCTION = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_longlong)
 
-    def __init__(self, failing_ns: int = -1, status: int = 3) -> None:
+    def __init__(self, failing_ns: int = -1, status: int = 3, watch: ModelWatch | None = None, mark: int = -1) -> None:
         self.u, self.y = (ctypes.c_double * 2)(), (ctypes.c_double * 2)()
         self.starts: list[int] = []
         self.failing_ns, self.status = failing_ns, status
         self.function = self.FUNCTION(self._step)
-        self.step = NativeStep(self.function, ctypes.c_int(), self.u, self.y, lambda status: ValueError(status))
+        self.watch, self.marks_seen = watch, []
+        self.step = NativeStep(self.function, ctypes.c_int(), self.u, self.y, lambda status: ValueError(status),
+                               None if watch is None else watch.slots, mark)
 
     def _step(self, _argument, start_ns: int) -> int:
         self.starts.append(start_ns)
+        if self.watch is not None:
+            self.marks_seen.append(self.watch.slots.tolist())
         if start_ns == self.failing_ns:
             return self.status
         self.y[0], self.y[1] = 2.0 * self.u[0] - self.u[1], start_ns * 1e-9
@@ -209,6 +214,26 @@ def test_a_block_ends_after_its_time_budget_and_the_next_goes_on_from_there(monk
     assert [len(rows) for rows, _, _ in blocks] == [1, 1, 1, 1] and all(failed is None for _, _, failed in blocks)
     expected = _native_python([0.5, 0.25, 0.0, 0.0], 0, 4, 10)
     assert _bits(np.concatenate([rows for rows, _, _ in blocks]).ravel().tolist()) == _bits(np.ravel(expected).tolist())
+
+
+def test_in_a_watched_run_a_native_step_is_marked_as_the_watch_marks_a_call():
+    """Around each call the watch's page holds what ``ModelWatch.marking`` writes for the subsystem's step from the
+    step's start (the watching process names a model that hangs or ends the process from it); after the call, no
+    subsystem; a call that fails leaves its mark, as a step that raises leaves it."""
+    watch, expected = ModelWatch(shared=True), ModelWatch(shared=True)
+    model = _Model(failing_ns=3 * 1000, watch=watch, mark=5)
+    program = register_loop(NAMES, NATIVE_STATEMENTS, NAMES, [NativeCall(model.step, ("c", "b"), ("d", "e"))],
+                            tick_ns=1000)
+    program.set(NAMES, [1.0, 2.0, 0.0, 0.0])
+    _, _, failed = program.steps(0, 2)
+    seen = []
+    for tick in range(2):
+        with expected.marking(5, STEPPING, tick * 1000):
+            seen.append(expected.slots.tolist())
+    assert failed is None and model.marks_seen == seen and watch.slots.tolist() == expected.slots.tolist()
+    assert watch.slots[SUBSYSTEM] == -1 and watch.slots[CALLS] == 2
+    _, _, failed = program.steps(2, 3)
+    assert failed == Failed(0, 3) and watch.slots[SUBSYSTEM] == 5 and watch.slots[CALLS] == 4
 
 
 def test_without_a_working_compiler_there_is_no_program():
