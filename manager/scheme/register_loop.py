@@ -141,7 +141,8 @@ def register_loop(initial: list[str], statements: list[str], row: list[str], nat
         for statement in statements:
             translation.statement(statement)
         row_registers = [translation.read(name) for name in row]
-    except NotArithmetic:
+        natives_made = [translation.natives[k] for k in range(len(natives))]
+    except (NotArithmetic, KeyError):  # KeyError: a native step that no statement makes
         return None
     compiled = library("zencosim.manager.scheme", "register_loop.c")
     if compiled is None:
@@ -153,7 +154,7 @@ def register_loop(initial: list[str], statements: list[str], row: list[str], nat
                     ctypes.POINTER(NativeStepC), ctypes.c_longlong, ctypes.c_longlong, ctypes.c_longlong,
                     ctypes.POINTER(ctypes.c_longlong)]
     return RegisterLoop(run, translation.operations, translation.registers, translation.names, row_registers,
-                        translation.natives, tick_ns)
+                        natives_made, tick_ns)
 
 
 class _Translation:
@@ -166,7 +167,7 @@ class _Translation:
         self.constants: dict[bytes, int] = {}
         self.operations: list[tuple[int, int, int, int, int]] = []
         self.calls = natives
-        self.natives: list[tuple[NativeStep, list[int], list[int]]] = []  # each with its input and output registers
+        self.natives: dict[int, tuple[NativeStep, list[int], list[int]]] = {}  # by index: its input, output registers
 
     def statement(self, text: str) -> None:
         if text == STAMP_STATEMENT:
@@ -195,8 +196,8 @@ class _Translation:
         """``native(k)``: the k-th native step, its inputs read from their names' registers, its outputs written to
         theirs."""
         index = call.args[0].value if len(call.args) == 1 and isinstance(call.args[0], ast.Constant) else None
-        if type(index) is not int or not 0 <= index < len(self.calls):
-            raise NotArithmetic(ast.unparse(call))
+        if type(index) is not int or not 0 <= index < len(self.calls) or index in self.natives:
+            raise NotArithmetic(ast.unparse(call))  # no such step, or one made twice a step
         step, inputs, outputs = self.calls[index]
         input_registers = [self.read(name) for name in inputs]
         output_registers = []
@@ -204,8 +205,8 @@ class _Translation:
             if name not in self.names:
                 self.names[name] = self._new(0.0)
             output_registers.append(self.names[name])
-        self.operations.append((NATIVE, 0, len(self.natives), 0, 0))
-        self.natives.append((step, input_registers, output_registers))
+        self.operations.append((NATIVE, 0, index, 0, 0))
+        self.natives[index] = (step, input_registers, output_registers)
 
     def read(self, name: str) -> int:
         if name not in self.names:  # read before any assignment: a NameError in Python

@@ -197,9 +197,21 @@ def test_a_native_step_that_fails_ends_the_block_at_its_step():
     assert isinstance(error, ValueError) and error.args == (4,)
 
 
-@pytest.mark.parametrize("statement", ["native(1)", "native(-1)", "native('0')", "native(0, 1)", "native()"])
-def test_a_native_call_that_names_no_native_step_gives_no_program(statement):
-    assert register_loop(NAMES, [statement], NAMES, [NativeCall(_Model().step, ("a",), ("b",))]) is None
+@pytest.mark.parametrize("statements", [["native(1)"], ["native(-1)"], ["native('0')"], ["native(0, 1)"],
+                                        ["native()"], [], ["native(0)", "native(0)"]],
+                         ids=["no such step", "negative", "a string", "two arguments", "no argument", "never made",
+                              "made twice"])
+def test_a_native_call_that_names_no_native_step_gives_no_program(statements):
+    assert register_loop(NAMES, statements, NAMES, [NativeCall(_Model().step, ("a",), ("b",))]) is None
+
+
+def test_a_failing_native_step_is_named_by_its_index_whatever_the_order_of_the_calls():
+    """Gauss–Seidel may make its subsystems' steps in another order than the plan's: the failure names the step by
+    its index among the native steps given, not by its place among the statements."""
+    first, second = _Model(), _Model(failing_ns=0, status=2)
+    program = register_loop(NAMES, ["native(1)", "native(0)"], NAMES,
+                            [NativeCall(first.step, ("a",), ("b",)), NativeCall(second.step, ("a",), ("c",))])
+    assert program.steps(0, 1)[2] == Failed(1, 2) and first.starts == []
 
 
 def test_a_block_ends_after_its_time_budget_and_the_next_goes_on_from_there(monkeypatch):
