@@ -12,7 +12,7 @@
    row (the registers listed in row) stored in rows[k * width ...]. A native step that fails (returns a nonzero
    status) ends the run at that step, its row not stored: failure[0] is its index in natives, failure[1] the status.
    The run also ends after a step released more than budget_ns after the first (a slow model's steps: the caller
-   sees an interrupt between runs). Returns the number of steps whose rows were stored. */
+   sees an interrupt between runs; LLONG_MAX: no budget). Returns the number of steps whose rows were stored. */
 #include <time.h>
 
 enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5, ADD_PRODUCT = 6, NATIVE = 7 };

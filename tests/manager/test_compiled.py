@@ -39,18 +39,13 @@ GENERIC = {"FOH": ("two_mass_damped", ["manager.extrapolation=1"]),
            "input table": ("two_mass_chirp", [])}
 
 
-@pytest.fixture(params=["registers", "registers, a step a block", "python"])
+@pytest.fixture(params=["registers", "python"])
 def loop(request, monkeypatch):
     """The generated loop of straight-line steps run as a register program in C (``register_loop``: there must be a
-    C compiler, as for the example FMUs) or as the Python loop itself; each run of it was the one asked for. A
-    register program's block of steps ends once they have taken its time budget (a slow model's steps): with a
-    budget that every step exceeds, every block is one step."""
-    registers = request.param.startswith("registers")
-    made = _programs(registers, monkeypatch)
-    if request.param == "registers, a step a block":
-        monkeypatch.setattr(register_loop_module, "BUDGET_NS", -1)
+    C compiler, as for the example FMUs) or as the Python loop itself; each run of it was the one asked for."""
+    made = _programs(request.param == "registers", monkeypatch)
     yield request.param
-    assert all(program is not None for program in made) and bool(made) == registers
+    assert all(program is not None for program in made) and bool(made) == (request.param == "registers")
 
 
 def _programs(registers: bool, monkeypatch) -> list:
@@ -210,15 +205,19 @@ def _fmi_calls(calls: str, monkeypatch) -> list:
     (there must be a C compiler, as for the example FMUs): from the register program (``"in C"``,
     ``register_loop``'s native step) or from the Python loop (``"one call"``); or, where none is found
     (``"one by one"``), the Python loop makes a ctypes call per FMI call for FMI 2.0, and FMI 3.0 FMUs step in the
-    scheme's own loop. Returns the register programs made (:func:`_programs`)."""
+    scheme's own loop. A register program with native steps ends a block of steps once they have taken its time
+    budget (slow models' steps): ``"in C, a step a block"`` gives it a budget that every step exceeds. Returns the
+    register programs made (:func:`_programs`)."""
     if calls == "one by one":
         monkeypatch.setattr(fmu_module, "steps_function", lambda version: None)
     else:
         assert fmu_module.steps_function("2") is not None and fmu_module.steps_function("3") is not None
-    return _programs(calls == "in C", monkeypatch)
+    if calls == "in C, a step a block":
+        monkeypatch.setattr(register_loop_module, "BUDGET_NS", -1)
+    return _programs(calls.startswith("in C"), monkeypatch)
 
 
-FMI_CALLS = ["in C", "one call", "one by one"]
+FMI_CALLS = ["in C", "in C, a step a block", "one call", "one by one"]
 
 
 FOUR_MICRO_STEPS = ["subsystems.S1.micro_step=0.00025"]
@@ -240,7 +239,7 @@ def test_co_simulation_fmus_step_in_the_generated_loop_as_in_the_generic_one(exa
     made = _fmi_calls(calls, monkeypatch)
     record, subsystems, compiled = _run(scene, overrides, True, monkeypatch)
     assert compiled == (calls != "one by one" or not name.endswith("fmu3"))
-    assert all(program is not None for program in made) and len(made) == (calls == "in C")
+    assert all(program is not None for program in made) and len(made) == calls.startswith("in C")
     _assert_same_run((record, subsystems), (expected, expected_subsystems))
 
 
@@ -291,7 +290,7 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
         said.append(str(failure.value))
         recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
     assert ran == [calls != "one by one" or version == "2", False]
-    assert all(program is not None for program in made) and len(made) == (calls == "in C")
+    assert all(program is not None for program in made) and len(made) == calls.startswith("in C")
     assert said[0] == said[1] and said[0].startswith("subsystem S2: failed at step "), said
     assert f"fmi{version}DoStep failed with status" in said[0]
     assert recorded[0] == recorded[1] and len(recorded[0]) >= 4
