@@ -25,9 +25,9 @@ with the Python loop, and of two C FMUs about 1,500, against 14,800 with the Pyt
 
 The loop runs in blocks that end where a progress report is due (``PROGRESS_EVERY``), in a recorded run where it
 hands a recorder's tap a block (``manager.scheme.tapped``, every ``TAP_BLOCK_STEPS`` steps), and as a register
-program also once its steps have taken the program's time budget (slow models' steps); after each, the
-block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record, and the
-rows with their times to the tap (``TakenRows``), from which the recorder's processes build the messages and
+program with native steps also once its steps have taken the program's time budget (slow models' steps); after
+each, the block's rows go to the run's windows (``manager.scheme.window``), the release times to the run's record,
+and the rows with their times to the tap (``TakenRows``), from which the recorder's processes build the messages and
 statuses the scheme's loop would have handed it: a recorded run's loop is the unrecorded one's. At the end the
 subsystems take the state the loop left (``Subsystem.took_steps``).
 
