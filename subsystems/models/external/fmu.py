@@ -370,10 +370,6 @@ class FmuCoSimulation(_FmuInstance):
         p, n_u, n_y = prefix, len(self._u_view), len(self._y_view)
         inputs, outputs = tuple(f"{p}c{i}" for i in range(n_u)), tuple(f"{p}y{i}" for i in range(n_y))
 
-        def failed(function: str, status: int, t: float, what: str) -> None:
-            self.time = t
-            raise self.failure(self.FailedCall(function=function, status=status), what)
-
         run_steps = steps_function(self.version)
         if run_steps is not None:
             return self._steps_text(p, start_ns, micro_steps, h_ns, inputs, outputs, run_steps)
@@ -385,21 +381,28 @@ class FmuCoSimulation(_FmuInstance):
             if n_u:
                 lines += [f"{p}u[{i}] = {name}" for i, name in enumerate(inputs)]
                 lines += [f"{p}status = {p}set_real(*{p}set_arguments)",
-                          f"if {p}status > {_WARNING}: {p}failed({self._set.__name__!r}, {p}status, {t}, 'doStep')"]
+                          f"if {p}status > {_WARNING}: raise {p}failed({self._set.__name__!r}, {p}status, {t}, "
+                          "'doStep')"]
             lines += [f"{p}time.value = {t}", f"{p}status = {p}do_step({p}instance, {p}time, {p}h, {p}false)",
-                      f"if {p}status > {_WARNING}: {p}failed('fmi2DoStep', {p}status, {t}, 'doStep')"]
+                      f"if {p}status > {_WARNING}: raise {p}failed('fmi2DoStep', {p}status, {t}, 'doStep')"]
         if n_y:
             t = f"({start_ns} + {micro_steps * h_ns}) * 1e-9"
             lines += [f"{p}status = {p}get_real(*{p}get_arguments)",
-                      (f"if {p}status > {_WARNING}: {p}failed({self._get.__name__!r}, {p}status, {t}, "
+                      (f"if {p}status > {_WARNING}: raise {p}failed({self._get.__name__!r}, {p}status, {t}, "
                        "'reading its outputs')"),
                       *(f"{name} = {p}y[{i}]" for i, name in enumerate(outputs))]
 
         namespace = {f"{p}u": self._u, f"{p}y": self._y, f"{p}set_real": self._set, f"{p}get_real": self._get,
                      f"{p}set_arguments": self._set_arguments, f"{p}get_arguments": self._get_arguments,
                      f"{p}do_step": self._step, f"{p}instance": self._instance, f"{p}time": ctypes.c_double(),
-                     f"{p}h": ctypes.c_double(h_ns * 1e-9), f"{p}false": FMI2_FALSE, f"{p}failed": failed}
+                     f"{p}h": ctypes.c_double(h_ns * 1e-9), f"{p}false": FMI2_FALSE, f"{p}failed": self._failed_at}
         return StepText(tuple(lines), (), inputs, (), inputs, outputs, namespace)
+
+    def _failed_at(self, function: str, status: int, t: float, what: str) -> FmuError:
+        """The failure of FMI call ``function`` with ``status`` at ``t`` [s] while ``what``, as :meth:`failure` names
+        it (the FMU's time set to ``t``)."""
+        self.time = t
+        return self.failure(self.FailedCall(function=function, status=status), what)
 
     def _steps_text(self, p: str, start_ns: str, micro_steps: int, h_ns: int, inputs: tuple[str, ...],
                     outputs: tuple[str, ...], run_steps) -> StepText:
@@ -418,11 +421,11 @@ class FmuCoSimulation(_FmuInstance):
 
         def step_failure(status: int) -> FmuError:
             call, t = steps.failed_call, steps.failed_time
-            self.time = t
             if status == TERMINATE:
+                self.time = t
                 return self.asked_to_terminate(t)
-            return self.failure(self.FailedCall(function=(self._set.__name__, do_step, self._get.__name__)[call],
-                                                status=status), "reading its outputs" if call == 2 else "doStep")
+            return self._failed_at((self._set.__name__, do_step, self._get.__name__)[call], status, t,
+                                   "reading its outputs" if call == 2 else "doStep")
 
         lines = [f"{p}u[{i}] = {name}" for i, name in enumerate(inputs)]
         lines += [f"{p}start.value = {start_ns}", f"{p}status = {p}run_steps({p}steps, {p}start)",
