@@ -110,7 +110,12 @@ class CompiledSteps:
             if taken is not None and taken.requests >= TAP_BLOCK_STEPS:  # where a period starts, as the scheme does
                 taken.flush()
             if registers is not None:
-                block, released, failed = registers.steps(first, last - first)
+                try:
+                    block, released, failed = registers.steps(first, last - first)
+                except KeyboardInterrupt:  # it arrived during the block's C call: its steps are handed over
+                    self._hand_over(first, *registers.completed(first), time.perf_counter_ns(), readers,
+                                    residual_power, residual_energy, release_times, taken)
+                    raise
                 if failed is not None:
                     self._stopped(Stopped(self.natives[failed.native], registers.failure(failed)), first, block,
                                   released, readers, residual_power, residual_energy, release_times, taken)

@@ -10,9 +10,11 @@
    fmi_steps.c) with its inputs copied from the registers before it and its outputs into them after it, in a
    watched run marked on the watch's page as ModelWatch.marking marks a call (manager/bus/watchdog.py); then the
    row (the registers listed in row) stored in rows[k * width ...]. A native step that fails (returns a nonzero
-   status) ends the run at that step, its row not stored: failure[0] is its index in natives, failure[1] the status.
+   status) ends the run at that step, its row not stored: outcome[0] is its index in natives, outcome[1] the status.
    The run also ends after a step released more than budget_ns after the first (a slow model's steps: the caller
-   sees an interrupt between runs; LLONG_MAX: no budget). Returns the number of steps whose rows were stored. */
+   sees an interrupt between runs; LLONG_MAX: no budget). Returns the number of steps whose rows were stored, and
+   leaves it in outcome[2] with first_tick in outcome[3]: an interrupt that arrived during the run is raised as the
+   call returns, before its caller has the returned number. */
 #include <time.h>
 
 enum { ADD = 0, SUBTRACT = 1, MULTIPLY = 2, NEGATE = 3, COPY = 4, STAMP = 5, ADD_PRODUCT = 6, NATIVE = 7 };
@@ -42,8 +44,9 @@ typedef struct {
 long long register_loop_run(const operation *operations, long long n_operations, double *registers, const int *row,
                             long long width, long long steps, double *rows, long long *times,
                             const native_step *natives, long long first_tick, long long tick_ns, long long budget_ns,
-                            long long *failure) {
+                            long long *outcome) {
     struct timespec now;
+    outcome[3] = first_tick;
     for (long long k = 0; k < steps; ++k) {
         for (long long i = 0; i < n_operations; ++i) {
             const operation *o = operations + i;
@@ -75,9 +78,9 @@ long long register_loop_run(const operation *operations, long long n_operations,
                 }
                 const int status = s->run(s->argument, start_ns);
                 if (status) { /* the mark is left, as a step that raises leaves it */
-                    failure[0] = o->left;
-                    failure[1] = status;
-                    return k;
+                    outcome[0] = o->left;
+                    outcome[1] = status;
+                    return outcome[2] = k;
                 }
                 if (s->marks) s->marks[SUBSYSTEM] = -1;
                 for (long long j = 0; j < s->n_outputs; ++j) registers[s->outputs[j]] = s->y[j];
@@ -88,7 +91,7 @@ long long register_loop_run(const operation *operations, long long n_operations,
         }
         double *out = rows + k * width;
         for (long long j = 0; j < width; ++j) out[j] = registers[row[j]];
-        if (times[k] - times[0] > budget_ns) return k + 1;
+        if (times[k] - times[0] > budget_ns) return outcome[2] = k + 1;
     }
-    return steps;
+    return outcome[2] = steps;
 }

@@ -19,8 +19,9 @@ FMI calls made by ``fmi_steps.c``) is one operation, written ``native(k)`` among
 its inputs from the registers, calls the function with the step's start and copies its outputs into the
 registers, as the Python loop's statements do with the same values. A nonzero status ends a block of steps at that
 step (:meth:`RegisterLoop.steps`). A block of a program with native steps also ends once its steps have taken
-``BUDGET_NS``: a Python loop is interrupted (Ctrl-C) between two statements, a register program between two blocks,
-and a model's step may be slow. Float arithmetic alone is fast (a block of 500 steps of a chain of 33 linear models
+``BUDGET_NS``: a Python loop is interrupted (Ctrl-C) between two statements, a register program between two blocks
+(the interrupt is raised as the block's call returns; :meth:`RegisterLoop.completed` gives the steps it ran), and a
+model's step may be slow. Float arithmetic alone is fast (a block of 500 steps of a chain of 33 linear models
 takes about a millisecond), and its blocks have no budget: their count of steps, and so the instructions they take,
 does not depend on the machine's speed.
 """
@@ -101,7 +102,9 @@ class RegisterLoop:
                         outputs.ctypes.data, len(outputs), _address(step.marks), step.mark)
             for step, (inputs, outputs) in zip(self._steps, self._indices)))
         self._tick_ns = tick_ns
-        self._failure = (ctypes.c_longlong * 2)()  # set by a native step that fails
+        # the native step that failed and its status (0: none failed), the steps of the last run and its first tick
+        self._outcome = (ctypes.c_longlong * 4)(0, 0, 0, -1)
+        self._block = (np.empty((0, len(self._row))), np.zeros(0, dtype=np.int64))  # the last run's rows and times
 
     def set(self, names: Iterable[str], values: Iterable[float]) -> None:
         for name, value in zip(names, values, strict=True):
@@ -114,15 +117,23 @@ class RegisterLoop:
         """Run up to ``count`` macro-steps from tick ``first``: the rows (a row per step) and release times [ns] of
         those that completed — all of them, those within ``BUDGET_NS`` (where there are native steps), or those
         before a native step failed (:class:`Failed`, else None)."""
-        rows = np.empty((count, len(self._row)))
-        times = np.zeros(count, dtype=np.int64)
+        self._block = rows, times = np.empty((count, len(self._row))), np.zeros(count, dtype=np.int64)
         done = self._run(self._operations, len(self._operations), self.registers.ctypes.data, self._row.ctypes.data,
                          len(self._row), count, rows.ctypes.data, times.ctypes.data, self._natives, first,
-                         self._tick_ns, BUDGET_NS if self._steps else NO_BUDGET_NS, self._failure)
+                         self._tick_ns, BUDGET_NS if self._steps else NO_BUDGET_NS, self._outcome)
         failed = None
-        if self._failure[1]:
-            failed, self._failure[1] = Failed(*self._failure), 0
+        if self._outcome[1]:
+            failed, self._outcome[1] = Failed(self._outcome[0], self._outcome[1]), 0
         return rows[:done], times[:done], failed
+
+    def completed(self, first: int) -> tuple[np.ndarray, np.ndarray]:
+        """The rows and release times of the steps that the run of :meth:`steps` from tick ``first`` completed (none
+        where it did not run): what it returns, for a run that an interrupt cut short as it returned. Python raises
+        the KeyboardInterrupt of a SIGINT that arrived during the C call as the call returns, before ``steps`` has
+        the number of steps that it ran."""
+        done = self._outcome[2] if self._outcome[3] == first else 0
+        rows, times = self._block
+        return rows[:done], times[:done]
 
     def failure(self, failed: Failed) -> BaseException:
         """What the native step that failed says of its failure."""

@@ -6,6 +6,8 @@ The oracle is the generic loop on the same scene (``compiled_steps`` patched to 
 message path and with a Zenoh run tests/manager/test_direct.py and tests/manager/test_buses.py check."""
 from __future__ import annotations
 
+import signal
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -294,6 +296,46 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
     assert said[0] == said[1] and said[0].startswith("subsystem S2: failed at step "), said
     assert f"fmi{version}DoStep failed with status" in said[0]
     assert recorded[0] == recorded[1] and len(recorded[0]) >= 4
+
+
+def test_an_interrupt_during_a_register_block_hands_over_the_steps_the_block_ran(monkeypatch):
+    """A SIGINT that arrives while a block of the register program runs in C is raised as the call returns (here: sent
+    as the block of steps 1000 … 1499 returns): the recorder gets every step the block ran, the same messages as a
+    generic loop interrupted after step 1500."""
+    recorded, blocks = [], []
+    steps = register_loop_module.RegisterLoop.steps
+
+    def interrupted(self, first: int, count: int):
+        ran = steps(self, first, count)
+        blocks.append(first)
+        if first == 1000:
+            signal.raise_signal(signal.SIGINT)
+        return ran
+
+    def progress(tick: int) -> None:
+        if tick == 1500:
+            raise KeyboardInterrupt
+    for compiled in (True, False):
+        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])
+        plan, subsystems = plan_scene(scene)
+        status = StatusReport(plan, False)
+        recorder = FramesRecorder(plan, status)
+        with monkeypatch.context() as patched, pytest.raises(KeyboardInterrupt):
+            patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, []))
+            patched.setattr(register_loop_module.RegisterLoop, "steps", interrupted)
+            previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+            try:
+                run_in_process(make_scheme(scene, plan, status=status, progress=None if compiled else progress,
+                                           direct=DirectCalls(plan, subsystems), tap=recorder), plan, subsystems,
+                               recorder)
+            finally:
+                signal.signal(signal.SIGINT, previous)
+        recorder.flush(last=True)
+        recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
+    commands = recorder._index["S1", "commands"]
+    assert blocks == [0, 500, 1000]  # the register program ran, and was interrupted in its third block
+    assert recorded[0] == recorded[1]
+    assert sum(i == commands for i, _ in recorded[0]) == 1500 + 1
 
 
 @pytest.mark.parametrize("at", [500, 2500], ids=["first block", "second block"])

@@ -8,6 +8,8 @@ from __future__ import annotations
 import ctypes
 import math
 import os
+import shutil
+import signal
 import struct
 import subprocess
 import sys
@@ -180,6 +182,46 @@ def test_a_native_step_is_called_with_its_inputs_and_its_steps_start_and_its_out
     assert failed is None and model.starts == [tick * 250_000 for tick in range(7, 12)]
     assert _bits(rows.ravel().tolist()) == _bits(np.ravel(expected).tolist())
     assert _bits(program.get([*NAMES, "e"])) == _bits(expected[-1])
+
+
+SIGNALLING_STEP = r"""
+#include <signal.h>
+/* a native step that sends its own process SIGINT at the step that starts at *argument [ns] */
+int step(void *argument, long long start_ns) {
+    if (start_ns == *(const long long *)argument) raise(SIGINT);
+    return 0;
+}
+"""
+
+
+def test_an_interrupt_during_a_block_leaves_the_blocks_steps_to_hand_over(tmp_path):
+    """A SIGINT that arrives while the program runs (sent by a native step in C at its fourth step): Python raises its
+    KeyboardInterrupt as the call returns, so ``steps`` never returns the rows; ``completed`` gives those of every
+    step the program ran (to the block's end: C does not see Python's signals), none for a block that did not run,
+    and the next block goes on from the registers the interrupted one left."""
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        pytest.skip("no C compiler: no register program")
+    source, shared = tmp_path / "signalling.c", tmp_path / "signalling.so"
+    source.write_text(SIGNALLING_STEP)
+    subprocess.run([compiler, "-shared", "-fPIC", str(source), "-o", str(shared)], check=True)
+    at_ns = ctypes.c_longlong(3 * 1000)
+    step = NativeStep(ctypes.CDLL(str(shared)).step, at_ns, (ctypes.c_double * 1)(), (ctypes.c_double * 1)(),
+                      ValueError)
+    program = register_loop(NAMES, [STAMP_STATEMENT, "a = a + 1.0", "native(0)"], NAMES,
+                            [NativeCall(step, ("a",), ("b",))], tick_ns=1000)
+    program.set(NAMES, [0.0] * 4)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            program.steps(0, 10)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    rows, times = program.completed(0)
+    assert rows[:, 0].tolist() == [float(k) for k in range(1, 11)] and len(times) == 10 and (times > 0).all()
+    assert len(program.completed(10)[0]) == 0
+    rows, _, failed = program.steps(10, 5)
+    assert failed is None and rows[:, 0].tolist() == [float(k) for k in range(11, 16)]
 
 
 def test_a_native_step_that_fails_ends_the_block_at_its_step():
