@@ -230,12 +230,15 @@ class JointForce:
 
 def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float = SOLVE_IVP_ATOL,
                         spill: Spill | None = None) -> Reference:
-    """The scene's coupled equations (:class:`CoupledSystem`) integrated by scipy ``solve_ivp`` (LSODA,
-    tolerances ``rtol``, ``atol``), sampled on the base macro-step grid. With ``spill`` (a long run) the
-    integration goes block by block of ``BLOCK_ROWS`` macro-steps, each continuing from the last state of the
-    one before (a restart of the integrator: values within the tolerances of the one-pass integration)."""
-    from scipy.integrate import solve_ivp  # here: scipy.integrate takes a second to load, which a run without
-    system = CoupledSystem(scene)          # this reference (every subsystem process) need not pay
+    """The scene's coupled equations (:class:`CoupledSystem`) integrated in one pass by scipy's LSODA (tolerances
+    ``rtol``, ``atol``), sampled on the base macro-step grid as ``solve_ivp`` samples its ``t_eval``: the ticks
+    each solver step reaches, from that step's dense output, written as the step is taken. So a long run's
+    reference (``spill``) goes to its files as it is computed, holding no more than a step's samples (at most
+    ``BLOCK_ROWS`` at a time), and is the one a kept run's would be: integrating it block by block, restarting
+    the integrator at each block, took five times the evaluations of the equations (hydraulic_crane_11_5ms:
+    126,208 against 24,200)."""
+    from scipy.integrate import LSODA  # here: scipy.integrate takes a second to load, which a run without this
+    system = CoupledSystem(scene)      # reference (every subsystem process) need not pay
     base = scene.manager.macro_step_ns
     n_ticks = scene.manager.duration_ns // base
     step = base * 1e-9
@@ -247,27 +250,44 @@ def solve_ivp_reference(scene: Scene, rtol: float = SOLVE_IVP_RTOL, atol: float 
     def derivative(tk: float, Z: np.ndarray) -> np.ndarray:
         if next(evaluations) > budget:
             raise ReferenceFailed(f"the solve_ivp reference took more than {budget:,} evaluations of the coupled "
-                                  f"equations ({SOLVE_IVP_METHOD}, rtol {rtol:g}, atol {atol:g}): the scene is too stiff")
+                                  f"equations ({SOLVE_IVP_METHOD}, rtol {rtol:g}, atol {atol:g}): the scene is too "
+                                  "stiff")
         try:
             return system.derivative(tk, Z)
         except ArithmeticError as error:  # a trial state of LSODA beyond what a model's maths holds
             raise ReferenceFailed(f"the solve_ivp reference failed at t = {tk:g} s: {error}") from None
 
     reporting = [s for s in system.plan.subsystems if s.energy_output is not None]
-    block = max(n_ticks, 1) if spill is None else BLOCK_ROWS
-    z = system.z0
-    for first in range(0, max(n_ticks, 1), block):
-        last = min(first + block, n_ticks)
-        t = np.arange(first, last + 1) * step
-        # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting
-        # at rest (derivative 0 at t = 0) does not show, and its trial states may overflow
-        solution = solve_ivp(derivative, (t[0], t[-1]), z, method=SOLVE_IVP_METHOD, t_eval=t,
-                             rtol=rtol, atol=atol, first_step=step)
-        if not solution.success:
-            raise ReferenceFailed(f"the solve_ivp reference failed ({SOLVE_IVP_METHOD}: {solution.message})")
-        for k in range(0 if first == 0 else 1, len(t)):  # a block's first point is the last of the one before
-            y = system.outputs(t[k], solution.y[:, k])
-            rows.put(first + k, [*(y[sub][j] for sub, j in system.plan.signals.values()),
-                                 sum(y[s.index][s.energy_output] for s in reporting)])
-        z = solution.y[:, -1]
+    # the first step is the base macro-step: scipy's own guess assumes smoothness that a system starting at rest
+    # (derivative 0 at t = 0) does not show, and its trial states may overflow
+    solver = LSODA(derivative, 0.0, system.z0, n_ticks * step, rtol=rtol, atol=atol, first_step=step)
+    tick = 0  # the next tick to sample
+    while tick <= n_ticks:
+        if solver.status == "finished":
+            raise ReferenceFailed(f"the solve_ivp reference ended at t = {solver.t:g} s, before t = {tick * step:g} s")
+        message = solver.step()
+        if solver.status == "failed":
+            raise ReferenceFailed(f"the solve_ivp reference failed ({SOLVE_IVP_METHOD}: {message})")
+        reached = _ticks_reached(solver.t, step, n_ticks)
+        if reached > tick:
+            dense = solver.dense_output()
+            for first in range(tick, reached, BLOCK_ROWS):
+                t = np.arange(first, min(first + BLOCK_ROWS, reached)) * step
+                states = dense(t)
+                for k in range(len(t)):
+                    y = system.outputs(t[k], states[:, k])
+                    rows.put(first + k, [*(y[sub][j] for sub, j in system.plan.signals.values()),
+                                         sum(y[s.index][s.energy_output] for s in reporting)])
+            tick = reached
     return rows.finish("solve_ivp")
+
+
+def _ticks_reached(t: float, step: float, n_ticks: int) -> int:
+    """How many ticks ``0 … n_ticks`` lie at or before ``t`` [s], a tick ``k`` at ``k × step`` as ``np.arange(n_ticks
+    + 1) * step`` has it (``np.searchsorted(…, t, "right")``, without the array)."""
+    k = min(int(t / step), n_ticks)
+    while k < n_ticks and (k + 1) * step <= t:
+        k += 1
+    while k > 0 and k * step > t:
+        k -= 1
+    return k + 1

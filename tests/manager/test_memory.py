@@ -12,10 +12,18 @@ import threading
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 import zencosim
+import zencosim.manager.results.reference as reference_module
 from zencosim.manager.bus.backlog import Backlog
-from zencosim.manager.results.reference import analytic_reference, solve_ivp_reference
+from zencosim.manager.results.reference import (
+    SOLVE_IVP_ATOL,
+    SOLVE_IVP_METHOD,
+    SOLVE_IVP_RTOL,
+    CoupledSystem,
+    solve_ivp_reference,
+)
 from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.window import BLOCK_ROWS, RowWindow, Spill, read_rows, row_blocks
 
@@ -122,15 +130,37 @@ def test_a_spilled_run_gives_the_kept_runs_arrays_digest_and_summary(scene, over
     assert [p.read_bytes() for p in kept_files] == [p.read_bytes() for p in spilled_files]
 
 
-def test_a_spilled_solve_ivp_reference_integrated_block_by_block_matches_the_analytic_solution():
-    # restarted at every block of 8192 steps, LSODA keeps the accuracy of one pass: the bound of
-    # test_solve_ivp_reference (1e-8 of each signal's range, of E0) over a run of several blocks
-    scene = load_scene("two_mass_damped", ["manager.duration=20.0"])
-    integrated, exact = solve_ivp_reference(scene, spill=Spill()), analytic_reference(scene)
-    assert isinstance(integrated.energy, np.memmap)
-    for name, signal in exact.signals.items():
-        assert np.max(np.abs(integrated.signals[name] - signal)) < 1e-8 * np.ptp(signal), name
-    assert np.max(np.abs(integrated.energy - exact.energy)) < 1e-8 * exact.energy[0]
+@pytest.mark.parametrize("block_rows", [BLOCK_ROWS, 7])
+def test_a_spilled_solve_ivp_reference_is_the_kept_one_and_both_are_scipys_solve_ivp_sampling(block_rows, monkeypatch):
+    """The solve_ivp reference integrates in one pass and writes the samples of each solver step as it is taken: a
+    long run's, spilled to files, is the kept one's bit for bit, and both are what scipy's ``solve_ivp`` gives at
+    its ``t_eval`` (the oracle; the outputs evaluated as the reference evaluates them, at every 97th tick): bit for
+    bit where no solver step spans more than a block of samples (``BLOCK_ROWS``), else within a few units of the
+    last place (a step's dense output evaluated a block at a time rounds as numpy's product of that size does;
+    blocks of 7 here, so that each step's samples span several)."""
+    monkeypatch.setattr(reference_module, "BLOCK_ROWS", block_rows)
+    scene = load_scene("two_mass_damped", ["manager.macro_step=1e-4", "manager.duration=1.0",
+                                           "subsystems.S1.micro_step=1e-4", "subsystems.S2.micro_step=1e-4"])
+    n_ticks, step = scene.manager.duration_ns // scene.manager.macro_step_ns, scene.manager.macro_step_ns * 1e-9
+    kept, spilled = solve_ivp_reference(scene), solve_ivp_reference(scene, spill=Spill())
+    assert isinstance(spilled.energy, np.memmap) and not isinstance(kept.energy, np.memmap)
+    assert np.asarray(spilled.energy).tobytes() == kept.energy.tobytes()
+    for name, signal in kept.signals.items():
+        assert np.asarray(spilled.signals[name]).tobytes() == signal.tobytes(), name
+    system = CoupledSystem(scene)
+    solution = solve_ivp(system.derivative, (0.0, n_ticks * step), system.z0, method=SOLVE_IVP_METHOD,
+                         t_eval=np.arange(n_ticks + 1) * step, rtol=SOLVE_IVP_RTOL, atol=SOLVE_IVP_ATOL,
+                         first_step=step)
+    assert solution.nfev < n_ticks // 7  # the solver's steps span many ticks
+    ticks = range(0, n_ticks + 1, 97)
+    ours = np.array([[kept.signals[name][tick] for name in system.plan.signals] for tick in ticks])
+    scipys = np.array([[y[sub][j] for sub, j in system.plan.signals.values()]
+                       for y in (system.outputs(solution.t[tick], solution.y[:, tick]) for tick in ticks)])
+    if block_rows == BLOCK_ROWS:
+        assert ours.tobytes() == scipys.tobytes()
+    else:
+        scale = np.max(np.abs(scipys), axis=0)  # a signal's size: values near its zero crossings round with it
+        assert (np.abs(ours - scipys) <= 4 * np.finfo(float).eps * scale).all()
 
 
 def _assert_close(a, b, where: str) -> None:

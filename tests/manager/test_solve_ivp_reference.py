@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import example, given
+from hypothesis import strategies as st
 
-from zencosim.manager.results.reference import analytic_reference, solve_ivp_reference
+from zencosim.manager.results.reference import _ticks_reached, analytic_reference, solve_ivp_reference
 from zencosim.manager.scene.load import load_scene
 
 
@@ -29,3 +31,19 @@ def test_own_error_against_a_hundred_times_tighter_run(scene_name, duration):
     coarse, fine = solve_ivp_reference(scene), solve_ivp_reference(scene, rtol=1e-12, atol=1e-12)
     for name, signal in fine.signals.items():
         assert np.max(np.abs(coarse.signals[name] - signal)) < 1e-6 * np.ptp(signal), name
+
+
+@given(st.integers(1, 10**12), st.integers(0, 10**6), st.integers(0, 10), st.integers(-3, 3), st.floats(0.0, 1.0))
+@example(1, 3, 0, -1, 0.0)  # 3 ns less an ulp: t / step rounds up to 3.0, a tick not reached
+@example(1, 31, 0, 0, 0.0)  # 31 ns: t / step rounds down below 31, a tick reached
+def test_the_ticks_a_solver_step_reaches_are_those_searchsorted_finds_on_the_grid(step_ns, tick, beyond, ulps, share):
+    """How many ticks ``k × step`` lie at or before a solver's time ``t``: as ``np.searchsorted(np.arange(n_ticks + 1)
+    * step, t, "right")`` finds (``solve_ivp``'s ``t_eval``), for a time a few units of the last place off a tick
+    (where ``t / step`` rounds across an integer, both ways) and between two ticks."""
+    step, n_ticks = step_ns * 1e-9, tick + beyond
+    t = tick * step
+    for _ in range(abs(ulps)):
+        t = float(np.nextafter(t, np.inf if ulps > 0 else 0.0))
+    grid = np.arange(n_ticks + 1) * step
+    for time in (t, (tick + share) * step):
+        assert _ticks_reached(time, step, n_ticks) == int(np.searchsorted(grid, time, "right")), time
