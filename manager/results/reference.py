@@ -170,35 +170,49 @@ class CoupledSystem:
         bounds = np.cumsum([0] + [len(z) for z in states])
         self.slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
         self.z0 = np.concatenate(states)
+        # per subsystem: its number of inputs, and per feed the source, the inputs it feeds and the outputs it takes
+        self._feeds = [(len(s.inputs), [(f.source, np.array(f.inputs, dtype=np.intp),
+                                         np.array(f.outputs, dtype=np.intp)) for f in s.feeds])
+                       for s in self.plan.subsystems]
 
     def _inputs(self, i: int, outputs: list) -> np.ndarray:
-        s = self.plan.subsystems[i]
-        w = np.zeros(len(s.inputs))
-        for feed in s.feeds:
-            if outputs[feed.source] is not None:
-                w[list(feed.inputs)] = outputs[feed.source][list(feed.outputs)]
+        width, feeds = self._feeds[i]
+        w = np.zeros(width)
+        for source, inputs, taken in feeds:
+            if outputs[source] is not None:
+                w[inputs] = outputs[source][taken]
         return w
 
-    def resolve(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
-        """Every subsystem's input values at time t [s] and state ``Z``."""
+    def _resolved(self, t: float, Z: np.ndarray) -> tuple[list, list, list[np.ndarray]]:
+        """At time t [s] and state ``Z``: each subsystem's outputs as the initialisation order last evaluated them, the
+        inputs it evaluated them with (None for a subsystem it did not ask), and every subsystem's exact inputs."""
         outputs: list = [None] * len(self.models)
+        asked: list = [None] * len(self.models)
         for round_ in self.plan.init_rounds:
             for step in round_:
                 i = step.subsystem
-                outputs[i] = self.models[i].outputs_at(t, Z[self.slices[i]], self._inputs(i, outputs))
+                asked[i] = self._inputs(i, outputs)
+                outputs[i] = self.models[i].outputs_at(t, Z[self.slices[i]], asked[i])
         inputs = [self._inputs(i, outputs) for i in range(len(self.models))]
         for joint in self.joints:
             joint.apply(outputs, inputs)
-        return inputs
+        return outputs, asked, inputs
+
+    def resolve(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
+        """Every subsystem's input values at time t [s] and state ``Z``."""
+        return self._resolved(t, Z)[2]
 
     def derivative(self, t: float, Z: np.ndarray) -> np.ndarray:
         inputs = self.resolve(t, Z)
         return np.concatenate([state_derivative(m, t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)])
 
     def outputs(self, t: float, Z: np.ndarray) -> list[np.ndarray]:
-        """Every subsystem's outputs (energy included) with the exact inputs."""
-        inputs = self.resolve(t, Z)
-        return [m.outputs_at(t, Z[sl], w) for m, sl, w in zip(self.models, self.slices, inputs)]
+        """Every subsystem's outputs (energy included) with the exact inputs: those the initialisation order
+        evaluated with the same inputs, bit for bit, as they are (a model's outputs are a function of t, its state
+        and its inputs); the others evaluated again."""
+        outputs, asked, inputs = self._resolved(t, Z)
+        return [y if w_asked is not None and w_asked.tobytes() == w.tobytes() else m.outputs_at(t, Z[sl], w)
+                for m, sl, y, w_asked, w in zip(self.models, self.slices, outputs, asked, inputs)]
 
 
 class JointForce:

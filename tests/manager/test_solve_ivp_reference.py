@@ -8,7 +8,12 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from zencosim.manager.results.reference import _ticks_reached, analytic_reference, solve_ivp_reference
+from zencosim.manager.results.reference import (
+    CoupledSystem,
+    _ticks_reached,
+    analytic_reference,
+    solve_ivp_reference,
+)
 from zencosim.manager.scene.load import load_scene
 
 
@@ -47,3 +52,19 @@ def test_the_ticks_a_solver_step_reaches_are_those_searchsorted_finds_on_the_gri
     grid = np.arange(n_ticks + 1) * step
     for time in (t, (tick + share) * step):
         assert _ticks_reached(time, step, n_ticks) == int(np.searchsorted(grid, time, "right")), time
+
+
+@pytest.mark.parametrize("scene_name", ["hydraulic_crane", "double_pendulum", "constrained_two_mass", "coupled_pendula",
+                                        "nonlinear_oscillator_case1"])
+def test_the_outputs_are_every_model_evaluated_with_its_exact_inputs(scene_name):
+    """``CoupledSystem.outputs`` keeps the outputs the initialisation order evaluated with the final inputs instead
+    of evaluating them again: bit for bit what every model gives with its exact inputs (``resolve``), at states
+    along the scene's reference trajectory shaken by seeded noise (a joint's force changes its sides' inputs after
+    they were asked: those are evaluated again)."""
+    system = CoupledSystem(load_scene(scene_name))
+    rng = np.random.default_rng(7)
+    for t in (0.0, 0.013, 0.5):
+        Z = system.z0 * (1.0 + 0.1 * rng.standard_normal(system.z0.shape)) + 0.01 * rng.standard_normal(system.z0.shape)
+        inputs = system.resolve(t, Z)
+        expected = [m.outputs_at(t, Z[sl], w) for m, sl, w in zip(system.models, system.slices, inputs)]
+        assert [y.tobytes() for y in system.outputs(t, Z)] == [y.tobytes() for y in expected]
