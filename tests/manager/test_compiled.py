@@ -298,44 +298,46 @@ def test_a_failing_fmu_ends_the_generated_loop_as_it_ends_the_generic_one(exampl
     assert recorded[0] == recorded[1] and len(recorded[0]) >= 4
 
 
+def _recorded_until_interrupted(compiled: bool, monkeypatch, ran: list, progress=None, steps=None) -> tuple[list, int]:
+    """What a recorder gets from a 4.5 s run of two_mass_damped by the generated loop (``compiled``) or the generic
+    one, which a KeyboardInterrupt from ``progress`` or from ``steps`` (``RegisterLoop.steps`` patched) ends, and
+    the index of S1's commands channel."""
+    scene = load_scene("two_mass_damped", ["manager.duration=4.5"])
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, False)
+    recorder = FramesRecorder(plan, status)
+    with monkeypatch.context() as patched, pytest.raises(KeyboardInterrupt):
+        patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, ran))
+        if steps is not None:
+            patched.setattr(register_loop_module.RegisterLoop, "steps", steps)
+        run_in_process(make_scheme(scene, plan, status=status, progress=progress,
+                                   direct=DirectCalls(plan, subsystems), tap=recorder), plan, subsystems, recorder)
+    recorder.flush(last=True)
+    return recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)), recorder._index["S1", "commands"]
+
+
 def test_an_interrupt_during_a_register_block_hands_over_the_steps_the_block_ran(monkeypatch):
     """A SIGINT that arrives while a block of the register program runs in C is raised as the call returns (here: sent
     as the block of steps 1000 … 1499 returns): the recorder gets every step the block ran, the same messages as a
     generic loop interrupted after step 1500."""
-    recorded, blocks = [], []
+    blocks, ran = [], []
     steps = register_loop_module.RegisterLoop.steps
 
     def interrupted(self, first: int, count: int):
-        ran = steps(self, first, count)
+        done = steps(self, first, count)
         blocks.append(first)
         if first == 1000:
             signal.raise_signal(signal.SIGINT)
-        return ran
+        return done
 
     def progress(tick: int) -> None:
         if tick == 1500:
             raise KeyboardInterrupt
-    for compiled in (True, False):
-        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])
-        plan, subsystems = plan_scene(scene)
-        status = StatusReport(plan, False)
-        recorder = FramesRecorder(plan, status)
-        with monkeypatch.context() as patched, pytest.raises(KeyboardInterrupt):
-            patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, []))
-            patched.setattr(register_loop_module.RegisterLoop, "steps", interrupted)
-            previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-            try:
-                run_in_process(make_scheme(scene, plan, status=status, progress=None if compiled else progress,
-                                           direct=DirectCalls(plan, subsystems), tap=recorder), plan, subsystems,
-                               recorder)
-            finally:
-                signal.signal(signal.SIGINT, previous)
-        recorder.flush(last=True)
-        recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
-    commands = recorder._index["S1", "commands"]
-    assert blocks == [0, 500, 1000]  # the register program ran, and was interrupted in its third block
-    assert recorded[0] == recorded[1]
-    assert sum(i == commands for i, _ in recorded[0]) == 1500 + 1
+    recorded, commands = _recorded_until_interrupted(True, monkeypatch, ran, steps=interrupted)
+    expected, _ = _recorded_until_interrupted(False, monkeypatch, ran, progress=progress)
+    assert ran == [True, False] and blocks == [0, 500, 1000]  # the register program was interrupted in its third block
+    assert recorded == expected
+    assert sum(i == commands for i, _ in recorded) == 1500 + 1
 
 
 @pytest.mark.parametrize("at", [500, 2500], ids=["first block", "second block"])
@@ -343,23 +345,13 @@ def test_an_interrupted_recorded_run_hands_the_recorder_what_the_generic_loop_ha
     """An interrupt between two steps (from the progress report after step ``at``; blocks of 2,000 steps): the
     recorder gets the same messages from the generated loop's rows as from the generic loop, up to the commands of
     the last request, whose replies the scheme took but never handed over."""
-    recorded, ran = [], []
+    ran = []
 
     def progress(tick: int) -> None:
         if tick == at:
             raise KeyboardInterrupt
-    for compiled in (True, False):
-        scene = load_scene("two_mass_damped", ["manager.duration=4.5"])
-        plan, subsystems = plan_scene(scene)
-        status = StatusReport(plan, False)
-        recorder = FramesRecorder(plan, status)
-        with monkeypatch.context() as patched, pytest.raises(KeyboardInterrupt):
-            patched.setattr(jacobi_module, "compiled_steps", _spied(compiled, ran))
-            run_in_process(make_scheme(scene, plan, status=status, progress=progress,
-                                       direct=DirectCalls(plan, subsystems), tap=recorder), plan, subsystems, recorder)
-        recorder.flush(last=True)
-        recorded.append(recorder.messages(HEADER.size + 8 * 2 * len(plan.bonds)))
+    recorded, commands = _recorded_until_interrupted(True, monkeypatch, ran, progress)
+    expected, _ = _recorded_until_interrupted(False, monkeypatch, ran, progress)
     assert ran == [True, False]
-    commands = recorder._index["S1", "commands"]
-    assert recorded[0] == recorded[1]
-    assert sum(i == commands for i, _ in recorded[0]) == at + 1  # the initialisation's INIT and the steps' STEPs
+    assert recorded == expected
+    assert sum(i == commands for i, _ in recorded) == at + 1  # the initialisation's INIT and the steps' STEPs
