@@ -35,7 +35,7 @@ CACHE_DIR = "ZENCOSIM_CACHE_DIR"  # the environment variable that moves the cach
 def library(package: str, file_name: str) -> ctypes.CDLL | None:
     """``file_name`` of ``package`` compiled and loaded, once per process (from the cache where it is there); None
     where no C compiler is found or it fails."""
-    compiler = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    compiler = c_compiler()
     if compiler is None:
         return None
     source = resources.files(package).joinpath(file_name).read_bytes()
@@ -59,6 +59,11 @@ def library(package: str, file_name: str) -> ctypes.CDLL | None:
             return compiled
     except (OSError, subprocess.TimeoutExpired):
         return None
+
+
+def c_compiler() -> str | None:
+    """The C compiler's path: ``$CC``, else ``cc`` or ``gcc``; None where none is found."""
+    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
 
 
 def cache_dir() -> Path:

@@ -8,7 +8,6 @@ from __future__ import annotations
 import ctypes
 import math
 import os
-import shutil
 import signal
 import struct
 import subprocess
@@ -23,6 +22,7 @@ from hypothesis import strategies as st
 import zencosim.manager.scheme.register_loop as register_loop_module
 from zencosim.manager.bus.watchdog import CALLS, STEPPING, SUBSYSTEM, ModelWatch
 from zencosim.manager.scheme.register_loop import STAMP_STATEMENT, Failed, NativeCall, register_loop
+from zencosim.subsystems.native import FLAGS, c_compiler
 from zencosim.subsystems.straight_line import NativeStep
 
 NAMES = ["a", "b", "c", "d"]
@@ -199,12 +199,12 @@ def test_an_interrupt_during_a_block_leaves_the_blocks_steps_to_hand_over(tmp_pa
     KeyboardInterrupt as the call returns, so ``steps`` never returns the rows; ``completed`` gives those of every
     step the program ran (to the block's end: C does not see Python's signals), none for a block that did not run,
     and the next block goes on from the registers the interrupted one left."""
-    compiler = shutil.which("cc") or shutil.which("gcc")
+    compiler = c_compiler()
     if compiler is None:
         pytest.skip("no C compiler: no register program")
     source, shared = tmp_path / "signalling.c", tmp_path / "signalling.so"
     source.write_text(SIGNALLING_STEP)
-    subprocess.run([compiler, "-shared", "-fPIC", str(source), "-o", str(shared)], check=True)
+    subprocess.run([compiler, *FLAGS, str(source), "-o", str(shared)], check=True)  # as subsystems.native compiles
     at_ns = ctypes.c_longlong(3 * 1000)
     step = NativeStep(ctypes.CDLL(str(shared)).step, at_ns, (ctypes.c_double * 1)(), (ctypes.c_double * 1)(),
                       ValueError)
