@@ -61,3 +61,19 @@ def exponents(unit: str) -> Exponents:
 def describe(value: Exponents) -> str:
     """``kg m s-2``-style text of base-unit exponents (``1`` for a dimensionless quantity)."""
     return " ".join(name if e == 1 else f"{name}{e}" for name, e in zip(BASE, value) if e) or "1"
+
+
+_RAD = BASE.index("rad")
+
+
+def replaceable(declared: Exponents, stated: Exponents) -> bool:
+    """Whether a scene's unit (``stated``) may replace the unit a component declares: when the declared one is
+    dimensionless (``1``, pint's ``dimensionless``), or differs from the scene's only in the radian, which the
+    component leaves out (the radian is m/m in SI: pint writes ``radian / second`` with ``rad="0"``). Any other
+    declared unit is the component's word on its quantity (an equal one needs no replacing)."""
+    if declared == stated:
+        return False
+    if not any(declared):
+        return True
+    others = [i for i in range(len(BASE)) if i != _RAD]
+    return declared[_RAD] == 0 and all(declared[i] == stated[i] for i in others)

@@ -246,6 +246,8 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     summary["correction"] = correction_summary(scene, record)
     if record.implicit is not None:
         summary["implicit"] = implicit_summary(scene, record)
+    if scene.replaced_units:
+        summary["replaced_units"] = scene.replaced_units
     if reference_note:
         summary["reference_note"] = reference_note
     if recording is not None:

@@ -78,6 +78,14 @@ class Scene:
     def comm_step_ns(self, subsystem: str) -> int:
         return self.manager.macro_step_ns * self.subsystems[subsystem].settings.comm_ratio
 
+    @property
+    def replaced_units(self) -> dict[str, dict[str, str]]:
+        """``<subsystem>.<variable>`` -> ``{"declared": …, "scene": …}``: the dimensionless units of FMUs and
+        Python models that the scene's ``units`` replaced (``subsystems.models.external.model.apply_units``)."""
+        return {f"{name}.{variable}": {"declared": declared, "scene": unit}
+                for name, subsystem in self.subsystems.items()
+                for variable, (declared, unit) in getattr(subsystem.spec, "replaced_units", {}).items()}
+
 
 def bundled_scene_names() -> list[str]:
     """Names of the scenes that ship with zencosim."""

@@ -61,6 +61,10 @@ def cmd_check(args: argparse.Namespace) -> int:
         out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + (" (feedthrough)" if p.feedthrough else "")
                                                 for p in sub.outputs)))
         out.print(escape(f"  effects: {', '.join(sub.effects) or 'none'}"))
+        for key, unit in scene.replaced_units.items():
+            if key.startswith(f"{sub.name}."):
+                out.print(escape(f"  unit: {key.removeprefix(sub.name + '.')} [{unit['scene']}], the scene's, replaces "
+                                 f"the declared [{unit['declared']}]"), highlight=False)
     return 0
 
 

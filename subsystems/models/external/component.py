@@ -31,7 +31,8 @@ class Variable:
 
     name: str
     causality: str  # "input", "output", "parameter", "local", …
-    unit: str | None  # as the component declares it (or the scene, where the component declares none)
+    unit: str | None  # as the component declares it (or the scene, where the component declares none or
+    # a dimensionless one: ``declared_unit``)
     exponents: Exponents | None  # its SI base-unit exponents; None when undeclared or unknown
     unit_problem: str | None  # why ``exponents`` is None
     depends_on: tuple[str, ...] | None = None  # an output's direct dependence on inputs; None: on every input
@@ -40,6 +41,7 @@ class Variable:
     kind: Literal["Real", "Integer", "Boolean"] = "Real"  # an Integer or Boolean travels as a float64 too
     minimum: float = -math.inf  # the range the component declares (FMI min and max), SI
     maximum: float = math.inf
+    declared_unit: str | None = None  # the component's own unit, where the scene's replaced it (units.replaceable)
 
     @property
     def discrete(self) -> bool:

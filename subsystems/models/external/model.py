@@ -41,7 +41,7 @@ from zencosim.subsystems.models.external.table import InputTable, read_input_tab
 from zencosim.subsystems.params import Problems, check_value, read_table
 from zencosim.subsystems.ports import UNITS, Attachments, Port
 from zencosim.subsystems.straight_line import StepText
-from zencosim.subsystems.units import UnitError, describe, exponents
+from zencosim.subsystems.units import UnitError, describe, exponents, replaceable
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,12 @@ class ExternalSpec:
     def identity(self) -> dict[str, str]:
         """What identifies the component's file to the other processes of a run (an FMU's GUID and sha256)."""
         return dict(self.description.identity)
+
+    @property
+    def replaced_units(self) -> dict[str, tuple[str, str]]:
+        """variable -> (the unit the component declares, the scene's that replaced it: :func:`apply_units`)."""
+        return {name: (v.declared_unit, v.unit) for name, v in self.description.variables.items()
+                if v.declared_unit is not None}
 
     @property
     def second_order(self) -> bool:
@@ -352,8 +358,11 @@ def read_start(table: Any, description: ComponentDescription, key: str, problems
 def apply_units(table: Any, description: ComponentDescription, key: str,
                 problems: Problems) -> ComponentDescription:
     """The description with the scene's ``units`` table (variable -> SI unit) applied: the unit of a variable
-    the component declares none for, or one zencosim cannot read. Where the component declares a unit it
-    reads, the scene's must be of the same quantity and the component's (with its factor and offset) is used."""
+    the component declares none for, or one zencosim cannot read, or a dimensionless one (``1``; or one that
+    differs from the scene's only in the radian: :func:`~zencosim.subsystems.units.replaceable`), which the
+    scene's replaces, the component's factor and offset kept (``Variable.declared_unit`` remembers it). Any
+    other unit the component declares is its own: the scene's must be of the same quantity, and the
+    component's (with its factor and offset) is used."""
     if table is None:
         return description
     if not isinstance(table, dict):
@@ -376,11 +385,21 @@ def apply_units(table: Any, description: ComponentDescription, key: str,
             continue
         if variable.exponents is None:
             variables[name] = replace(variable, unit=unit, exponents=found, unit_problem=None, factor=1.0, offset=0.0)
+        elif replaceable(variable.exponents, found):
+            variables[name] = replace(variable, unit=unit, exponents=found, declared_unit=variable.unit)
         elif variable.exponents != found:
-            problems.add(f"{key}.{name}", f"{name}: the {description.kind} declares [{variable.unit}] "
-                                          f"({describe(variable.exponents)}), the scene [{unit}] ({describe(found)}): "
-                                          "not the same quantity")
+            problems.add(f"{key}.{name}", unit_contradiction(name, description.kind, variable.unit, variable.exponents,
+                                                             unit, found))
     return replace(description, variables=variables)
+
+
+def unit_contradiction(name: str, kind: str, declared: str, declared_exponents: tuple[int, ...], stated: str,
+                       stated_exponents: tuple[int, ...]) -> str:
+    """Why a scene's unit cannot stand for the one a component declares (neither the same quantity nor a
+    replaceable one)."""
+    return (f"{name}: the {kind} declares [{declared}] ({describe(declared_exponents)}), the scene [{stated}] "
+            f"({describe(stated_exponents)}): not the same quantity (a scene's unit replaces a declared one only "
+            "where that is dimensionless, or lacks only the radian)")
 
 
 def _check_variable(name: str, causality: str, quantity: str, description: ComponentDescription, key: str,
