@@ -77,3 +77,12 @@ def replaceable(declared: Exponents, stated: Exponents) -> bool:
         return True
     others = [i for i in range(len(BASE)) if i != _RAD]
     return declared[_RAD] == 0 and all(declared[i] == stated[i] for i in others)
+
+
+def unit_contradiction(name: str, kind: str, declared: str, declared_exponents: Exponents, stated: str,
+                       stated_exponents: Exponents) -> str:
+    """Why a scene's unit cannot stand for the one a component declares (neither the same quantity nor a
+    replaceable one)."""
+    return (f"{name}: the {kind} declares [{declared}] ({describe(declared_exponents)}), the scene [{stated}] "
+            f"({describe(stated_exponents)}): not the same quantity (a scene's unit replaces a declared one only "
+            "where that is dimensionless, or lacks only the radian)")

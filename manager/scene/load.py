@@ -136,11 +136,13 @@ def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
 IMPORT_OPTIONS = {"manager.algorithm": "algorithm", "input": "input_table"}  # override key -> import_system's
 
 
-def _import_options(overrides: Sequence[str]) -> tuple[dict[str, str], list[str]]:
+def _import_options(overrides: Sequence[str]) -> tuple[dict, list[str]]:
     """What overrides ask of how a system description is mapped (they are taken before the others):
     ``manager.algorithm=fixed`` (an OSP ``ecco`` system at its base step), ``input=table.csv`` (a lone FMU's
-    input values); and the other overrides."""
-    options, others = {}, []
+    input values), ``subsystems.<name>.units.<variable>=UNIT`` (the quantities of connections, which the import
+    reads from units; applied to the scene too); and the other overrides."""
+    options: dict = {}
+    others = []
     for override in overrides:
         try:
             path, value = parse_override(override)
@@ -149,8 +151,10 @@ def _import_options(overrides: Sequence[str]) -> tuple[dict[str, str], list[str]
         key = ".".join(path)
         if key in IMPORT_OPTIONS:
             options[IMPORT_OPTIONS[key]] = str(value)
-        else:
-            others.append(override)
+            continue
+        if len(path) == 4 and path[0] == "subsystems" and path[2] == "units":
+            options.setdefault("units", {}).setdefault(path[1], {})[path[3]] = value
+        others.append(override)
     return options, others
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import copy
+import re
 import tomllib
 from typing import Any, Sequence
 
@@ -15,12 +16,19 @@ def toml_value(value: object) -> str:
     return tomli_w.dumps({"v": value}).partition("=")[2].strip()
 
 
+_KEY_PART = r'(?:"[^"]*"|[^."=]+)'  # a bare key part, or a quoted one, which may hold dots: "fixation.end[0]"
+_KEY = re.compile(rf"\s*({_KEY_PART}(?:\.{_KEY_PART})*)\s*=")
+
+
 def parse_override(text: str) -> tuple[list[str], Any]:
-    """Split ``a.b.c=value`` into a key path and a TOML value (a bare word is taken as a string)."""
-    key, sep, raw = text.partition("=")
-    path = key.strip().split(".")
-    if not sep or not all(path):
+    """Split ``a.b.c=value`` into a key path and a TOML value (a bare word is taken as a string); a part of the
+    key in double quotes is one part, dots included (``subsystems.crane.units."boom.end[0]"=m``)."""
+    match = _KEY.match(text)
+    parts = [part.strip() for part in re.findall(_KEY_PART, match.group(1))] if match else []
+    if not parts or not all(parts):
         raise ValueError(f"--set {text!r}: expected key=value, e.g. manager.macro_step=0.004")
+    path = [part[1:-1] if part.startswith('"') else part for part in parts]
+    raw = text[match.end():]
     try:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:

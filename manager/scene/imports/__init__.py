@@ -33,7 +33,7 @@ from typing import Any
 
 from zencosim.manager.scene.load import SceneError
 from zencosim.subsystems.params import Problems
-from zencosim.subsystems.units import BASE, Exponents, UnitError, describe, exponents
+from zencosim.subsystems.units import BASE, Exponents, UnitError, describe, exponents, replaceable, unit_contradiction
 
 QUANTITIES: dict[str, tuple[str, Exponents]] = {  # quantity -> (SI unit, base-unit exponents)
     name: (unit, exponents(unit)) for name, unit in (
@@ -60,15 +60,18 @@ ALGORITHMS = ("fixed",)  # what a user may ask a system's algorithm to be replac
 
 
 def import_system(path: Path, duration: float | None = None, algorithm: str | None = None,
-                  input_table: str | None = None) -> tuple[dict, list[str]]:
+                  input_table: str | None = None, units: dict[str, dict[str, str]] | None = None
+                  ) -> tuple[dict, list[str]]:
     """The scene document of the system described at ``path`` and the notes on its mapping.
 
     ``.xml``: an OSP system structure; ``.ssp`` or ``.ssd``: an SSP system; ``.fmu``: one FMU run alone
     (``input_table``: a CSV file of its input values over time, :mod:`.fmu`). ``duration`` [s] is the
     simulated time (default: the file's end time, else 10 s; rounded up to a whole number of
     communication periods). ``algorithm = "fixed"`` runs an OSP system whose algorithm zencosim does not
-    have (``ecco``) at its base step with the fixed-step algorithm. Raises :class:`SceneError` listing
-    everything that cannot be mapped.
+    have (``ecco``) at its base step with the fixed-step algorithm. ``units``: the scene's units of FMU
+    variables, ``{subsystem: {variable: SI unit}}`` (``--set subsystems.<name>.units.<variable>=UNIT``), which
+    give a connection's quantity where an FMU declares none, or a dimensionless one, which they replace
+    (:func:`stated_quantity`). Raises :class:`SceneError` listing everything that cannot be mapped.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -82,10 +85,10 @@ def import_system(path: Path, duration: float | None = None, algorithm: str | No
         return import_fmu(path, duration, input_table)
     if suffix == ".xml":
         from zencosim.manager.scene.imports.osp import import_osp
-        return import_osp(path, duration, algorithm)
+        return import_osp(path, duration, algorithm, units or {})
     if suffix in (".ssp", ".ssd"):
         from zencosim.manager.scene.imports.ssp import import_ssp
-        return import_ssp(path, duration)
+        return import_ssp(path, duration, units or {})
     raise refusal(path, "file", f"expected an OSP system structure (.xml) or an SSP system (.ssp, .ssd), "
                                 f"got {path.name!r}")
 
@@ -283,6 +286,7 @@ class Component:
     step: float | None  # its doStep size = its communication step [s] (None: not settled yet)
     start: dict[str, float] = field(default_factory=dict)
     comm_ratio: int = 1
+    units: dict[str, str] = field(default_factory=dict)  # the scene's units of its variables (import_system)
 
 
 def check_variable(component: Component, name: str, key: str, problems: Problems) -> Any:
@@ -395,6 +399,8 @@ def _quantity(component: Component, name: str, key: str, problems: Problems,
               declared: dict[tuple[str, str], str] | None,
               definitions: dict[str, dict[str, UnitDefinition]] | None) -> str | None:
     variable = component.fmu.variables.get(name)
+    if name in component.units:
+        return stated_quantity(component, name, key, problems)
     candidates = []
     unit = (declared or {}).get((component.name, name))
     own = variable_unit(variable) if variable is not None else None
@@ -417,6 +423,30 @@ def _quantity(component: Component, name: str, key: str, problems: Problems,
         problems.add(key, f"{component.name}.{name}: the system description and the FMU give it different "
                           f"quantities ({', '.join(sorted(found))})")
     return found.pop() if len(found) == 1 else None
+
+
+def stated_quantity(component: Component, name: str, key: str, problems: Problems) -> str | None:
+    """The quantity of a variable whose unit the scene states: an SI unit, which stands for the FMU's own where
+    that is of the same quantity, is missing or unreadable, or is dimensionless (or lacks only the radian:
+    ``subsystems.units.replaceable``), as the scene's ``units`` do when the FMU is loaded
+    (``subsystems.models.external.model.apply_units``); else None with a problem."""
+    stated, variable = component.units[name], component.fmu.variables.get(name)
+    where_stated = f"subsystems.{component.name}.units.{name}"
+    try:
+        found = exponents(stated) if isinstance(stated, str) else None
+    except UnitError as error:
+        problems.add(where_stated, f"{error}; give an SI unit")
+        return None
+    if found is None:
+        problems.add(where_stated, f"expected an SI unit as a string (e.g. \"N\", \"m/s\"), got {stated!r}")
+        return None
+    own = variable_unit(variable) if variable is not None else None
+    own_exponents = unit_exponents(own, component.fmu.units)[0] if own else None
+    if own_exponents is not None and own_exponents != found and not replaceable(own_exponents, found):
+        problems.add(where_stated, unit_contradiction(name, f"FMU {component.fmu.label}", own, own_exponents, stated,
+                                                      found))
+        return None
+    return quantity_of(found, is_torque(stated, variable) or (own_exponents == found and is_torque(own, variable)))
 
 
 @dataclass

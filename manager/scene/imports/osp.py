@@ -174,8 +174,10 @@ class _ModelDescription:
 class _Import:
     """One OSP system structure being read; problems and notes collect as it goes."""
 
-    def __init__(self, path: Path, duration: float | None, algorithm: str | None = None) -> None:
+    def __init__(self, path: Path, duration: float | None, algorithm: str | None = None,
+                 units: dict[str, dict[str, str]] | None = None) -> None:
         self.path = path
+        self.units = units or {}  # the scene's units of FMU variables, by subsystem (import_system)
         self.directory = path.parent
         self.duration = duration
         self.algorithm = algorithm  # "fixed": the user asks for the fixed-step algorithm whatever the file says
@@ -362,7 +364,8 @@ class _Import:
         if element.get("stepSize") is None and self.energy_control is None:
             self.notes.append(f"subsystems.{name}.micro_step = {step!r} s: {key} gives no stepSize; the base step, as "
                               "libcosim steps it")
-        component = Component(name, key, fmu, document_path(fmu_path, self.directory), step)
+        component = Component(name, key, fmu, document_path(fmu_path, self.directory), step,
+                              units=dict(self.units.get(name, {})))
         self.components[raw_name] = component
         for initial in (v for values in children(element, "InitialValues") for v in children(values)):
             value_key = where(initial)
@@ -680,8 +683,9 @@ def _a(noun: str) -> str:
     return f"{'an' if noun[0].lower() in 'aeiou' else 'a'} {noun}"
 
 
-def import_osp(path: Path, duration: float | None = None, algorithm: str | None = None) -> tuple[dict, list[str]]:
-    """The scene document of the OSP system structure at ``path`` and the notes on its mapping (``algorithm``:
-    as :func:`~zencosim.manager.scene.imports.import_system` takes it); raises :class:`SceneError` listing
-    whatever cannot be mapped."""
-    return _Import(Path(path), duration, algorithm).run()
+def import_osp(path: Path, duration: float | None = None, algorithm: str | None = None,
+               units: dict[str, dict[str, str]] | None = None) -> tuple[dict, list[str]]:
+    """The scene document of the OSP system structure at ``path`` and the notes on its mapping (``algorithm``,
+    ``units``: as :func:`~zencosim.manager.scene.imports.import_system` takes them); raises :class:`SceneError`
+    listing whatever cannot be mapped."""
+    return _Import(Path(path), duration, algorithm, units).run()

@@ -83,8 +83,9 @@ def _annotation(element, tag: str):
 class _Import:
     """One SSP system being read; problems and notes collect as it goes."""
 
-    def __init__(self, path: Path, duration: float | None) -> None:
+    def __init__(self, path: Path, duration: float | None, units: dict[str, dict[str, str]] | None = None) -> None:
         self.path = path
+        self.units = units or {}  # the scene's units of FMU variables, by subsystem (import_system)
         self.directory = path.parent
         self.duration = duration
         self.archive = path.suffix.lower() == ".ssp"
@@ -332,8 +333,8 @@ class _Import:
         if fmu is None:
             self.problems.add(key, f"FMU {source}: {reason}")
             return None
-        component = Component(scene_name(element.name or "component", used, "the component", self.notes), key, fmu,
-                              place, step)
+        name = scene_name(element.name or "component", used, "the component", self.notes)
+        component = Component(name, key, fmu, place, step, units=dict(self.units.get(name, {})))
         if inside is not None:
             self.notes.append(f"subsystems.{component.name}.fmu = {inside}")
         self.connectors[component.name] = {c.name: c.kind for c in element.connectors}
@@ -540,7 +541,9 @@ def _joined(links: list[Link]) -> Link:
                 tuple(n for link in links for n in link.inputs), first.quantity, factor=first.factor)
 
 
-def import_ssp(path: Path, duration: float | None = None) -> tuple[dict, list[str]]:
-    """The scene document of the SSP system at ``path`` (``.ssp`` or ``.ssd``) and the notes on its mapping;
-    raises :class:`SceneError` listing whatever cannot be mapped."""
-    return _Import(Path(path), duration).run()
+def import_ssp(path: Path, duration: float | None = None,
+               units: dict[str, dict[str, str]] | None = None) -> tuple[dict, list[str]]:
+    """The scene document of the SSP system at ``path`` (``.ssp`` or ``.ssd``) and the notes on its mapping
+    (``units``: as :func:`~zencosim.manager.scene.imports.import_system` takes them); raises :class:`SceneError`
+    listing whatever cannot be mapped."""
+    return _Import(Path(path), duration, units).run()

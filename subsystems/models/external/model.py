@@ -41,7 +41,7 @@ from zencosim.subsystems.models.external.table import InputTable, read_input_tab
 from zencosim.subsystems.params import Problems, check_value, read_table
 from zencosim.subsystems.ports import UNITS, Attachments, Port
 from zencosim.subsystems.straight_line import StepText
-from zencosim.subsystems.units import UnitError, describe, exponents, replaceable
+from zencosim.subsystems.units import UnitError, describe, exponents, replaceable, unit_contradiction
 
 
 @dataclass(frozen=True)
@@ -391,15 +391,6 @@ def apply_units(table: Any, description: ComponentDescription, key: str,
             problems.add(f"{key}.{name}", unit_contradiction(name, description.kind, variable.unit, variable.exponents,
                                                              unit, found))
     return replace(description, variables=variables)
-
-
-def unit_contradiction(name: str, kind: str, declared: str, declared_exponents: tuple[int, ...], stated: str,
-                       stated_exponents: tuple[int, ...]) -> str:
-    """Why a scene's unit cannot stand for the one a component declares (neither the same quantity nor a
-    replaceable one)."""
-    return (f"{name}: the {kind} declares [{declared}] ({describe(declared_exponents)}), the scene [{stated}] "
-            f"({describe(stated_exponents)}): not the same quantity (a scene's unit replaces a declared one only "
-            "where that is dimensionless, or lacks only the radian)")
 
 
 def _check_variable(name: str, causality: str, quantity: str, description: ComponentDescription, key: str,
