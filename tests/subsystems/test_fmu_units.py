@@ -28,6 +28,7 @@ from zencosim.subsystems.models import model_traits
 from zencosim.subsystems.models.conformance import _drive, check_component
 from zencosim.subsystems.models.external.fmu import describe_fmu
 from zencosim.subsystems.models.external.model import ExternalSpec, FmuModel
+from zencosim.subsystems.params import Problems
 from zencosim.subsystems.subsystem import Subsystem
 
 ROUNDING = 1e-13  # relative to the signal's largest value (module text)
@@ -235,3 +236,41 @@ def test_a_scene_with_converted_units_gives_the_same_digest_over_zenoh(fmus):
     scene = zencosim.load_scene(_scene(fmus, "mm_zenoh.toml", "mm_no_fc.fmu", 'units = { fc = "N" }'),
                                 {"manager.duration": 0.2})
     assert zencosim.run(scene, "zenoh").digest == zencosim.run(scene).digest
+
+
+# -- a declared dimensionless unit, replaced by the scene's ------------------------------------------------------
+
+COUPLED = {"fc": "N", "x_in": "m", "v_in": "m/s", "f_in": "N", "x": "m", "v": "m/s"}
+
+
+def test_scene_units_replace_a_dimensionless_unit_and_the_bond_runs_as_with_si_units(fmus):
+    """pint-style FMUs declare "dimensionless": refused as a bond's variables, until the scene's units replace it;
+    then the same binary gives the SI FMU's run bit for bit, residual energy included, and the summary says it."""
+    rewrite_units(fmus / "oscillator_fmi2.fmu", fmus / "pint.fmu", dict.fromkeys(COUPLED, "dimensionless"),
+                  {"dimensionless": ({}, 1.0, 0.0)})
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene(_scene(fmus, "pint_bare.toml", "pint.fmu"))
+    assert "subsystems.S1.points.m1.force: fc is in [dimensionless] (1); expected [N] (force)" in str(caught.value)
+    units = ", ".join(f'{name} = "{unit}"' for name, unit in COUPLED.items())
+    duration = {"manager.duration": 1.0}
+    given = zencosim.run(zencosim.load_scene(_scene(fmus, "pint.toml", "pint.fmu", f"units = {{ {units} }}"),
+                                             duration))
+    reference = zencosim.run(zencosim.load_scene(fmus / "two_mass_damped_fmu.toml", duration))
+    assert given.summary["digest"] == reference.summary["digest"]
+    assert given.summary["residual_energy"] == reference.summary["residual_energy"] != {"c": 0.0}
+    assert given.summary["replaced_units"]["S2.f_in"] == {"declared": "dimensionless", "scene": "N"}
+    assert len(given.summary["replaced_units"]) == 2 * len(COUPLED) and "replaced_units" not in reference.summary
+
+
+def test_a_scene_unit_that_contradicts_a_real_declared_unit_is_refused(fmus):
+    """x declares m: a real unit stays the FMU's; rad/s for a unit lacking only the radian (pint's s-1) is taken."""
+    with pytest.raises(zencosim.SceneError) as caught:
+        zencosim.load_scene(_scene(fmus, "contradicts.toml", "oscillator_fmi2.fmu", 'units = { x = "rad" }'))
+    assert ("subsystems.S1.units.x: x: the FMI 2.0 Co-Simulation declares [m] (m), the scene [rad] (rad): not the "
+            "same quantity (a scene's unit replaces a declared one only where that is dimensionless, or lacks only "
+            "the radian)") in " ".join(str(caught.value).split())
+    path = rewrite_units(fmus / "oscillator_fmi2.fmu", fmus / "per_s.fmu", {"v": "radian / second"},
+                         {"radian / second": ({"s": -1, "rad": 0}, 1.0, 0.0)})
+    problems = Problems()
+    spec = FmuModel.read({"fmu": path.name, "units": {"v": "rad/s"}}, "S", problems, fmus)
+    assert not problems and spec.replaced_units == {"v": ("radian / second", "rad/s")}
