@@ -94,3 +94,16 @@ def test_the_crane_on_its_oscillator_runs_with_residual_power_at_its_bond(system
     result = json.loads(summary.read_text())
     assert result["residual_energy"]["forceX-velocityX"] != 0.0 and not result["diverged"]
     assert result["replaced_units"]["osc.f[3]"] == {"declared": "dimensionless", "scene": "N.m"}
+
+
+def test_the_run_says_which_outputs_out_leaves_out_and_how_to_get_them(system):
+    """An import publishes the couplings' signals only (its digest and recordings stay what they were): the run
+    counts the FMUs' other outputs (crane 15 and osc 12, less the bond's torque[0] and v[3]) in one line."""
+    from zencosim.cli.run import _unpublished_outputs
+
+    assert _unpublished_outputs(zencosim.load_scene(system, _overrides(UNITS))) == (
+        "the tables hold the couplings' signals; not the other outputs of crane (14), osc (11): "
+        "--set subsystems.<name>.outputs=all adds them")
+    every = zencosim.load_scene(system, [*_overrides(UNITS), "subsystems.crane.outputs=all",
+                                         "subsystems.osc.outputs=all"])
+    assert _unpublished_outputs(every) is None

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -17,7 +18,7 @@ from zencosim.manager.realtime_probe import Budget
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.results.tables import check_table_path, record_tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
-from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scene.load import SYSTEM_DESCRIPTIONS, load_scene
 
 DIVERGED = 3  # exit status of a run whose values did not stay finite, or that --strict fails (zencosim.cli.main)
 
@@ -172,6 +173,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         written = write_tables(record_tables(record), out_path)
         if not args.quiet:
             say(f"wrote {', '.join(map(str, written))}")
+            hint = _unpublished_outputs(scene)
+            if hint:
+                say(hint)
     if summary["diverged"]:
         at = summary["diverged_at_s"]
         what = "the implicit run's joint opened" if at is None else f"outputs not finite from t = {at:g} s"
@@ -183,6 +187,25 @@ def cmd_run(args: argparse.Namespace) -> int:
         warn(f"--strict: the run completed, but {'; and '.join(failed)}; exit status {DIVERGED}")
         return DIVERGED
     return 0
+
+
+def _unpublished_outputs(scene) -> str | None:
+    """For a scene imported from a system description (OSP, SSP), whose FMUs publish only what their couplings
+    send: one line saying which FMUs have outputs that ``--out`` does not hold and how to get them."""
+    if Path(scene.path).suffix.lower() not in SYSTEM_DESCRIPTIONS:
+        return None
+    left = {}
+    for name, sub in scene.subsystems.items():
+        if hasattr(sub.spec, "published"):  # an FMU's (subsystems.models.external.model.ExternalSpec)
+            coupled = {v for point in sub.spec.point_maps.values() for role in point.roles()
+                       for v in point.variables(role)}
+            left[name] = len(set(sub.spec.description.outputs) - set(sub.spec.published) - coupled)
+    left = {name: count for name, count in left.items() if count}
+    if not left:
+        return None
+    return (f"the tables hold the couplings' signals; not the other outputs of "
+            f"{', '.join(f'{name} ({count})' for name, count in left.items())}: "
+            f"--set subsystems.<name>.outputs=all adds them")
 
 
 def _strict_failures(summary: dict, max_missed: float) -> list[str]:
