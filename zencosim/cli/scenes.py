@@ -14,6 +14,7 @@ from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import SceneError, bundled_scene_names, load_scene, scene_from_text
 from zencosim.subsystems.params import Problem
+from zencosim.subsystems.ports import Port
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -58,10 +59,21 @@ def cmd_check(args: argparse.Namespace) -> int:
         out.print(f"[bold]{sub.name}[/]: {settings.model}, {settings.integrator}, micro-step {settings.micro_step:g} s, "
                   f"communication step {sub.ratio * scene.manager.macro_step:g} s")
         out.print(escape(f"  inputs:  {', '.join(f'{p.name} [{p.unit}]' for p in sub.inputs) or 'none'}"))
-        out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + (" (feedthrough)" if p.feedthrough else "")
-                                                for p in sub.outputs)))
+        out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + _feedthrough_mark(p) for p in sub.outputs)))
+        stated = getattr(scene.subsystems[sub.name].spec, "feedthrough", None)
+        if stated is not None:
+            out.print(escape(f"  feedthrough (subsystems.{sub.name}.feedthrough): " + (", ".join(
+                f"{output} <- {', '.join(inputs) or 'none'}" for output, inputs in stated.items())
+                or "no output") + ("; the other outputs: none" if stated else "")))
         out.print(escape(f"  effects: {', '.join(sub.effects) or 'none'}"))
     return 0
+
+
+def _feedthrough_mark(port: Port) -> str:
+    """How ``check`` marks an output's direct feedthrough: declared, or only FMI's default (``Port.undeclared``)."""
+    if port.undeclared:
+        return " (feedthrough undeclared: every input)"
+    return " (feedthrough)" if port.feedthrough else ""
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
