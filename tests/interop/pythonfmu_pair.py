@@ -60,14 +60,20 @@ class PIController(Fmi2Slave):
 '''
 
 
-def build_controller(directory: Path) -> Path:
-    """Export the controller with pythonfmu's builder into ``directory``; return ``PIController.fmu``."""
+def build_fmu(directory: Path, module: str, text: str) -> Path:
+    """Export the ``Fmi2Slave`` of the source ``text``, written as ``module``.py, with pythonfmu's builder into
+    ``directory``; return the FMU (named after the class)."""
     from pythonfmu.builder import FmuBuilder
 
-    source = directory / "source" / "zencosim_pi_controller.py"
+    source = directory / "source" / f"{module}.py"
     source.parent.mkdir(parents=True, exist_ok=True)
-    source.write_text(CONTROLLER_SOURCE)
+    source.write_text(text)
     return Path(FmuBuilder.build_FMU(source, dest=directory))
+
+
+def build_controller(directory: Path) -> Path:
+    """Export the controller with pythonfmu's builder into ``directory``; return ``PIController.fmu``."""
+    return build_fmu(directory, "zencosim_pi_controller", CONTROLLER_SOURCE)
 
 
 def write_scene(directory: Path, plant: Path, controller: Path) -> Path:
