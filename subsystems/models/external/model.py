@@ -130,7 +130,7 @@ class ExternalSpec:
         if self.feedthrough is not None:
             return f"as {key}.feedthrough states it"
         if self.reference == "fmu":
-            return f"as its modelDescription declares it ({key}.feedthrough states otherwise)"
+            return f"as its modelDescription declares it, which {key}.feedthrough overrides"
         return None
 
     def variable_problem(self, name: str, end: Literal["output", "input"]) -> str | None:
