@@ -235,7 +235,7 @@ def stages(scene: Scene, plans: list[SubsystemPlan], init_rounds: tuple[tuple[In
     return tuple((s.index,) for s in sorted(plans, key=lambda s: last_round.get(s.index, 0)))
 
 
-def _init_rounds(plans: list[SubsystemPlan], problems: Problems, origins: dict[int, str | None] | None = None
+def _init_rounds(plans: list[SubsystemPlan], problems: Problems, origins: dict[int, str | None]
                  ) -> tuple[tuple[InitStep, ...], ...]:
     """Order the initial-output requests by output: an output is final once every input it depends on at the
     same instant (``Port.direct_inputs``) carries a final value; each round asks every subsystem with outputs
@@ -270,7 +270,7 @@ def _init_rounds(plans: list[SubsystemPlan], problems: Problems, origins: dict[i
             declared = _declared_loops(plans, depends, final)
             if declared:
                 problems.add("couplings", "outputs with direct feedthrough form an algebraic loop: "
-                             + _loop_text(plans, declared, origins or {}) + "; an explicit scheme cannot initialise "
+                             + _loop_text(plans, declared, origins) + "; an explicit scheme cannot initialise "
                              "them")
                 break
             rounds += _passes(plans, depends, final, sources, rounds)

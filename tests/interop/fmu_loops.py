@@ -10,12 +10,9 @@ libcosim and zencosim both load: the same file for both tools.
 * crane-fmu's ``DrivingForce.fmu`` and ``HarmonicOscillator6D.fmu`` (made with component-model): the driving force
   on three axes of the oscillator, the oscillator's velocities back to the force's ``v_osc`` inputs.
 
-:func:`write_osp` writes a system of plain ``VariableConnection``s, each simulator at its own ``stepSize``.
+``tests.interop.pythonfmu_pair.write_plain_osp`` writes either as plain ``VariableConnection``s.
 """
 from __future__ import annotations
-
-import shutil
-from pathlib import Path
 
 PD_SOURCE = '''\
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
@@ -76,28 +73,3 @@ PD_CONNECTIONS = (("controller", "force", "plant", "f"), ("plant", "x_mount", "c
 CRANE_CONNECTIONS = tuple(("drive", f"f[{i}]", "osc", f"f[{i}]") for i in range(3)) + tuple(
     ("osc", f"v[{i}]", "drive", f"v_osc[{i}]") for i in range(3))
 
-
-def write_osp(directory: Path, base_step: float, simulators: dict[str, tuple[Path, float]],
-              connections: tuple[tuple[str, str, str, str], ...]) -> Path:
-    """``directory/OspSystemStructure.xml``: ``simulators`` (name -> (FMU, stepSize [s]), the FMUs copied beside it)
-    joined by one ``VariableConnection`` per connection."""
-    for fmu, _ in simulators.values():
-        if fmu.parent != directory:
-            shutil.copy(fmu, directory / fmu.name)
-    elements = "".join(f'\n    <Simulator name="{name}" source="{fmu.name}" stepSize="{step!r}"/>'
-                       for name, (fmu, step) in simulators.items())
-    links = "".join(f'\n    <VariableConnection><Variable simulator="{s}" name="{o}"/>'
-                    f'<Variable simulator="{t}" name="{i}"/></VariableConnection>' for s, o, t, i in connections)
-    path = directory / "OspSystemStructure.xml"
-    path.write_text(f"""<?xml version="1.0" encoding="utf-8"?>
-<OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
-  <StartTime>0.0</StartTime>
-  <BaseStepSize>{base_step!r}</BaseStepSize>
-  <Algorithm>fixedStep</Algorithm>
-  <Simulators>{elements}
-  </Simulators>
-  <Connections>{links}
-  </Connections>
-</OspSystemStructure>
-""")
-    return path

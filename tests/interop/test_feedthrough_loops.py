@@ -24,11 +24,10 @@ from tests.interop.fmu_loops import (  # noqa: E402
     PD_CONNECTIONS,
     PD_SOURCE,
     PLANT_SOURCE,
-    write_osp,
 )
 from tests.interop.libcosim_oracle import run_osp  # noqa: E402
 from tests.interop.measures import AGREEMENT  # noqa: E402
-from tests.interop.pythonfmu_pair import build_fmu  # noqa: E402
+from tests.interop.pythonfmu_pair import build_fmu, write_plain_osp  # noqa: E402
 from tests.interop.test_third_party import crane_fmu  # noqa: E402
 
 DURATION = 1.0  # [s] the PD loop
@@ -49,8 +48,8 @@ def pd_fmus(tmp_path_factory) -> dict[str, Path]:
 
 def system(directory: Path, fmus: dict[str, Path], variables: dict, connections: tuple, rate: int) -> Path:
     """The OSP file of a loop, each simulator at its stepSize of ``rate`` (0: single rate, 1: multi-rate)."""
-    return write_osp(directory, STEP, {name: (fmu, STEP * variables[name][1][rate]) for name, fmu in fmus.items()},
-                     connections)
+    return write_plain_osp(directory, STEP, {name: (fmu, STEP * variables[name][1][rate], {})
+                                             for name, fmu in fmus.items()}, connections)
 
 
 def deviations(osp: Path, variables: dict, result, duration: float) -> dict[str, float]:
