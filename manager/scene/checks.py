@@ -13,6 +13,7 @@ from zencosim.compensation.implicit.coupling_laws import check_supported
 from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
 from zencosim.manager.scene.couplings import RigidJoint, SignalConnection
 from zencosim.manager.scene.settings import ManagerSettings, OutputSettings, SubsystemScene, extrapolation_order
+from zencosim.manager.scene.times import NotATime, nanoseconds
 from zencosim.subsystems.params import Problems
 
 
@@ -122,9 +123,8 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
         if seconds is None:
             continue
         key = f"manager.energy_control.{name}"
-        before = len(problems)
-        _whole_ns(seconds, key, problems)
-        if len(problems) == before and round(seconds * 1e9) % base:
+        count = _whole_ns(seconds, key, problems)
+        if count is not None and count % base:
             problems.add(key, f"expected a whole multiple of manager.macro_step ({manager.macro_step!r} s): every "
                          f"macro-step is one, got {seconds!r} s")
         sizes[name] = seconds
@@ -137,10 +137,6 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
     if control.min_change_rate > control.max_change_rate:
         problems.add("manager.energy_control", f"expected min_change_rate <= max_change_rate, got "
                      f"{control.min_change_rate!r} > {control.max_change_rate!r}")
-
-
-# times travel as signed 64-bit nanoseconds (docs/protocol.md): the longest time a scene can state [s]
-LONGEST_TIME_S = (2**63 - 1) * 1e-9
 
 
 def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
@@ -173,15 +169,13 @@ def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, S
                          f"got {sub.settings.micro_step!r} s")
 
 
-def _whole_ns(seconds: float, key: str, problems: Problems) -> None:
-    """A time of at least 1 ns and at most ``LONGEST_TIME_S``, a whole number of nanoseconds."""
-    if seconds > LONGEST_TIME_S:
-        problems.add(key, f"expected at most {LONGEST_TIME_S:.4g} s (times are counted in signed 64-bit "
-                     f"nanoseconds), got {seconds!r} s")
-    elif round(seconds * 1e9) < 1:
-        problems.add(key, f"expected at least 1 ns (times are counted in whole nanoseconds), got {seconds!r} s")
-    elif abs(seconds * 1e9 - round(seconds * 1e9)) > 1e-3:
-        problems.add(key, f"expected a whole number of nanoseconds, got {seconds!r} s")
+def _whole_ns(seconds: float, key: str, problems: Problems) -> int | None:
+    """A time as whole nanoseconds (``manager.scene.times``), or None with a problem at ``key``."""
+    try:
+        return nanoseconds(seconds)
+    except NotATime as error:
+        problems.add(key, str(error))
+        return None
 
 
 # a subsystem's and a coupling's name is one segment of a Zenoh key (zencosim/<run>/<subsystem>/y) and of a dotted

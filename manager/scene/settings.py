@@ -11,6 +11,7 @@ from zencosim.compensation.implicit.coupling_laws import Baumgarte, CouplingMeth
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.integrators.own_solver import OwnSolver
 from zencosim.subsystems.models import ModelTraits, model_class, model_traits
+from zencosim.manager.scene.times import nanoseconds
 from zencosim.subsystems.params import quantity
 
 
@@ -121,11 +122,11 @@ class ManagerSettings:
 
     @property
     def macro_step_ns(self) -> int:
-        return round(self.macro_step * 1e9)
+        return nanoseconds(self.macro_step, whole=False)  # whole and in range when loaded (manager.scene.checks)
 
     @property
     def duration_ns(self) -> int:
-        return round(self.duration * 1e9)
+        return nanoseconds(self.duration, whole=False)  # whole and in range when loaded (manager.scene.checks)
 
 
 @dataclass(frozen=True)
@@ -166,7 +167,7 @@ class SubsystemSettings:
 
     @property
     def micro_step_ns(self) -> int:
-        return round(self.micro_step * 1e9)
+        return nanoseconds(self.micro_step, whole=False)  # whole and in range when loaded (manager.scene.checks)
 
 
 @dataclass(frozen=True)

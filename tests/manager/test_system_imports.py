@@ -6,6 +6,8 @@ SceneError naming the file and the element, never a traceback.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import shutil
 import tomllib
 import zipfile
@@ -17,6 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tests.interop.peer_pair import ecco_configuration
+from zencosim.cli.main import main
 from zencosim.manager.scene.imports import import_system
 from zencosim.manager.scene.load import SceneError, load_scene, scene_from_text
 
@@ -284,11 +287,30 @@ def test_osp_without_end_time_takes_the_duration_asked_for(osp_dir):
     assert any("rounded up" in n for n in notes)
 
 
-def test_osp_end_time_beyond_64_bit_nanoseconds_is_refused_in_one_line(osp_dir):
-    """EndTime 1e300 s: more nanoseconds than times travel as (an OverflowError once); a scene error naming it."""
-    problems = osp_refusal(osp_dir, osp_system(end="<EndTime>1e300</EndTime>"))
-    assert problems == {"duration": "1e+300 s from EndTime - StartTime: expected a positive number of seconds of at "
-                                    "most 9.22337e+09 s (times are 64-bit nanoseconds)"}, problems
+BEYOND_64_BIT = "expected at most 9.223e+09 s (times are counted in signed 64-bit nanoseconds)"
+
+
+@pytest.mark.parametrize("options, key, reason", [
+    ({"end": "<EndTime>1e300</EndTime>"}, "duration", f"1e+300 s from EndTime - StartTime: {BEYOND_64_BIT}"),
+    ({"base": "1e300"}, "BaseStepSize", f"base step 1e+300 s: {BEYOND_64_BIT}"),
+    ({"step_1": "1e308"}, "Simulator 'S1' (line 8)", f"step size 1e+308 s: {BEYOND_64_BIT}"),
+    ({"base": "5e-324"}, "BaseStepSize", "base step 5e-324 s: expected at least 1 ns (times are counted in whole "
+                                         "nanoseconds)"),
+])
+def test_osp_times_beyond_64_bit_nanoseconds_are_refused_in_one_line(osp_dir, options, key, reason):
+    """More nanoseconds than times travel as (an OverflowError once, from check and convert): a scene error
+    naming the element, and exit status 2 from the command line."""
+    assert osp_refusal(osp_dir, osp_system(**options)) == {key: reason}
+    assert_one_line_error(["check", str(osp_dir / "OspSystemStructure.xml")], f"{key}: {reason}")
+    assert_one_line_error(["convert", str(osp_dir / "OspSystemStructure.xml"), "--to", str(osp_dir / "scene.toml")],
+                          f"{key}: {reason}")
+
+
+def assert_one_line_error(argv: list[str], problem: str) -> None:
+    """The command line, in process, exits 2 with the problem and no traceback."""
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        assert main(argv) == 2, errors.getvalue()
+    assert problem in " ".join(errors.getvalue().split()) and "Traceback" not in errors.getvalue()
 
 
 def test_osp_multi_rate_gives_communication_ratios(osp_dir):
