@@ -65,6 +65,11 @@ class ImplicitSettings:
         return Projection()
 
 
+# the most p_gain + i_gain: the law raises the error (down to 5e-324) to minus their sum, 1e291 at 0.9 (1e323, beyond
+# a float, at 1); a sum of 1/k is the deadbeat gain of an error of order k >= 1, libcosimpy's is 0.35
+MOST_GAIN = 0.9
+
+
 @dataclass(frozen=True)
 class EnergyControlSettings:
     """The ``[manager.energy_control]`` table, with ``manager.step_control = "energy"``: the macro-step adapted
@@ -75,18 +80,32 @@ class EnergyControlSettings:
     are ``step_size`` (the first step), ``min_step_size`` and ``max_step_size``. Defaults: libcosimpy's
     ``EccoParams`` where they make a working controller, its README's change rates (libcosimpy's 0.01 … 0.2
     would only ever shrink the step).
+
+    The law's other parameters are bounded (docs/step-control.md gives the reasons): a safety factor of 0.1 to 1
+    (a fraction of the step the tolerance allows), change rates of 1e-3 to 1e3 (a step changes at most a
+    thousandfold per step), an absolute tolerance above 0 (the law divides by the tolerance, which is the absolute
+    one alone when every residual is 0), a relative one of 0 to 1, and PI gains of at least 0 summing to more than
+    0 (else the step ignores the error) and at most ``MOST_GAIN`` (the law raises the error to minus their sum,
+    finite down to the smallest float).
     """
 
     max_step_size: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
     step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # the first [s]; None: min_step_size
     min_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: manager.macro_step
-    safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.0, exclusive_minimum=True))
-    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # of the step, per step
-    max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=0.0, exclusive_minimum=True))
-    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0))  # residual energy per step [J]
-    rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0))
-    p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0))
-    i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0))
+    safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.1, maximum=1.0))
+    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=1e-3, maximum=1e3))  # of the step, per step
+    max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=1e-3, maximum=1e3))
+    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0, exclusive_minimum=True))  # residual energy per step [J]
+    rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0, maximum=1.0))
+    p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))
+    i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))
+
+    def problems(self) -> list[tuple[str, str]]:
+        gains = self.p_gain + self.i_gain
+        if not 0.0 < gains <= MOST_GAIN:
+            return [("p_gain", f"expected 0 < p_gain + i_gain <= {MOST_GAIN} (no gain: the step ignores the error), "
+                               f"got {self.p_gain!r} + {self.i_gain!r}")]
+        return []
 
 
 @dataclass(frozen=True)

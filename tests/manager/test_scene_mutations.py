@@ -111,3 +111,16 @@ def test_deep_nesting_is_a_scene_error_not_a_recursion_error():
 def load_scene_text(name: str) -> str:
     from importlib import resources
     return (resources.files("zencosim.scenes") / f"{name}.toml").read_text()
+
+
+@pytest.mark.parametrize("point, role", [("S2.points.m2", "position"), ("S1.points.m1", "position_input"),
+                                         ("S1.points.m1", "force"), ("S2.points.m2", "velocity")])
+def test_an_empty_list_of_a_points_variables_is_one_line_and_exit_2(point, role):
+    """``position = []`` on a Python model's point (scene fuzz, seed 41004): a KeyError from ``check`` once."""
+    from tests.conftest import REPO
+    scene = str(REPO / "zencosim" / "examples" / "scenes" / "two_mass_damped_python.toml")
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["check", scene, "--set", f"subsystems.{point}.{role}=[]"])
+    assert status == 2 and "Traceback" not in errors.getvalue(), errors.getvalue()
+    assert (f"subsystems.{point}.{role}: expected a variable name, or a list of one per component, got an empty list"
+            in " ".join(errors.getvalue().split()))
