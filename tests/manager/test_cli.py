@@ -155,3 +155,27 @@ def test_integers_too_large_for_a_float_are_one_line_errors(tmp_path):
         result = zencosim("check", str(scene))
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
         assert f"{scene}: {message}" in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize("kind", ["device", "pipe", "pipe.xml", "folder"])
+def test_a_scene_that_is_no_regular_file_is_one_line_and_exit_2(tmp_path, kind):
+    """``zencosim check /dev/zero`` (or a named pipe, as a TOML scene or an OSP file) read forever once."""
+    import contextlib
+    import io
+    import os
+
+    from zencosim.cli.main import main
+    if kind == "device":
+        path = Path("/dev/zero")
+        if not path.exists():
+            pytest.skip("no /dev/zero here")
+    elif kind == "folder":
+        path = tmp_path
+    else:
+        path = tmp_path / ("scene.toml" if kind == "pipe" else "OspSystemStructure.xml")
+        os.mkfifo(path)
+    key = "file" if path.suffix == ".xml" else "scene"
+    for command in (["check", str(path)], ["run", str(path), "--quiet"]):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+            assert main(command) == 2, errors.getvalue()
+        assert f"{path}: {key}: not a regular file; expected a TOML scene" in " ".join(errors.getvalue().split())

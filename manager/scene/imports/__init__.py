@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zencosim.manager.scene.load import SceneError
+from zencosim.manager.scene.load import SceneError, refuse_irregular
 from zencosim.manager.scene.times import NotATime, nanoseconds
 from zencosim.subsystems.params import Problems
 from zencosim.subsystems.units import BASE, Exponents, UnitError, describe, exponents
@@ -73,6 +73,7 @@ def import_system(path: Path, duration: float | None = None, algorithm: str | No
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    refuse_irregular(path, "file")
     if algorithm is not None and algorithm not in ALGORITHMS:
         raise refusal(path, "manager.algorithm", f"expected one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
     if input_table is not None and suffix != ".fmu":
