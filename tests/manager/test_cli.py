@@ -125,6 +125,19 @@ def test_version_names_zencosim_its_protocol_and_what_a_run_depends_on():
                                             f"zenoh {version('eclipse-zenoh')}, numpy {version('numpy')}, python ")
 
 
+def test_version_is_answered_without_importing_the_runtime():
+    """As the ``zencosim`` script runs it: the versions from the package metadata, and nothing of zencosim.manager,
+    numpy or zenoh imported (the whole runtime once: seconds of CPU for one line)."""
+    script = ("import sys\nsys.argv = ['zencosim', '--version']\nfrom zencosim.cli.main import main\nstatus = main()\n"
+              "print([m for m in sys.modules if m.split('.')[0] in ('numpy', 'zenoh') or m.startswith('zencosim.manager')])\n"
+              "sys.exit(status)")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert result.returncode == 0, result.stderr
+    answer, imported = result.stdout.strip().splitlines()
+    assert answer == zencosim("--version").stdout.strip() and answer.startswith("zencosim ")
+    assert imported == "[]"
+
+
 def test_help_shows_examples_for_the_tool_and_each_command():
     assert "examples:" in zencosim("--help").stdout
     for command in ("run", "check", "analyze", "stability", "subsystem", "replay", "inspect", "export"):
