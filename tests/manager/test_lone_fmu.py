@@ -179,3 +179,26 @@ def test_an_input_table_for_a_system_is_refused(tmp_path):
     with pytest.raises(zencosim.SceneError) as caught:
         zencosim.load_scene(str(system), {"input": "inputs.csv"})
     assert [p.key for p in caught.value.problems] == ["input"]
+
+
+@pytest.mark.parametrize("tool, hint", [("zencosim.examples.fmus.build", False), ("pythonfmu 0.6.5", True)])
+def test_an_fmu_that_cannot_be_instantiated_is_told_about_pythonfmu_only_when_pythonfmu_made_it(fmu, tmp_path,
+                                                                                                 tool, hint):
+    """A C FMU whose GUID does not match its binary's: fmpy's own reason; only an FMU whose generationTool is
+    pythonfmu hears about the packages a Python FMU needs."""
+    import re
+    import zipfile
+    broken = tmp_path / "broken.fmu"
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(broken, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                text = re.sub(r'guid="[^"]*"', 'guid="{00000000-0000-0000-0000-000000000000}"', data.decode())
+                data = re.sub(r'generationTool="[^"]*"', f'generationTool="{tool}"', text).encode()
+            target.writestr(item, data)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["check", str(broken)])
+    said = " ".join(errors.getvalue().split())
+    assert status == 2 and "Traceback" not in said, said
+    assert "FMU broken.fmu: cannot be instantiated (Exception: Failed to instantiate model); " in said
+    assert ("a Python FMU (pythonfmu) needs its packages in this interpreter" in said) is hint
