@@ -1075,3 +1075,43 @@ def test_a_mutated_ssd_file_is_imported_or_a_scene_error(ssp_dir, data):
         assert error.path == str(ssp_dir / "SystemStructure.ssd") and error.problems
     else:
         assert tomllib.loads(tomli_w.dumps(document)) == document
+
+
+# what an import does not read: a note in check, never silence -------------------------------------------------
+
+OSP_UNIT = ('<InitialValue variable="k"><Real value="10.0"/>',
+            '<InitialValue variable="k" unit="degC"><Real value="10.0" unit="degC"/>')
+SSV_FOREIGN = ("<ssv:Parameters>", '<ssv:Parameters xmlns:foo="urn:foo"><foo:Extra name="k"/>')
+
+
+def test_osp_attributes_the_import_does_not_read_are_noted(osp_dir):
+    """``unit="degC"`` on an InitialValue (libcosim's schema has none) or on its value is not converted: said."""
+    text = osp_system().replace(*OSP_UNIT)
+    _, notes = osp_import(osp_dir, text)
+    at = f"InitialValue (line {line(text, 'unit=')})"
+    assert [n for n in notes if "not read" in n] == [
+        f"{at}: InitialValue unit='degC' not read (zencosim reads variable): ignored, the value is used as written",
+        f"{at}: Real unit='degC' not read (zencosim reads value): ignored, the value is used as written"]
+    _, plain = osp_import(osp_dir, osp_system())
+    assert not [n for n in plain if "not read" in n]
+
+
+def test_ssd_elements_of_parameters_the_import_does_not_read_are_noted(ssp_dir):
+    text = ssd_system().replace(*SSV_FOREIGN, 1)
+    _, notes = ssd_import(ssp_dir, text)
+    assert [n for n in notes if "not read" in n] == [
+        f"Extra 'k' (line {line(text, '<foo:Extra')}): an element of Parameters that is no ssv:Parameter is not read "
+        "(as fmpy reads a parameter set): ignored"]
+
+
+def test_check_shows_what_an_import_did_not_read(tmp_path):
+    from zencosim.examples.fmus.build import build_fmu
+
+    build_fmu(tmp_path / "oscillator.fmu", 2, ("cs",))
+    (tmp_path / "zencosim oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)  # its modelName
+    for name, text, said in (("OspSystemStructure.xml", osp_system().replace(*OSP_UNIT), "InitialValue unit='degC'"),
+                             ("SystemStructure.ssd", ssd_system().replace(*SSV_FOREIGN, 1), "no ssv:Parameter is")):
+        (tmp_path / name).write_text(text)
+        with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as errors:
+            assert main(["check", str(tmp_path / name)]) == 0, errors.getvalue()
+        assert "mapped: " in out.getvalue() and said in " ".join(out.getvalue().split())

@@ -130,6 +130,15 @@ def children(element: Any, name: str | None = None) -> list:
     return [c for c in element if isinstance(c.tag, str) and (name is None or local(c) == name)]
 
 
+def note_unread(element: Any, read: tuple[str, ...], key: str, notes: list[str]) -> None:
+    """A note naming the attributes of ``element`` that the import does not read (``read``: those it does), which
+    change nothing in the scene: a value's ``unit``, say, is not converted."""
+    unread = [f"{name.rsplit('}', 1)[-1]}={value!r}" for name, value in element.attrib.items() if name not in read]
+    if unread:
+        notes.append(f"{key}: {local(element)} {', '.join(unread)} not read (zencosim reads {', '.join(read)}): "
+                     "ignored, the value is used as written")
+
+
 def where(element: Any, prefix: str = "") -> str:
     """The key naming an element in problems: its tag, its name and its line."""
     name = element.get("name")
