@@ -116,7 +116,10 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
     control = manager.energy_control
     if control is None:
         return
-    base = manager.macro_step_ns
+    try:
+        base = manager.macro_step_ns
+    except NotATime:  # check_timing says why
+        return
     sizes = {}
     for name in ("step_size", "min_step_size", "max_step_size"):
         seconds = getattr(control, name)

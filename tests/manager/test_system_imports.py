@@ -1115,3 +1115,28 @@ def test_check_shows_what_an_import_did_not_read(tmp_path):
         with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as errors:
             assert main(["check", str(tmp_path / name)]) == 0, errors.getvalue()
         assert "mapped: " in out.getvalue() and said in " ".join(out.getvalue().split())
+
+
+step_sizes = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from(
+    [1e300, 1e308, 5e-324, 1e-9, 1e-10, 9.2e9, 9.3e9, 2.0**63, -1.0, 0.0, 0.001])
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(base=step_sizes, step=step_sizes, which=st.sampled_from(["osp base", "osp step", "ssp base"]))
+def test_any_float_as_a_step_size_is_imported_or_one_clear_problem(osp_dir, ssp_dir, base, step, which):
+    """Every float (NaN, inf, 1e308, subnormal, beyond 64-bit nanoseconds) as a base step or a simulator's step: a
+    document whose steps are whole nanoseconds, or a scene error naming the element, never an OverflowError."""
+    if which == "ssp base":
+        path, text = ssp_dir / "SystemStructure.ssd", ssd_system(base=repr(base))
+    else:
+        path = osp_dir / "OspSystemStructure.xml"
+        text = osp_system(base=repr(base)) if which == "osp base" else osp_system(step_1=repr(step))
+    path.write_text(text)
+    try:
+        document, _ = import_system(path)
+    except SceneError as error:
+        assert error.path == str(path) and error.problems
+        assert all(p.key != "file" and p.reason for p in error.problems)
+    else:
+        assert 1 <= round(document["manager"]["macro_step"] * 1e9) <= 2**63 - 1
+        assert all(1 <= round(s["micro_step"] * 1e9) <= 2**63 - 1 for s in document["subsystems"].values())
