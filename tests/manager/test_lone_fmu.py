@@ -142,19 +142,26 @@ def test_a_bad_input_table_is_refused_naming_the_file_and_why(fmu, tmp_path, tex
     assert key == f"subsystems.{NAME}.input_table" and found.startswith(f"{table}: ") and reason in found, found
 
 
-@pytest.mark.parametrize("source", ["/dev/zero", "folder", "missing.csv"])
-def test_an_input_that_is_no_regular_file_is_one_line_and_exit_2(fmu, tmp_path, source):
-    """``zencosim run model.fmu --input /dev/zero`` read forever once; a folder or a missing file: exit 2 too."""
+@pytest.mark.parametrize("source, said", [
+    ("/dev/zero", "not a regular file; expected a CSV file"),  # read forever once
+    ("folder", "not a regular file; expected a CSV file"),
+    ("missing.csv", "no such file"),
+    ("time,f_in\n0.0,1.0\n", "1 row(s) of values; expected at least two"),  # numpy's text at run time, exit 1, once
+    ("time,f_in\n0.0,1.0\n1.0\n", "line 3: 1 value(s), expected 2"),  # "list index out of range" once
+])
+def test_an_input_that_is_no_table_is_one_line_and_exit_2(fmu, tmp_path, source, said):
+    """``zencosim run model.fmu --input …``: exit 2 naming the file and why, before anything runs."""
     (tmp_path / "folder").mkdir()
-    path = source if source.startswith("/") else str(tmp_path / source)
     if source == "/dev/zero" and not Path(source).exists():
         pytest.skip("no /dev/zero here")
+    path = source if source.startswith("/") else str(tmp_path / source)
+    if "\n" in source:
+        path = str(tmp_path / "inputs.csv")
+        Path(path).write_text(source)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
         status = main(["run", str(fmu), "--input", path, "--quiet"])
-    said = " ".join(errors.getvalue().split())
     assert status == 2 and "Traceback" not in errors.getvalue(), errors.getvalue()
-    assert f"subsystems.{NAME}.input_table: {path}: " in said
-    assert ("no such file" if source == "missing.csv" else "not a regular file; expected a CSV file") in said
+    assert f"subsystems.{NAME}.input_table: {path}: {said}" in " ".join(errors.getvalue().split())
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -306,6 +306,13 @@ def test_osp_times_beyond_64_bit_nanoseconds_are_refused_in_one_line(osp_dir, op
                           f"{key}: {reason}")
 
 
+def test_ssp_a_base_step_beyond_64_bit_nanoseconds_is_refused_in_one_line(ssp_dir):
+    key, reason = "DefaultExperiment: osp:FixedStepAlgorithm baseStepSize", f"base step 1e+308 s: {BEYOND_64_BIT}"
+    assert ssd_refusal(ssp_dir, ssd_system(base="1e308")) == {key: reason}
+    for command in ("check", "run"):
+        assert_one_line_error([command, str(ssp_dir / "SystemStructure.ssd")], f"{key}: {reason}")
+
+
 def assert_one_line_error(argv: list[str], problem: str) -> None:
     """The command line, in process, exits 2 with the problem and no traceback."""
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
