@@ -65,9 +65,10 @@ class ImplicitSettings:
         return Projection()
 
 
-# the most p_gain + i_gain: the law raises the error (down to 5e-324) to minus their sum, 1e291 at 0.9 (1e323, beyond
-# a float, at 1); a sum of 1/k is the deadbeat gain of an error of order k >= 1, libcosimpy's is 0.35
-MOST_GAIN = 0.9
+# the most p_gain + i_gain: a sum of 1/k is the deadbeat gain for an error of order k in the step (k >= 1), more
+# over-corrects (libcosimpy's sum is 0.35); the law raises the error ε, the root of a positive float and so at least
+# 2.2e-162, to minus the sum: at most 4.5e161 at 1, where a gain of 1e308 overflowed
+MOST_GAIN = 1.0
 
 
 @dataclass(frozen=True)
@@ -85,8 +86,8 @@ class EnergyControlSettings:
     (a fraction of the step the tolerance allows), change rates of 1e-3 to 1e3 (a step changes at most a
     thousandfold per step), an absolute tolerance above 0 (the law divides by the tolerance, which is the absolute
     one alone when every residual is 0), a relative one of 0 to 1, and PI gains of at least 0 summing to more than
-    0 (else the step ignores the error) and at most ``MOST_GAIN`` (the law raises the error to minus their sum,
-    finite down to the smallest float).
+    0 (else the step ignores the error) and at most ``MOST_GAIN`` (the deadbeat gain of an error of the first
+    order; the law raises the error to minus their sum, which stays finite).
     """
 
     max_step_size: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
