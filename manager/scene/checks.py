@@ -146,6 +146,7 @@ def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, S
                   problems: Problems) -> None:
     """Every time a whole number of nanoseconds, at least one macro-step period, communication steps that
     micro-steps divide."""
+    _whole_ns(manager.timeout, "manager.timeout", problems, whole=False)  # the watchdog counts it in nanoseconds
     before = len(problems)
     times = [(manager.macro_step, "manager.macro_step"), (manager.duration, "manager.duration")]
     times += [(s.settings.micro_step, f"subsystems.{s.name}.micro_step") for s in subsystems.values()]
@@ -172,10 +173,11 @@ def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, S
                          f"got {sub.settings.micro_step!r} s")
 
 
-def _whole_ns(seconds: float, key: str, problems: Problems) -> int | None:
-    """A time as whole nanoseconds (``manager.scene.times``), or None with a problem at ``key``."""
+def _whole_ns(seconds: float, key: str, problems: Problems, whole: bool = True) -> int | None:
+    """A time as whole nanoseconds (``manager.scene.times``; ``whole`` False: rounded), or None with a problem at
+    ``key``."""
     try:
-        return nanoseconds(seconds)
+        return nanoseconds(seconds, whole)
     except NotATime as error:
         problems.add(key, str(error))
         return None

@@ -75,6 +75,7 @@ def test_a_mutated_scene_is_refused_with_its_key_or_runs(tmp_path_factory, rng):
     ("manager.duration=1e-4", "manager.duration", "at least one macro-step period"),
     ("manager.duration=1e7", "manager.duration", "shorten manager.duration or lengthen manager.macro_step"),
     ("subsystems.S1.micro_step=nan", "subsystems.S1.micro_step", "finite"),
+    ("manager.timeout=1e308", "manager.timeout", "at most 9.223e+09 s"),  # an OverflowError in the watchdog once
 ])
 def test_the_issues_overrides_are_refused_naming_the_key(override, key, reason):
     """The findings of issue 14 (a traceback or an accepted scene that cannot run), now scene errors."""
