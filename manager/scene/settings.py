@@ -94,9 +94,10 @@ class EnergyControlSettings:
     step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # the first [s]; None: min_step_size
     min_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: manager.macro_step
     safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.1, maximum=1.0))
-    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=1e-3, maximum=1e3))  # of the step, per step
+    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=1e-3, maximum=1e3))  # per step
     max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=1e-3, maximum=1e3))
-    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0, exclusive_minimum=True))  # residual energy per step [J]
+    # residual energy per step [J]
+    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0, exclusive_minimum=True))
     rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0, maximum=1.0))
     p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))
     i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))

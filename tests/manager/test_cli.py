@@ -129,7 +129,8 @@ def test_version_is_answered_without_importing_the_runtime():
     """As the ``zencosim`` script runs it: the versions from the package metadata, and nothing of zencosim.manager,
     numpy or zenoh imported (the whole runtime once: seconds of CPU for one line)."""
     script = ("import sys\nsys.argv = ['zencosim', '--version']\nfrom zencosim.cli.main import main\nstatus = main()\n"
-              "print([m for m in sys.modules if m.split('.')[0] in ('numpy', 'zenoh') or m.startswith('zencosim.manager')])\n"
+              "print([m for m in sys.modules\n"
+              "       if m.split('.')[0] in ('numpy', 'zenoh') or m.startswith('zencosim.manager')])\n"
               "sys.exit(status)")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO, timeout=60)
     assert result.returncode == 0, result.stderr

@@ -2,12 +2,12 @@
 
 A CSV file (``input_table = "inputs.csv"`` in the subsystem's table, ``zencosim run model.fmu --input
 inputs.csv``) in the layout of the FMI cross-check rules that fmpy reads: a header line, the time [s] in
-the first column, one column per input variable (named after it, SI values), one row per sample (at least two),
-times not decreasing (a time given twice is a step); what is not (a file that is not a regular one, such as
-/dev/zero, a row of too few values, a word where a number belongs) is refused naming the line and the column. The values at time t are fmpy's: linear interpolation
-between samples, the first and last values held outside them, the value after a step at its time
-(``fmpy.simulation.Input.interpolate``), so that a run of one FMU takes the inputs ``fmpy.simulate_fmu``
-would set.
+the first column, one column per input variable (named after it, SI values), one row per sample (at least
+two), times not decreasing (a time given twice is a step). What is not such a table (a file that is not a
+regular one, such as /dev/zero; a row of too few values; a word where a number belongs) is refused naming
+the line and the column. The values at time t are fmpy's: linear interpolation between samples, the first
+and last values held outside them, the value after a step at its time (``fmpy.simulation.Input.interpolate``),
+so that a run of one FMU takes the inputs ``fmpy.simulate_fmu`` would set.
 """
 from __future__ import annotations
 
