@@ -97,8 +97,9 @@ class StepLaw:
             ratio = magnitude * dt / (c.abs_tolerance + c.rel_tolerance * energy_level)
             mean_square += ratio * ratio
         error = math.sqrt(mean_square / len(magnitudes))
-        if error == 0 or self.previous_error == 0 or math.isnan(error) or math.isnan(self.previous_error):
-            self.previous_error = error  # NaN: the run diverged (its summary says so); the step stays
+        diverged = not (math.isfinite(error) and math.isfinite(self.previous_error))  # its summary says so
+        if error == 0 or self.previous_error == 0 or diverged:
+            self.previous_error = error  # the step stays
             return
         gain = c.safety_factor * error ** (-c.i_gain - c.p_gain) * self.previous_error ** c.p_gain
         gain = min(max(gain, c.min_change_rate), c.max_change_rate)

@@ -13,13 +13,14 @@ from dataclasses import dataclass
 from importlib.metadata import version
 from typing import Callable
 
-from zencosim.manager.scene.load import Scene, load_scene
+from zencosim.manager.scene.load import Scene, SceneError, load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.study import tradeoffs
 from zencosim.manager.study.cache import StudyCache
 from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
 from zencosim.manager.study.measure import count_exchanges, measure_zenoh, predicted_stability
 from zencosim.manager.study.workers import measure_tasks
+from zencosim.subsystems.params import Problem
 
 ZENOH_CHOICES = ("pareto", "answers", "all", "none")  # answers: the cheapest point meeting each of TARGETS
 BISECTION_TOLERANCE = 1e-3  # relative width at which the stability limit's bisection stops
@@ -44,6 +45,8 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     started = time.perf_counter()
     signal_name = options.signal or scene.outputs.signals[0]
     points, skipped = expand(scene, axes)
+    if not points:  # every point refused (a macro-step of 1e308 s, say): the first reason, as a scene error
+        raise SceneError(scene.path, [Problem("--vary", f"no point of the grid loads; the first: {skipped[0][1]}")])
     cache = StudyCache(cache_root, scene.digest, options.repeats)
     entries = {p.key: cache.read(p.key) for p in points}
     todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats}

@@ -323,3 +323,87 @@ def test_check_says_which_steps_the_scene_takes(control, said):
     result = zencosim_command("check", control=control)
     assert result.returncode == 0, result.stderr
     assert said in result.stdout
+
+
+# The controller's parameters: bounded at load, so that the law never overflows at run time (issue 42) -----------
+
+CONTROL_PARAMETERS = ("safety_factor", "min_change_rate", "max_change_rate", "abs_tolerance", "rel_tolerance",
+                      "p_gain", "i_gain")
+any_float = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from(
+    [0.0, 5e-324, 1e-300, 1e-3, 0.1, 0.5, 0.9, 1.0, 1e3, 1e30, 2.0**63, 1e308])
+residual = st.sampled_from([0.0, 5e-324, 1e-300, 1e-12, 1.0, 1e12, 1e300, np.inf, np.nan]) | st.floats()
+
+
+@settings(max_examples=60, deadline=None)
+@given(changed=st.dictionaries(st.sampled_from(CONTROL_PARAMETERS), any_float, min_size=1, max_size=3),
+       powers=st.lists(st.lists(residual, min_size=2, max_size=2), min_size=3, max_size=6))
+def test_a_controller_accepted_at_load_never_fails_in_its_law(changed, powers):
+    """Any value of any parameter is refused by key or gives a law that sets a step within its limits whatever the
+    bonds' residual powers (0, the smallest float, 1e300, inf, NaN): p_gain = 1e308 raised an OverflowError at run
+    time, tolerances both 0 a ZeroDivisionError."""
+    from zencosim.manager.scene.settings import EnergyControlSettings
+    from zencosim.manager.scheme.energy_step import StepLaw
+    from zencosim.subsystems.params import Problems, read_table
+
+    problems = Problems()
+    control = read_table(EnergyControlSettings, {"max_step_size": 0.01, **changed}, "manager.energy_control", problems)
+    if control is None:
+        assert problems and all(p.key.startswith("manager.energy_control.") for p in problems)
+        assert {p.key.rsplit(".", 1)[1] for p in problems} <= set(changed)
+        return
+    law = StepLaw(control, base_step_ns=100_000)
+    start_ns = 0
+    for power in powers:
+        taken = law.step_ns
+        law.adjust(power, start_ns, taken)
+        start_ns += taken
+        assert law.min_ns <= law.step_ns <= law.max_ns
+
+
+@pytest.mark.parametrize("parameter, value, reason", [
+    ("p_gain", "1e308", "expected a number >= 0.0 and <= 1.0, got 1e+308"),
+    ("p_gain", str(2**63), f"expected a number >= 0.0 and <= 1.0, got {2**63}"),
+    ("i_gain", "1e30", "expected a number >= 0.0 and <= 1.0, got 1e+30"),
+    ("safety_factor", "5e-324", "expected a number >= 0.1 and <= 1.0, got 5e-324"),
+    ("abs_tolerance", "0.0", "expected a number > 0.0 [J], got 0.0"),
+    ("max_change_rate", "1e308", "expected a number >= 0.001 and <= 1000.0, got 1e+308"),
+])
+def test_an_energy_control_parameter_out_of_its_range_is_one_line_and_exit_2(parameter, value, reason):
+    """What ``check`` accepted and a run then failed on (an OverflowError in the law): refused at load, by key."""
+    import contextlib
+    import io
+
+    from zencosim.cli.main import main
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["check", "two_mass_damped", "--set", "manager.step_control=energy",
+                       "--set", "manager.energy_control.max_step_size=0.01",
+                       "--set", f"manager.energy_control.{parameter}={value}"])
+    assert status == 2 and "Traceback" not in errors.getvalue()
+    assert f"manager.energy_control.{parameter}: {reason}" in " ".join(errors.getvalue().split())
+
+
+def test_the_corners_of_the_accepted_ranges_never_fail_in_the_law():
+    """Every corner of the bounds (gains summing to 1, safety 0.1 and 1, change rates 1e-3 and 1e3, tolerances
+    5e-324 and 1e300 J, 0 and 1) against residual powers from the smallest float to 1e300, inf, and the one that
+    makes the error ε its smallest positive value (2.3e142 W over 0.1 ms against 1e300 J: ε = 2.3e-162, which a
+    gain sum of 2 would raise to 1.9e323, beyond a float): the step stays within its limits."""
+    import itertools
+
+    from zencosim.manager.scene.settings import EnergyControlSettings
+    from zencosim.manager.scheme.energy_step import StepLaw
+
+    sequences = ([5e-324, 5e-324, 1e300], [1e300, 5e-324, 0.0], [2.3e142, 2.3e142, 5e-324], [np.inf, np.inf, 1.0],
+                 [1e-300, 1e300, np.inf])
+    rates = [(1e-3, 1e-3), (1e-3, 1e3), (1e3, 1e3)]
+    for (p, i), safety, (low, high), absolute, relative in itertools.product(
+            [(1.0, 0.0), (0.0, 1.0), (0.5, 0.5)], [0.1, 1.0], rates, [5e-324, 1e300], [0.0, 1.0]):
+        control = EnergyControlSettings(max_step_size=0.01, p_gain=p, i_gain=i, safety_factor=safety,
+                                        min_change_rate=low, max_change_rate=high, abs_tolerance=absolute,
+                                        rel_tolerance=relative)
+        for powers in sequences:
+            law, start_ns = StepLaw(control, base_step_ns=100_000), 0  # its first step: 0.1 ms
+            for power in powers:
+                taken = law.step_ns
+                law.adjust([power, power], start_ns, taken)
+                start_ns += taken
+                assert law.min_ns <= law.step_ns <= law.max_ns

@@ -239,6 +239,8 @@ def test_the_pareto_front_is_non_dominated_and_dominates_the_rest(points):
     (["--vary", "manager.macro_step=1e-3", "--vary", "manager.macro_step=2e-3"], "given more than once"),
     (["--signal", "nothing"], "--signal nothing: expected one of the scene's outputs.signals: x2, fc"),
     (["--vary", "manager.macro_step=1e-3", "--out", "/nonexistent/report"], "the directory /nonexistent does not exist"),
+    (["--vary", "manager.macro_step=1e308,nan"], "--vary: no point of the grid loads; the first: manager.macro_step: "
+                                                "expected at most 9.223e+09 s"),  # an OverflowError once
 ])
 def test_bad_input_exits_2_before_any_work(args, message, tmp_path):
     result = zencosim("study", "two_mass_damped", "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "r"), *args)
