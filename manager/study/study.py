@@ -13,12 +13,15 @@ from dataclasses import dataclass
 from importlib.metadata import version
 from typing import Callable
 
+import numpy as np
+
+from zencosim.manager.analysis.monolithic import monolithic_unavailable
 from zencosim.manager.scene.load import Scene, load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
-from zencosim.manager.study import tradeoffs
+from zencosim.manager.study import extrapolation, tradeoffs
 from zencosim.manager.study.cache import StudyCache
 from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
-from zencosim.manager.study.measure import count_exchanges, measure_zenoh, predicted_stability
+from zencosim.manager.study.measure import count_exchanges, load_signals, measure_zenoh, predicted_stability
 from zencosim.manager.study.workers import measure_tasks
 
 ZENOH_CHOICES = ("pareto", "answers", "all", "none")  # answers: the cheapest point meeting each of TARGETS
@@ -46,12 +49,17 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     points, skipped = expand(scene, axes)
     cache = StudyCache(cache_root, scene.digest, options.repeats)
     entries = {p.key: cache.read(p.key) for p in points}
-    todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats}
-            for p in points if entries[p.key] is None]
+    extrapolating = extrapolates(scene)
+    todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats,
+             "signals_file": str(cache.signals_path(p.key)) if extrapolating else None}
+            for p in points if entries[p.key] is None or (extrapolating and _lacks_signals(entries[p.key], cache, p.key))]
+    if todo:
+        cache.folder.mkdir(parents=True, exist_ok=True)
     workers = options.workers or os.cpu_count() or 1
     _measure_in_process(todo, workers, cache, entries, progress, len(points))
 
     rows = [_row(p, entries[p.key], signal_name) for p in points]
+    extrapolated = _extrapolate(scene, rows, cache, signal_name) if extrapolating else None
     _mark_pareto(rows)
     exchanges = _exchange_counter(scene, entries, cache)
     answers = {_cheapest(rows, target, exchanges)[0] for target in TARGETS} if options.zenoh == "answers" else set()
@@ -77,6 +85,7 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     return {
         "scene": scene.name, "scene_path": scene.path, "scene_digest": scene.digest, "overrides": list(scene.overrides),
         "reference": next((r["reference"] for r in rows if r["reference"] is not None), None),
+        "extrapolation": extrapolated,
         "signal": signal_name, "signals": list(scene.outputs.signals), "target": options.target,
         "grid": {"axes": [{"key": a.key, "values": list(a.values)} for a in axes],
                  "skipped": [{"values": v, "reason": reason} for v, reason in skipped]},
@@ -111,8 +120,51 @@ def _row(point: Point, entry: dict, signal_name: str) -> dict:
                   "loop_cpu_max_per_s": inproc["loop_cpu_per_s"]}
     return {"key": point.key, "method": point.method, "macro_step": point.macro_step, "values": point.values,
             "overrides": list(point.overrides), "derived": list(point.derived), **measured, "inproc": inproc,
-            "error": measured["nrms"].get(signal_name) if measured["stable"] else None,
+            "error": measured["nrms"].get(signal_name) if measured["stable"] else None, "error_bar": None,
+            "nrms_error_bar": dict.fromkeys(measured["nrms"]),
             "exchanges_per_s": entry.get("exchanges_per_s"), "zenoh": None, "pareto": False}
+
+
+def extrapolates(scene: Scene) -> bool:
+    """Whether a study of ``scene`` extrapolates its reference from its own points: the scene asks for it
+    (``outputs.reference = "extrapolated"``) or gives none (``"none"``, or an analytic reference that its
+    subsystems do not admit), so that a study always has an error to weigh against the cost."""
+    reference = scene.outputs.reference
+    return reference in ("none", "extrapolated") or (reference == "analytic" and monolithic_unavailable(scene) is not None)
+
+
+def _lacks_signals(entry: dict, cache: StudyCache, key: str) -> bool:
+    """A cached point that ran but whose output signals were not kept (measured for a scene reference)."""
+    return entry["inproc_point"]["inproc"] is not None and not cache.signals_path(key).exists()
+
+
+def _extrapolate(scene: Scene, rows: list[dict], cache: StudyCache, signal_name: str) -> dict:
+    """Per output signal, the reference extrapolated from the stable points (``extrapolation.best_reference``): what
+    it was extrapolated from, its observed order and its error bar as an NRMS; every row's NRMS against it with
+    their error bars, and its ``error`` and ``error_bar`` (of ``signal_name``, stable rows)."""
+    runs = {r["key"]: load_signals(str(cache.signals_path(r["key"]))) for r in rows if r["inproc"] is not None}
+    described = {}
+    for name in scene.outputs.signals:
+        stable = {}
+        for r in rows:
+            if r["stable"] and runs.get(r["key"]) is not None:
+                stable.setdefault(r["method"], []).append((r["macro_step"], runs[r["key"]][name]))
+        found = extrapolation.best_reference(stable)
+        if isinstance(found, str):
+            described[name] = {"method": None, "macro_steps": None, "order": None, "error_bar": None, "reason": found}
+            continue
+        method, reference = found
+        values = reference.reference.values
+        described[name] = {"method": method, "macro_steps": list(reference.macro_steps), "order": reference.order,
+                           "error_bar": reference.bar_rms / float(np.max(values) - np.min(values)), "reason": None}
+        for r in rows:
+            if runs.get(r["key"]) is not None:
+                r["nrms"][name], r["nrms_error_bar"][name] = extrapolation.nrms_against(reference, runs[r["key"]][name])
+    for r in rows:
+        r["reference"] = "extrapolated"
+        r["error"] = r["nrms"].get(signal_name) if r["stable"] else None
+        r["error_bar"] = r["nrms_error_bar"].get(signal_name) if r["error"] is not None else None
+    return described
 
 
 def _cost(row: dict) -> float | None:
