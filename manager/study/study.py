@@ -20,7 +20,7 @@ from zencosim.manager.scene.load import Scene, load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.study import extrapolation, tradeoffs
 from zencosim.manager.study.cache import StudyCache
-from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
+from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand
 from zencosim.manager.study.measure import count_exchanges, load_signals, measure_zenoh, predicted_stability
 from zencosim.manager.study.workers import measure_tasks
 
@@ -93,7 +93,7 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
                     "zencosim": version("zencosim")},
         "points": rows,
         "methods": methods,
-        "answer": _answer(rows, signal_name, options.target, exchanges),
+        "answers": [_answer(rows, target, exchanges) for target in dict.fromkeys((options.target, *TARGETS))],
         "run": {"points": len(points), "ran": len(todo), "cached": len(points) - len(todo),
                 "zenoh_points": len(chosen), "repeats": options.repeats, "zenoh_repeats": options.zenoh_repeats,
                 "wall_s": time.perf_counter() - started},
@@ -259,39 +259,17 @@ def _cheapest(rows: list[dict], target: float, exchanges: Callable[[dict], float
     return None if best is None else candidates[best]["key"], [candidates[i]["key"] for i in tied]
 
 
-def _ms(seconds: float) -> str:
-    return f"{seconds * 1e3:.3g} ms"
-
-
-def _answer(rows: list[dict], signal_name: str, target: float, exchanges: Callable[[dict], float]) -> dict:
-    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers; a tie on cost
-    within the measured spread is said and broken by ``tradeoffs.TIE_RULE``."""
+def _answer(rows: list[dict], target: float, exchanges: Callable[[dict], float]) -> dict:
+    """The cheapest stable setting with the signal's NRMS at most ``target``, and the points tied with it on cost
+    (within the measured spread; the tie broken by ``tradeoffs.TIE_RULE``); the keys but ``target``, ``tied`` and
+    ``tie_rule`` are null when no point meets the target. ``report.answer_table`` shows it."""
     best, tied = _cheapest(rows, target, exchanges)
-    if best is None:
-        return {**dict.fromkeys(("point", "method", "macro_step", "error", "inproc_loop_cpu_per_s",
-                                 "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s")), "tied": [],
-                "tie_rule": tradeoffs.TIE_RULE,
-                "text": f"no point of the grid reaches {signal_name} NRMS ≤ {target * 100:g} % with a stable run"}
-    row = next(r for r in rows if r["key"] == best)
-    zenoh = row["zenoh"]
-    over_zenoh = ("not measured over Zenoh" if zenoh is None
-                  else f"{zenoh['loop_wall_per_s'] * 1e3:.3g} ms of wall time over Zenoh")
-    costing = (f"costing {_cost(row) * 1e3:.3g} ms of CPU time ({row['inproc']['loop_wall_per_s'] * 1e3:.3g} ms of "
-               f"wall time) per simulated second in process and {over_zenoh}")
-    if len(tied) == 1:
-        text = (f"for {signal_name} NRMS ≤ {target * 100:g} % the cheapest setting is {method_label(row['values'])} "
-                f"(NRMS {row['error']:.3g}), {costing}")
-    else:
-        by_key = {r["key"]: r for r in rows}
-        costs = "; ".join(
-            f"{method_label(by_key[k]['values'])}: {_ms(_cost(by_key[k]))} ({_ms(_cost_range(by_key[k])[0])} to "
-            f"{_ms(_cost_range(by_key[k])[1])}), {exchanges(by_key[k]):.6g} exchanges/s, NRMS "
-            f"{by_key[k]['error']:.3g}" for k in tied)
-        text = (f"for {signal_name} NRMS ≤ {target * 100:g} % {len(tied)} settings cost the same within the measured "
-                f"spread of CPU time per simulated second in process (median, fastest to slowest of the repeats: "
-                f"{costs}); the tie is broken by fewer exchanges, then lower NRMS: {method_label(row['values'])} "
-                f"(NRMS {row['error']:.3g}), {costing}")
-    return {"point": row["key"], "method": row["method"], "macro_step": row["macro_step"], "error": row["error"],
-            "inproc_loop_cpu_per_s": _cost(row), "inproc_loop_wall_per_s": row["inproc"]["loop_wall_per_s"],
+    row = next((r for r in rows if r["key"] == best), None)
+    zenoh = None if row is None else row["zenoh"]
+    return {"target": target, "point": best, "method": None if row is None else row["method"],
+            "macro_step": None if row is None else row["macro_step"], "error": None if row is None else row["error"],
+            "error_bar": None if row is None else row["error_bar"],
+            "inproc_loop_cpu_per_s": None if row is None else _cost(row),
+            "inproc_loop_wall_per_s": None if row is None else row["inproc"]["loop_wall_per_s"],
             "zenoh_loop_wall_per_s": None if zenoh is None else zenoh["loop_wall_per_s"], "tied": tied,
-            "tie_rule": tradeoffs.TIE_RULE, "text": text}
+            "tie_rule": tradeoffs.TIE_RULE}
