@@ -83,8 +83,8 @@ def _rms(values: np.ndarray) -> float:
 
 
 def extrapolate(macro_steps: Sequence[float], runs: Sequence[Samples]) -> Extrapolated | str:
-    """``T_m`` of the ``m >= 3`` points ``runs`` at ``macro_steps`` [s] (ascending), on the finest run's samples,
-    with its error bar (module docstring); or why there is none (a coarser run's samples that a finer run lacks,
+    """``T_m`` of the ``m >= 3`` points ``runs`` at ``macro_steps`` [s] (ascending), on the finest run's samples up to
+    the coarsest's last, with its error bar (module docstring); or why there is none (a coarser run's samples that a finer run lacks,
     values that are not finite)."""
     if len(runs) < MIN_POINTS:
         return f"{len(runs)} points; the extrapolation needs {MIN_POINTS}"
@@ -101,9 +101,10 @@ def extrapolate(macro_steps: Sequence[float], runs: Sequence[Samples]) -> Extrap
     extrapolated = zero_step_weights(macro_steps) @ np.array(at_shared)
     lower = zero_step_weights(macro_steps[:-1]) @ np.array(at_shared[:-1])
     finest = runs[0]
-    correction = extrapolated - at_shared[0]
-    on_finest = finest.values + _interpolated(shared, correction, finest.times_ns)
-    return Extrapolated(Samples(finest.times_ns, on_finest), tuple(macro_steps),
+    within = finest.times_ns <= shared[-1]  # a coarser run may end earlier (manager.study.grid shortens it)
+    correction = _interpolated(shared, extrapolated - at_shared[0], finest.times_ns[within])
+    on_finest = Samples(finest.times_ns[within], np.asarray(finest.values, dtype=float)[within] + correction)
+    return Extrapolated(on_finest, tuple(macro_steps),
                         observed_order(macro_steps[:3], at_shared[:3]), _rms(extrapolated - lower),
                         float(np.max(np.abs(extrapolated - lower))))
 
