@@ -165,8 +165,8 @@ def summary_row(name: str, study: dict) -> str:
     setting = plot_label({k: v for k, v in row["values"].items() if k != MACRO_STEP})
     tied = f" ({len(answer['tied'])} tied on cost: see its section)" if len(answer["tied"]) > 1 else ""
     zenoh = "–" if answer["zenoh_loop_wall_per_s"] is None else f"{answer['zenoh_loop_wall_per_s'] * 1e3:.3g}"
-    return (f"| {name} | {setting}{tied} | {answer['macro_step'] * 1e3:g} | {answer['inproc_loop_cpu_per_s'] * 1e3:.3g} "
-            f"| {zenoh} | {answer['error']:.3g} |")
+    return (f"| {name} | {setting}{tied} | {answer['macro_step'] * 1e3:g} "
+            f"| {answer['inproc_loop_cpu_per_s'] * 1e3:.3g} | {zenoh} | {answer['error']:.3g} |")
 
 
 def section(name: str, study: dict, scene, about: str) -> list[str]:

@@ -84,15 +84,15 @@ def _rms(values: np.ndarray) -> float:
 
 def extrapolate(macro_steps: Sequence[float], runs: Sequence[Samples]) -> Extrapolated | str:
     """``T_m`` of the ``m >= 3`` points ``runs`` at ``macro_steps`` [s] (ascending), on the finest run's samples up to
-    the coarsest's last, with its error bar (module docstring); or why there is none (a coarser run's samples that a finer run lacks,
-    values that are not finite)."""
+    the coarsest's last, with its error bar (module docstring); or why there is none (a coarser run's samples that
+    a finer run lacks, values that are not finite)."""
     if len(runs) < MIN_POINTS:
         return f"{len(runs)} points; the extrapolation needs {MIN_POINTS}"
     shared = runs[-1].times_ns
     at_shared = []
     for steps, run in zip(macro_steps, runs):
-        index = np.searchsorted(run.times_ns, shared)
-        if np.any(index >= len(run.times_ns)) or np.any(run.times_ns[np.minimum(index, len(run.times_ns) - 1)] != shared):
+        index = np.minimum(np.searchsorted(run.times_ns, shared), len(run.times_ns) - 1)
+        if np.any(run.times_ns[index] != shared):
             return (f"the samples of the {macro_steps[-1] * 1e3:g} ms point are not all samples of the "
                     f"{steps * 1e3:g} ms point")
         at_shared.append(np.asarray(run.values[index], dtype=float))

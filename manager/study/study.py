@@ -52,7 +52,8 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     extrapolating = extrapolates(scene)
     todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats,
              "signals_file": str(cache.signals_path(p.key)) if extrapolating else None}
-            for p in points if entries[p.key] is None or (extrapolating and _lacks_signals(entries[p.key], cache, p.key))]
+            for p in points
+            if entries[p.key] is None or (extrapolating and _lacks_signals(entries[p.key], cache, p.key))]
     if todo:
         cache.folder.mkdir(parents=True, exist_ok=True)
     workers = options.workers or os.cpu_count() or 1
@@ -130,7 +131,8 @@ def extrapolates(scene: Scene) -> bool:
     (``outputs.reference = "extrapolated"``) or gives none (``"none"``, or an analytic reference that its
     subsystems do not admit), so that a study always has an error to weigh against the cost."""
     reference = scene.outputs.reference
-    return reference in ("none", "extrapolated") or (reference == "analytic" and monolithic_unavailable(scene) is not None)
+    return (reference in ("none", "extrapolated")
+            or (reference == "analytic" and monolithic_unavailable(scene) is not None))
 
 
 def _lacks_signals(entry: dict, cache: StudyCache, key: str) -> bool:

@@ -1,8 +1,8 @@
 """The study's workers: processes that measure points in process, one point at a time each.
 
 A worker is ``python -m zencosim.manager.study.workers``: it reads one task per line on its standard input
-(JSON: ``key``, ``scene``, ``overrides``, ``repeats``, ``signals_file``) and writes one line per task on its standard output
-(``key`` and ``measured``, or ``key`` and ``error``); it ends at the end of its input. Plain processes
+(JSON: ``key``, ``scene``, ``overrides``, ``repeats``, ``signals_file``) and writes one line per task on its
+standard output (``key`` and ``measured``, or ``key`` and ``error``); it ends at the end of its input. Plain processes
 rather than a ``multiprocessing`` pool: nothing of the caller's main module is imported again, and the
 study ends its workers by their process ids whatever happens.
 """

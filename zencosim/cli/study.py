@@ -42,8 +42,8 @@ def _no_signals(scene: Scene) -> str:
     """What to say of a scene whose ``outputs.signals`` lists nothing: a study needs a signal whose NRMS it measures."""
     names = sorted({s for c in scene.couplings.values() for s in c.signals()})
     if not names:
-        return (f"{scene.path}: outputs.signals: the scene lists no signal and has no coupling signal; a study measures "
-                "the NRMS of one")
+        return (f"{scene.path}: outputs.signals: the scene lists no signal and has no coupling signal; a study "
+                "measures the NRMS of one")
     return (f"{scene.path}: outputs.signals: the scene lists no signal; a study measures the NRMS of one: add "
             f"--set 'outputs.signals=[\"{names[0]}\"]' (its coupling signals: {', '.join(names)})")
 
