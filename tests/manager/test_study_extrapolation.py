@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.manager.test_cli import zencosim
@@ -40,6 +40,7 @@ def run_of(step_ns: int, coefficients: list[float]) -> Samples:
     return Samples(t_ns, exact(t) + sum(term(k, c, t) * h ** k for k, c in enumerate(coefficients, 1)))
 
 
+@settings(max_examples=50, deadline=None)  # no wall-clock deadline: the machine may be loaded
 @given(st.integers(1_000_000, 4_000_000), st.sampled_from(STEP_FACTORS), st.integers(3, 4),
        st.lists(st.floats(-50.0, 50.0), min_size=4, max_size=4))
 def test_the_extrapolation_cancels_every_term_below_h_to_the_m(fine_ns, factors, m, coefficients):
@@ -82,6 +83,7 @@ def test_a_polynomial_of_degree_m_minus_1_is_extrapolated_exactly_and_its_bar_is
     assert result.bar_max == pytest.approx(float(np.max(np.abs(lower_error))), rel=1e-6)
 
 
+@settings(deadline=None)
 @given(st.floats(0.3, 4.0), st.floats(1e-4, 1e-2), st.floats(1.2, 4.0), st.floats(1.2, 4.0))
 def test_the_observed_order_of_a_pure_power_is_that_power(p, h1, ratio_2, ratio_3):
     """y_h = y + c h^p at any three steps: the observed order is p (bisection to the float's resolution)."""
@@ -111,6 +113,7 @@ def test_an_exact_reference_gives_the_summary_nrms_at_the_runs_own_samples():
         assert bar == pytest.approx(0.0, abs=1e-15)
 
 
+@settings(deadline=None)
 @given(st.integers(0, 2 ** 32 - 1), st.floats(1e-4, 0.2), st.floats(0.0, 0.5))
 def test_the_error_bar_holds_the_nrms_against_the_exact_solution(seed, size, run_error):
     """A reference off the exact solution by δ, told rms(δ) and max|δ| at the run's samples: the run's NRMS against
