@@ -300,7 +300,7 @@ def answer_table(study: dict) -> list[str]:
     lines = ["| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths)) + " |" for cells in [head, *rows]]
     lines.insert(1, "| " + " | ".join("-" * w for w in widths) + " |")
     if tie_rule is not None:
-        lines += ["", f"Tied: costs within the measured spread of the cheapest's; {tie_rule}."]
+        lines += ["", f"Tied: {tie_rule}."]
     return lines
 
 

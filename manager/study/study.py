@@ -169,6 +169,14 @@ def _extrapolate(scene: Scene, rows: list[dict], cache: StudyCache, signal_name:
     return described
 
 
+def _error_at_most(row: dict) -> float | None:
+    """The largest NRMS the point's error can be: against an extrapolated reference its estimate plus its error bar,
+    so that a point meets a target only when its bar does too; else the error itself."""
+    if row["error"] is None or row["error_bar"] is None:
+        return row["error"]
+    return row["error"] + row["error_bar"]
+
+
 def _cost(row: dict) -> float | None:
     """In-process CPU time of the stepping loop per simulated second: what the run needs of a core, whatever else
     the machine runs (the wall time also counts the waits for a core)."""
@@ -204,7 +212,7 @@ def _methods(scene: Scene, rows: list[dict]) -> list[dict]:
                    "stability_limit": _stability_limit(scene, members, steps, stable),
                    "targets": {}}
         for target in TARGETS:
-            h = tradeoffs.step_for_target(steps, [r["error"] for r in members], stable, target)
+            h = tradeoffs.step_for_target(steps, [_error_at_most(r) for r in members], stable, target)
             at = next((r for r in members if r["macro_step"] == h), None)
             summary["targets"][f"{target:g}"] = {"macro_step": h, "cost_per_s": None if at is None else _cost(at)}
         summaries.append(summary)
@@ -252,11 +260,12 @@ def _cost_range(row: dict) -> tuple[float, float]:
 
 
 def _cheapest(rows: list[dict], target: float, exchanges: Callable[[dict], float]) -> tuple[str | None, list[str]]:
-    """The key of the stable point with an error at most ``target`` to recommend, and the keys of the points tied
-    with the cheapest on cost (``tradeoffs.answer``; None and [] when no point meets it)."""
+    """The key of the stable point with an error at most ``target`` (with its error bar: ``_error_at_most``) to
+    recommend, and the keys of the points tied with the cheapest on cost (``tradeoffs.answer``; None and [] when
+    no point meets it)."""
     candidates = [r for r in rows if _cost(r) is not None]
     best, tied = tradeoffs.answer([_cost(r) for r in candidates], [_cost_range(r) for r in candidates],
-                                  [r["error"] for r in candidates], [r["stable"] for r in candidates], target,
+                                  [_error_at_most(r) for r in candidates], [r["stable"] for r in candidates], target,
                                   lambda i: exchanges(candidates[i]))
     return None if best is None else candidates[best]["key"], [candidates[i]["key"] for i in tied]
 
