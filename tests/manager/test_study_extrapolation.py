@@ -15,6 +15,8 @@ from hypothesis import strategies as st
 from tests.manager.test_cli import zencosim
 from tests.manager.test_study import documented_keys, leaf_paths, study_of
 from zencosim.manager.results.summary import nrms
+from zencosim.manager.run import references
+from zencosim.manager.scene.load import load_scene
 from zencosim.manager.study.extrapolation import (Extrapolated, Samples, extrapolate, nrms_against, observed_order,
                                                   zero_step_weights)
 from zencosim.manager.study.measure import measure_point
@@ -184,3 +186,9 @@ def test_the_report_is_written_whatever_there_is_to_plot(tmp_path):
         assert [p.name for p in written] == list(FILES), variant
         assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in written if p.suffix == ".png"), variant
         assert "none: the reference could not be extrapolated (no method has 3" in (folder / "study.md").read_text()
+
+
+def test_a_single_run_of_a_scene_whose_reference_is_extrapolated_says_it_has_none():
+    """``outputs.reference = "extrapolated"`` is a study's (several macro-steps); a run measures no NRMS and says why."""
+    refs, note = references(load_scene("two_mass_damped", ["outputs.reference=extrapolated"]))
+    assert refs == {} and note.startswith("no reference: 'extrapolated' is extrapolated by `zencosim study`")
