@@ -121,6 +121,7 @@ def _row(point: Point, entry: dict, signal_name: str) -> dict:
                   "loop_cpu_max_per_s": inproc["loop_cpu_per_s"]}
     return {"key": point.key, "method": point.method, "macro_step": point.macro_step, "values": point.values,
             "overrides": list(point.overrides), "derived": list(point.derived), **measured, "inproc": inproc,
+            "nrms": dict(measured["nrms"]),  # a copy: an extrapolated reference's estimates are not the cache's
             "error": measured["nrms"].get(signal_name) if measured["stable"] else None, "error_bar": None,
             "nrms_error_bar": dict.fromkeys(measured["nrms"]),
             "exchanges_per_s": entry.get("exchanges_per_s"), "zenoh": None, "pareto": False}
