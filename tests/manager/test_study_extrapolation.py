@@ -138,13 +138,21 @@ def test_a_study_of_the_fmu_scene_without_reference_gives_the_analytic_nrms_with
     reference; every NRMS estimate lies within its error bar of the analytic NRMS of the built-in two_mass_damped
     at the same point (the same system: the FMUs agree with it to 1e-13 of x2's range), and the bars resolve the
     errors (under a tenth of ZOH's; under FOH's own, which is 15 times smaller). Its report is written, states
-    the reference, and has only documented keys. 1 s of simulated time keeps it to a few seconds."""
+    the reference, and has only documented keys; run again, it measures nothing and says the same. 1 s of simulated
+    time keeps it to a few seconds."""
     report = tmp_path / "report"
-    result = zencosim("study", str(examples / "two_mass_damped_fmu.toml"), "--set", "manager.duration=1",
-                      "--vary", "manager.macro_step=0.5e-3,1e-3,2e-3", "--vary", "manager.extrapolation=0,1",
-                      "--repeats", "1", "--zenoh", "none", "--cache", str(tmp_path / "cache"), "--out", str(report))
-    assert result.returncode == 0, result.stderr
-    study = json.loads((report / "study.json").read_text())
+
+    def study_run() -> tuple[dict, str]:
+        result = zencosim("study", str(examples / "two_mass_damped_fmu.toml"), "--set", "manager.duration=1",
+                          "--vary", "manager.macro_step=0.5e-3,1e-3,2e-3", "--vary", "manager.extrapolation=0,1",
+                          "--repeats", "1", "--zenoh", "none", "--cache", str(tmp_path / "cache"), "--out", str(report))
+        assert result.returncode == 0, result.stderr
+        return json.loads((report / "study.json").read_text()), result.stdout
+
+    study, stdout = study_run()
+    again, _ = study_run()  # from the cache, the points' signals kept beside them: nothing runs, the same estimates
+    assert (again["run"]["ran"], again["run"]["cached"]) == (0, 6)
+    assert [(p["error"], p["error_bar"]) for p in again["points"]] == [(p["error"], p["error_bar"]) for p in study["points"]]
     assert study["reference"] == "extrapolated"
     described = study["extrapolation"]["x2"]
     assert described["reason"] is None and len(described["macro_steps"]) == 3 and 0.9 < described["order"] < 2.1
@@ -156,7 +164,7 @@ def test_a_study_of_the_fmu_scene_without_reference_gives_the_analytic_nrms_with
         assert point["error_bar"] < (0.1 if zoh else 1.0) * analytic
     text = (report / "study.md").read_text()
     assert "extrapolated to a zero macro-step from ZOH at 0.5, 1, 2 ms (Richardson" in text
-    assert "| ≤ 1 %" in result.stdout and "±" in result.stdout
+    assert "| ≤ 1 %" in stdout and "±" in stdout
     assert all((report / name).stat().st_size > 0 for name in FILES)
     documented = documented_keys()
     prefixes = {d[:i] for d in documented for i, c in enumerate(d) if c in ".["}
