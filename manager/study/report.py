@@ -328,8 +328,9 @@ def points_table(study: dict) -> list[str]:
     verdict = {True: "yes", False: "no", None: "–"}
     for r in sorted(study["points"], key=lambda r: (r["method"], r["macro_step"])):
         inproc, zenoh = r["inproc"] or {}, r["zenoh"] or {}
-        nrms = r["nrms"].get(study["signal"])
-        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms), _number(r["energy_error"]),
+        nrms, bar = r["nrms"].get(study["signal"]), (r.get("nrms_error_bar") or {}).get(study["signal"])
+        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms) + ("" if bar is None else f" ± {bar:.2g}"),
+                 _number(r["energy_error"]),
                  f"{verdict[r['stable_predicted']]} / {verdict[r['stable_run']]}" + (" (failed)" if r["failed"] else ""),
                  _cost_cell(inproc), _ms(inproc.get("loop_wall_per_s")), _ms(zenoh.get("loop_wall_per_s")),
                  str(zenoh.get("exchanges", "–")), "yes" if r["pareto"] else ""]
