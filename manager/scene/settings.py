@@ -155,7 +155,7 @@ class OutputSettings:
     """The ``[outputs]`` table: which signals the summary reports and against which reference."""
 
     signals: tuple[str, ...] = ()
-    reference: Literal["analytic", "solve_ivp", "none"] = "analytic"
+    reference: Literal["analytic", "solve_ivp", "extrapolated", "none"] = "analytic"  # extrapolated: a study's
 
 
 @dataclass(frozen=True)
