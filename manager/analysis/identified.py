@@ -1,0 +1,257 @@
+"""A subsystem that is not a built-in linear model (an FMU, a user's Python model), identified as a discrete-time
+linear system at its communication step around the initial operating point (issue 41, item 3).
+
+Over one communication step ``H`` the subsystem maps its internal state ``s_k`` and the coefficients ``c_k`` of its
+input polynomial (``w(τ) = Σ_q c_q τ^q``, the extrapolation in force) to ``s_{k+1}`` and to its outputs at the end
+of the step; for a linear subsystem::
+
+    s_{k+1} = A s_k + B c_k,    y_{k+1} = C' s_k + D' c_k,
+
+whose Markov parameters ``h_0 = D'``, ``h_j = C' A^{j-1} B`` are the outputs' responses to a pulse of ``c`` in
+step 0. They are measured by driving the built subsystem alone (``Subsystem.advance``, so that an FMU receives
+its inputs exactly as in a run: set at every micro-step) from its initial state, inputs held at their initial
+values ``w_0`` (the baseline), and with ``c_0 = w_0 ± δ e_j`` in the first step (central differences); each probe
+restores the saved initial state (``Subsystem.save``), or builds a fresh instance where the component cannot
+save its state. The eigensystem realisation algorithm (ERA; Juang & Pappa 1985) realises them: the block Hankel
+matrix ``H_0 = [h_{i+j+1}]`` of ``r`` block rows and columns has the SVD ``U Σ V^T``; its order ``n`` is the number of
+singular values above ``ORDER_TOLERANCE σ_1`` (or above the probes' own error, see below), and::
+
+    A = Σ_n^{-1/2} U_n^T H_1 V_n Σ_n^{-1/2},   B = Σ_n^{1/2} V_n^T[:, :m],   C' = U_n[:p] Σ_n^{1/2},   D' = h_0
+
+(``H_1 = [h_{i+j+2}]``; the Markov parameters scaled to unit row and column maxima first, so that inputs and
+outputs of different units weigh alike). This is ``control.eigensys_realization`` of python-control, in
+the few lines of numpy it takes. The realisation enters the exact discrete analysis
+(``manager.analysis.discrete``) with the augmented state ``ξ = [s; y]``: ``Φ = [[A, 0], [C', 0]]``,
+``Γ_q = [B_q; D'_q]``, ``C_y = [0 I]``, ``D_y = 0`` — the outputs at a communication point are part of the state;
+``Φ``'s extra eigenvalues are zero (redundant states, no pole).
+
+A linear subsystem is identified exactly (to rounding): the probes use amplitudes of the inputs' own size
+(``δ = max(|w_0|, 1) / H^q``), and its responses to ``+δ`` and ``−δ`` are opposite to rounding. Where they are not
+(``nonlinearity`` above ``LINEAR_TOLERANCE``) the subsystem is nonlinear: the probes are repeated at
+``LOCAL_AMPLITUDE`` times that size and the result is a local linearisation about the initial operating point
+(the free response from the initial state), its error of the order of the nonlinearity reported. Modes that the
+fed inputs do not excite or the fed outputs do not show are left out (the minimal realisation): they run free,
+outside the coupling, and are not the scheme's. What cannot be identified — a probe that fails, Markov
+parameters that are not finite, a realisation whose Markov parameters miss the measured ones by more than
+``FIT_TOLERANCE`` (an order above ``HANKEL_ROWS`` times the inputs or outputs) — raises ``IdentificationError``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
+from zencosim.subsystems.subsystem import Subsystem
+
+HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix; orders up to r · min(inputs, outputs)
+VALIDATION_STEPS = 8  # Markov parameters measured beyond the 2r + 1 that ERA uses, to check the fit
+ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14)
+LINEAR_TOLERANCE = 1e-9  # |y(+δ) + y(−δ) − 2 y_0| / |y(+δ) − y(−δ)| below which the subsystem is linear
+LOCAL_AMPLITUDE = 1e-4  # relative probe size of a local linearisation (central differences: error ~ δ²)
+FIT_TOLERANCE = 1e-6  # largest relative misfit of the realised Markov parameters of a linear subsystem
+
+
+class IdentificationError(ValueError):
+    """A subsystem whose responses cannot be realised as a discrete-time linear system; the message says why."""
+
+
+@dataclass(frozen=True)
+class Identification:
+    """How one subsystem was identified (the analyze report's ``identification`` entry)."""
+
+    subsystem: str
+    method: str  # "ERA on Markov parameters from held-input probes"
+    order: int  # n, states of the realisation (without the output samples of ξ)
+    fit_residual: float  # max |h_realised − h_measured| / max |h_measured| over every measured Markov parameter
+    nonlinearity: float  # |y(+δ) + y(−δ) − 2 y_0| / |y(+δ) − y(−δ)|, largest over the probed coefficients
+    exact: bool  # linear to rounding (else a local linearisation about the initial operating point)
+    probes: int  # runs of the subsystem alone
+    steps: int  # communication steps per probe
+    singular_values: tuple[float, ...]  # of the scaled Hankel matrix, largest first (the first order + 2)
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "order": self.order, "fit_residual": self.fit_residual,
+                "nonlinearity": self.nonlinearity,
+                "linearisation": "exact" if self.exact else "local", "probes": self.probes, "steps": self.steps,
+                "singular_values": list(self.singular_values)}
+
+    def describe(self) -> str:
+        kind = "exact (linear to rounding)" if self.exact else "local linearisation about the initial point"
+        return (f"{self.method}: order {self.order}, fit residual {self.fit_residual:.2g}, "
+                f"nonlinearity {self.nonlinearity:.2g}, {kind}; {self.probes} probes of {self.steps} steps")
+
+
+@dataclass(frozen=True)
+class IdentifiedStep:
+    """One communication step of an identified subsystem in the form of ``manager.analysis.discrete.SubsystemMap``:
+    ``ξ_end = Φ ξ + Σ_q Γ[q] c_q``, ``y = C_y ξ_end + D_y w(H)``."""
+
+    Phi: np.ndarray
+    Gamma: np.ndarray  # (p + 1, n + n_fed_outputs, n_inputs)
+    C_y: np.ndarray
+    D_y: np.ndarray
+    identification: Identification
+
+
+@dataclass(frozen=True)
+class Probe:
+    """Runs of one subsystem alone from its initial state: ``restart`` gives it at t = 0, as built."""
+
+    restart: Callable[[], Subsystem]
+    span_ns: int  # its communication step
+    w0: np.ndarray  # input values held (the initial operating point)
+    fed_inputs: tuple[int, ...]  # inputs a coupling feeds (the others stay at w0)
+    fed_outputs: tuple[int, ...]  # outputs that feed another subsystem
+    rows: int  # p + 1 coefficients of the input polynomial
+
+    def outputs(self, pulse: np.ndarray, steps: int) -> np.ndarray:
+        """The fed outputs at the end of each of ``steps`` steps, ``pulse`` (rows, inputs) added to ``c`` in step 0."""
+        sub = self.restart()
+        held = np.zeros((self.rows, self.w0.size))
+        held[0] = self.w0
+        y = np.empty((steps, len(self.fed_outputs)))
+        for k in range(steps):
+            c = held + pulse if k == 0 else held
+            y[k] = sub.advance_values(k * self.span_ns, (k + 1) * self.span_ns, c)[list(self.fed_outputs)]
+        return y
+
+
+def markov_parameters(probe: Probe, amplitude: float, steps: int) -> tuple[np.ndarray, float, int]:
+    """``h`` (steps, fed outputs, rows · fed inputs; columns ``q``-major) by central differences with probes of
+    ``amplitude · max(|w_0|, 1) / H^q``, the nonlinearity of the responses and the number of probes."""
+    y0 = probe.outputs(np.zeros((probe.rows, probe.w0.size)), steps)
+    H = probe.span_ns * 1e-9
+    columns, nonlinearity = [], 0.0
+    for q in range(probe.rows):
+        for i in probe.fed_inputs:
+            delta = amplitude * max(abs(probe.w0[i]), 1.0) / H ** q
+            pulse = np.zeros((probe.rows, probe.w0.size))
+            pulse[q, i] = delta
+            plus, minus = probe.outputs(pulse, steps), probe.outputs(-pulse, steps)
+            odd, even = np.max(np.abs(plus - minus)), np.max(np.abs(plus + minus - 2.0 * y0))
+            if odd > 0.0:
+                nonlinearity = max(nonlinearity, even / odd)
+            columns.append((plus - minus) / (2.0 * delta))
+    h = np.stack(columns, axis=2)
+    if not np.all(np.isfinite(h)):
+        raise IdentificationError("its responses to the probes are not finite")
+    return h, nonlinearity, 1 + 2 * len(columns)
+
+
+def eigensystem_realization(h: np.ndarray, rows: int, tolerance: float
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """ERA (see the module text) of Markov parameters ``h`` (at least ``2 rows + 1``): ``A, B, C', D'`` and the
+    singular values of the scaled Hankel matrix."""
+    out_scale = np.max(np.abs(h), axis=(0, 2))
+    out_scale[out_scale == 0.0] = 1.0
+    g = h / out_scale[None, :, None]
+    in_scale = np.max(np.abs(g), axis=(0, 1))
+    in_scale[in_scale == 0.0] = 1.0
+    g = g / in_scale[None, None, :]
+    p, m = g.shape[1:]
+    H0 = np.block([[g[i + j + 1] for j in range(rows)] for i in range(rows)])
+    H1 = np.block([[g[i + j + 2] for j in range(rows)] for i in range(rows)])
+    U, sigma, Vt = np.linalg.svd(H0)
+    n = int(np.sum(sigma > tolerance * sigma[0])) if sigma[0] > 0.0 else 0
+    root = np.sqrt(sigma[:n])
+    A = (U[:, :n].T @ H1 @ Vt[:n].T) / root[:, None] / root[None, :]
+    B = (root[:, None] * Vt[:n, :m]) * in_scale[None, :]
+    C = (U[:p, :n] * root[None, :]) * out_scale[:, None]
+    return A, B, C, h[0], sigma
+
+
+def realised_markov(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, steps: int) -> np.ndarray:
+    """``D, C B, C A B, …``: the first ``steps`` Markov parameters of a realisation."""
+    h, AkB = [D], B
+    for _ in range(steps - 1):
+        h.append(C @ AkB)
+        AkB = A @ AkB
+    return np.stack(h)
+
+
+def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
+    """The one-step map of subsystem ``name`` (``n_outputs`` outputs in all) identified from ``probe``."""
+    steps = 2 * HANKEL_ROWS + 2 + VALIDATION_STEPS
+    h, nonlinearity, probes = markov_parameters(probe, 1.0, steps)
+    exact = nonlinearity <= LINEAR_TOLERANCE
+    if not exact:
+        h, nonlinearity, more = markov_parameters(probe, LOCAL_AMPLITUDE, steps)
+        probes += more
+    tolerance = max(ORDER_TOLERANCE, 100.0 * nonlinearity)
+    A, B, C, D, sigma = eigensystem_realization(h, HANKEL_ROWS, tolerance)
+    scale = np.max(np.abs(h))
+    residual = float(np.max(np.abs(realised_markov(A, B, C, D, steps) - h)) / scale) if scale > 0.0 else 0.0
+    if not np.isfinite(residual) or residual > max(FIT_TOLERANCE, 1e3 * nonlinearity):
+        raise IdentificationError(f"the realisation of order {A.shape[0]} misses its Markov parameters by "
+                                  f"{residual:.3g} (relative): not a linear system of order up to "
+                                  f"{HANKEL_ROWS * min(h.shape[1:])} at this step")
+    n, p = A.shape[0], len(probe.fed_outputs)
+    Phi = np.zeros((n + p, n + p))
+    Phi[:n, :n], Phi[n:, :n] = A, C
+    Gamma = np.zeros((probe.rows, n + p, probe.w0.size))
+    fed = list(probe.fed_inputs)
+    for q in range(probe.rows):
+        block = slice(q * len(fed), (q + 1) * len(fed))
+        Gamma[q][:n, fed], Gamma[q][n:, fed] = B[:, block], D[:, block]
+    C_y = np.zeros((n_outputs, n + p))
+    C_y[list(probe.fed_outputs), n + np.arange(p)] = 1.0
+    report = Identification(name, "ERA on Markov parameters from held-input probes", n, residual, nonlinearity,
+                            exact, probes, steps, tuple(float(s) for s in sigma[:n + 2]))
+    return IdentifiedStep(Phi, Gamma, C_y, np.zeros((n_outputs, probe.w0.size)), report)
+
+
+def initial_inputs(plan: Plan, subsystems: dict[str, Subsystem]) -> list[np.ndarray]:
+    """Every subsystem's input values at t_0 (plan order): the outputs at t_0 evaluated round by round as the plan's
+    initialisation orders them (``Plan.init_rounds``), each with the inputs its sources have given so far."""
+    outputs: list[np.ndarray | None] = [None] * len(plan.subsystems)
+
+    def gathered(s: SubsystemPlan) -> np.ndarray:
+        w = np.zeros(len(s.inputs))
+        for feed in s.feeds:
+            if outputs[feed.source] is not None:
+                w[list(feed.inputs)] = outputs[feed.source][list(feed.outputs)]
+        return w
+
+    for round_ in plan.init_rounds:
+        for step in round_:
+            s = plan.subsystems[step.subsystem]
+            outputs[s.index] = np.asarray(subsystems[s.name].output_values(gathered(s)), dtype=float)
+    return [gathered(s) for s in plan.subsystems]
+
+
+def identified_steps(plan: Plan, subsystems: dict[str, Subsystem], names: set[str],
+                     fresh: Callable[[str], Subsystem], can_save: Callable[[str], bool]) -> dict[str, IdentifiedStep]:
+    """The subsystems ``names`` (built, at t = 0) identified at their communication steps about the initial operating
+    point; ``fresh(name)`` builds one anew, for a component that cannot save its state (``can_save``)."""
+    w0 = initial_inputs(plan, subsystems)
+    fed_outputs = {s.index: set() for s in plan.subsystems}
+    for s in plan.subsystems:
+        for feed in s.feeds:
+            fed_outputs[feed.source].update(feed.outputs)
+    result = {}
+    for s in plan.subsystems:
+        if s.name not in names:
+            continue
+        sub = subsystems[s.name]
+        if can_save(s.name):
+            saved = sub.save()
+
+            def restart(sub=sub, saved=saved) -> Subsystem:
+                sub.restore(saved)
+                return sub
+        else:
+            def restart(name=s.name) -> Subsystem:
+                return fresh(name)
+        probe = Probe(restart, s.ratio * plan.base_step_ns, w0[s.index],
+                      tuple(sorted(i for feed in s.feeds for i in feed.inputs)), tuple(sorted(fed_outputs[s.index])),
+                      s.order + 1)
+        try:
+            result[s.name] = identify(s.name, probe, len(s.outputs))
+        except IdentificationError as error:
+            raise IdentificationError(f"subsystem {s.name} cannot be identified: {error}") from None
+        finally:
+            if can_save(s.name):
+                sub.restore(saved)
+    return result
