@@ -228,7 +228,8 @@ def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
 
 def run_scheme(scene: Scene) -> DiscreteScheme | None:
     """The exact discrete scheme of the run ``scene`` describes — compensated when it asks for the compensator,
-    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix).
+    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix), or a
+    subsystem is identified only as a local linearisation (a verdict on small motions, not on the run).
     ``SceneError`` when the compensator cannot be designed."""
     if discrete_unavailable(scene) or scene.manager.corrects:
         return None
@@ -236,6 +237,7 @@ def run_scheme(scene: Scene) -> DiscreteScheme | None:
         if scene.manager.compensation == "eigenstructure":
             from zencosim.manager.analysis.compensator import scene_compensator  # needs scipy.optimize
             return scene_compensator(scene).scheme
-        return uncompensated_scheme(scene)
-    except LinearSceneError:  # a model whose public matrices are not its whole dynamics
+        scheme = uncompensated_scheme(scene)
+    except LinearSceneError:  # a model whose public matrices are not its whole dynamics, one not identified
         return None
+    return scheme if all(i.exact for i in scheme.identifications) else None
