@@ -45,11 +45,14 @@ import numpy as np
 from zencosim.manager.plan.run_plan import Plan, SubsystemPlan
 from zencosim.subsystems.subsystem import Subsystem
 
-HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix; orders up to r · min(inputs, outputs)
+HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix first tried; orders up to r · min(inputs, outputs)
+MAX_HANKEL_ROWS = 256  # the most it grows to (522 steps a probe)
+STATE_GAP = 1e6  # σ_n / σ_{n+1} at which the weakest state is resolved (its eigenvalue error ~ 1e-16 · 1e6 / σ_n ratio)
 VALIDATION_STEPS = 8  # Markov parameters measured beyond the 2r + 1 that ERA uses, to check the fit
 ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14)
 LINEAR_TOLERANCE = 1e-9  # |y(+δ) + y(−δ) − 2 y_0| / |y(+δ) − y(−δ)| below which the subsystem is linear
 LOCAL_AMPLITUDE = 1e-4  # relative probe size of a local linearisation (central differences: error ~ δ²)
+LOCAL_ORDER_TOLERANCE = 1e-6  # σ_i / σ_1 of a state of a local linearisation: above the δ² ~ 1e-8 of its probes
 FIT_TOLERANCE = 1e-6  # largest relative misfit of the realised Markov parameters of a linear subsystem
 
 
@@ -68,7 +71,7 @@ class Identification:
     nonlinearity: float  # |y(+δ) + y(−δ) − 2 y_0| / |y(+δ) − y(−δ)|, largest over the probed coefficients
     exact: bool  # linear to rounding (else a local linearisation about the initial operating point)
     probes: int  # runs of the subsystem alone
-    steps: int  # communication steps per probe
+    steps: int  # communication steps per probe (of the last Hankel size tried)
     singular_values: tuple[float, ...]  # of the scaled Hankel matrix, largest first (the first order + 2)
 
     def to_dict(self) -> dict:
@@ -112,30 +115,37 @@ class Probe:
         held = np.zeros((self.rows, self.w0.size))
         held[0] = self.w0
         y = np.empty((steps, len(self.fed_outputs)))
-        for k in range(steps):
-            c = held + pulse if k == 0 else held
-            y[k] = sub.advance_values(k * self.span_ns, (k + 1) * self.span_ns, c)[list(self.fed_outputs)]
+        with np.errstate(all="ignore"):  # a response that overflows is judged by its values (markov_parameters)
+            for k in range(steps):
+                c = held + pulse if k == 0 else held
+                y[k] = sub.advance_values(k * self.span_ns, (k + 1) * self.span_ns, c)[list(self.fed_outputs)]
         return y
 
 
-def markov_parameters(probe: Probe, amplitude: float, steps: int) -> tuple[np.ndarray, float, int]:
-    """``h`` (steps, fed outputs, rows · fed inputs; columns ``q``-major) by central differences with probes of
-    ``amplitude · max(|w_0|, 1) / H^q``, the nonlinearity of the responses and the number of probes."""
+def markov_parameters(probe: Probe, amplitude: float, steps: int, exact: bool) -> tuple[np.ndarray, float, int]:
+    """``h`` (steps, fed outputs, rows · fed inputs; columns ``q``-major) from probes of ``δ = amplitude ·
+    max(|w_0|, 1) / H^q``, the nonlinearity of the responses and the number of probes. ``exact``: pulses ``+δ`` and
+    ``−δ/2``, whose responses ``y_+, y_−`` about the baseline ``y_0`` satisfy ``(y_+ − y_0) + 2 (y_− − y_0) = 0`` for a
+    linear subsystem (even and odd nonlinear terms both break it); else central differences ``±δ`` (error ~ δ²),
+    their even part ``y_+ + y_− − 2 y_0`` the nonlinearity, and ``IdentificationError`` when ``h`` is not finite."""
     y0 = probe.outputs(np.zeros((probe.rows, probe.w0.size)), steps)
     H = probe.span_ns * 1e-9
+    back = 0.5 if exact else 1.0  # the second pulse is −back · δ
     columns, nonlinearity = [], 0.0
-    for q in range(probe.rows):
-        for i in probe.fed_inputs:
-            delta = amplitude * max(abs(probe.w0[i]), 1.0) / H ** q
-            pulse = np.zeros((probe.rows, probe.w0.size))
-            pulse[q, i] = delta
-            plus, minus = probe.outputs(pulse, steps), probe.outputs(-pulse, steps)
-            odd, even = np.max(np.abs(plus - minus)), np.max(np.abs(plus + minus - 2.0 * y0))
-            if odd > 0.0:
-                nonlinearity = max(nonlinearity, even / odd)
-            columns.append((plus - minus) / (2.0 * delta))
+    with np.errstate(all="ignore"):  # responses that overflow are judged by their values
+        for q in range(probe.rows):
+            for i in probe.fed_inputs:
+                delta = amplitude * max(abs(probe.w0[i]), 1.0) / H ** q
+                pulse = np.zeros((probe.rows, probe.w0.size))
+                pulse[q, i] = delta
+                plus, minus = probe.outputs(pulse, steps), probe.outputs(-back * pulse, steps)
+                odd = np.max(np.abs(plus - minus))
+                if odd > 0.0:
+                    even = np.max(np.abs((plus - y0) + (minus - y0) / back))
+                    nonlinearity = max(nonlinearity, even / odd)
+                columns.append((plus - minus) / ((1.0 + back) * delta))
     h = np.stack(columns, axis=2)
-    if not np.all(np.isfinite(h)):
+    if not exact and not np.all(np.isfinite(h)):
         raise IdentificationError("its responses to the probes are not finite")
     return h, nonlinearity, 1 + 2 * len(columns)
 
@@ -144,10 +154,10 @@ def eigensystem_realization(h: np.ndarray, rows: int, tolerance: float
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """ERA (see the module text) of Markov parameters ``h`` (at least ``2 rows + 1``): ``A, B, C', D'`` and the
     singular values of the scaled Hankel matrix."""
-    out_scale = np.max(np.abs(h), axis=(0, 2))
+    out_scale = np.max(np.abs(h[1:]), axis=(0, 2))  # of the Hankel matrix's entries (h_0 is not one)
     out_scale[out_scale == 0.0] = 1.0
     g = h / out_scale[None, :, None]
-    in_scale = np.max(np.abs(g), axis=(0, 1))
+    in_scale = np.max(np.abs(g[1:]), axis=(0, 1))
     in_scale[in_scale == 0.0] = 1.0
     g = g / in_scale[None, None, :]
     p, m = g.shape[1:]
@@ -172,21 +182,33 @@ def realised_markov(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
 
 
 def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
-    """The one-step map of subsystem ``name`` (``n_outputs`` outputs in all) identified from ``probe``."""
-    steps = 2 * HANKEL_ROWS + 2 + VALIDATION_STEPS
-    h, nonlinearity, probes = markov_parameters(probe, 1.0, steps)
-    exact = nonlinearity <= LINEAR_TOLERANCE
-    if not exact:
-        h, nonlinearity, more = markov_parameters(probe, LOCAL_AMPLITUDE, steps)
-        probes += more
-    tolerance = max(ORDER_TOLERANCE, 100.0 * nonlinearity)
-    A, B, C, D, sigma = eigensystem_realization(h, HANKEL_ROWS, tolerance)
+    """The one-step map of subsystem ``name`` (``n_outputs`` outputs in all) identified from ``probe``: the Hankel
+    matrix grows (``HANKEL_ROWS`` × 4 at a time, up to ``MAX_HANKEL_ROWS``) until its weakest state stands
+    ``STATE_GAP`` above the probes' error, the next singular value (a slow subsystem's states differ little over a few
+    steps: σ_n / σ_1 grows as r²)."""
+    rows, probes = HANKEL_ROWS, 0
+    while True:
+        steps = 2 * rows + 2 + VALIDATION_STEPS
+        h, nonlinearity, count = markov_parameters(probe, 1.0, steps, exact=True)
+        probes += count
+        exact = nonlinearity <= LINEAR_TOLERANCE and bool(np.all(np.isfinite(h)))
+        tolerance = ORDER_TOLERANCE
+        if not exact:
+            h, local, count = markov_parameters(probe, LOCAL_AMPLITUDE, steps, exact=False)
+            probes += count
+            tolerance = max(LOCAL_ORDER_TOLERANCE, 100.0 * local)
+        A, B, C, D, sigma = eigensystem_realization(h, rows, tolerance)
+        n = A.shape[0]
+        gap = sigma[n - 1] / sigma[n] if 0 < n < sigma.size and sigma[n] > 0.0 else np.inf
+        if not exact or gap >= STATE_GAP or rows >= MAX_HANKEL_ROWS:
+            break
+        rows *= 4
     scale = np.max(np.abs(h))
     residual = float(np.max(np.abs(realised_markov(A, B, C, D, steps) - h)) / scale) if scale > 0.0 else 0.0
-    if not np.isfinite(residual) or residual > max(FIT_TOLERANCE, 1e3 * nonlinearity):
-        raise IdentificationError(f"the realisation of order {A.shape[0]} misses its Markov parameters by "
+    if not np.isfinite(residual) or residual > max(FIT_TOLERANCE, 10.0 * tolerance):
+        raise IdentificationError(f"the realisation of order {n} misses its Markov parameters by "
                                   f"{residual:.3g} (relative): not a linear system of order up to "
-                                  f"{HANKEL_ROWS * min(h.shape[1:])} at this step")
+                                  f"{rows * min(h.shape[1:])} at this step")
     n, p = A.shape[0], len(probe.fed_outputs)
     Phi = np.zeros((n + p, n + p))
     Phi[:n, :n], Phi[n:, :n] = A, C
