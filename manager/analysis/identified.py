@@ -118,7 +118,11 @@ class Probe:
         with np.errstate(all="ignore"):  # a response that overflows is judged by its values (markov_parameters)
             for k in range(steps):
                 c = held + pulse if k == 0 else held
-                y[k] = sub.advance_values(k * self.span_ns, (k + 1) * self.span_ns, c)[list(self.fed_outputs)]
+                try:
+                    y[k] = sub.advance_values(k * self.span_ns, (k + 1) * self.span_ns, c)[list(self.fed_outputs)]
+                except Exception as error:  # the component's own code failed (an FMU's status, a user's model)
+                    raise IdentificationError(f"a probe failed at t = {(k + 1) * self.span_ns * 1e-9:.9g} s: "
+                                              f"{type(error).__name__}: {error}") from None
         return y
 
 
@@ -189,13 +193,17 @@ def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
     rows, probes = HANKEL_ROWS, 0
     while True:
         steps = 2 * rows + 2 + VALIDATION_STEPS
-        h, nonlinearity, count = markov_parameters(probe, 1.0, steps, exact=True)
+        try:
+            h, nonlinearity, count = markov_parameters(probe, 1.0, steps, exact=True)
+            exact = nonlinearity <= LINEAR_TOLERANCE and bool(np.all(np.isfinite(h)))
+        except IdentificationError:  # the component fails under probes of its inputs' size: small ones may do
+            exact, nonlinearity, count = False, None, 0
         probes += count
-        exact = nonlinearity <= LINEAR_TOLERANCE and bool(np.all(np.isfinite(h)))
         tolerance = ORDER_TOLERANCE
         if not exact:
             h, local, count = markov_parameters(probe, LOCAL_AMPLITUDE, steps, exact=False)
             probes += count
+            nonlinearity = local if nonlinearity is None else nonlinearity
             tolerance = max(LOCAL_ORDER_TOLERANCE, 100.0 * local)
         A, B, C, D, sigma = eigensystem_realization(h, rows, tolerance)
         n = A.shape[0]
