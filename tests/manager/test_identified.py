@@ -19,7 +19,7 @@ import zencosim
 from zencosim.cli.main import main
 from zencosim.manager.analysis.discrete import run_scheme, uncompensated_scheme
 from zencosim.manager.analysis.stable_step import largest_stable_step, scaled_scene
-from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scene.load import load_scene, scene_path
 
 EXAMPLE_SCENES = ("two_mass_damped_fmu", "two_mass_damped_fmu3", "two_mass_damped_fmu_me", "two_mass_damped_python")
 PYTHON_SCENE = str(resources.files("zencosim.examples").joinpath("scenes", "two_mass_damped_python.toml"))
@@ -93,43 +93,14 @@ def test_generated_linear_python_models_have_the_built_in_analysis(m1, m2, k1, k
                                                                       rel=STEP_TOLERANCE)
 
 
-PENDULUM_SCENE = """
-name = "mass_on_pendulum"
-description = "two_mass_damped with S2 a Python pendulum whose linearisation is S2's mass on a spring m g / L = 1000 N/m"
-
-[manager]
-duration = 40.0
-macro_step = 0.004    # two_mass_damped is unstable here: rho = 1.000356
-extrapolation = 0
-
-[outputs]
-signals = ["x2", "fc"]
-reference = "none"
-
-[subsystems.S1]
-model = "masses"
-micro_step = 0.004
-bodies.m1 = { mass = 1.0, x0 = 0.0, v0 = 0.001 }
-effects.k1 = { type = "spring", bodies = ["m1"], stiffness = 10.0 }
-effects.c1 = { type = "damper", bodies = ["m1"], damping = 0.1 }
-
-[subsystems.S2]
-model = "tests.manager.identified_models:Pendulum"
-micro_step = 0.004
-start = { m = 1.0, L = 0.00981, g = 9.81, c = 0.1 }
-energy = "E"
-points.bob = { force_input = "f_in", position = "x", velocity = "v" }
-
-[couplings.c]
-type = "force_displacement"
-force_side = "S1.m1"
-motion_side = "S2.bob"
-force = "fc"
-displacement = "x2"
-velocity = "v2"
-effects.kc = { type = "spring", stiffness = 100.0 }
-effects.cc = { type = "damper", damping = 0.1 }
-"""
+def _two_mass_damped_with_s2(tmp_path, model: str, extra: str = "") -> str:
+    """two_mass_damped with S2 a Python model whose point ``m2`` is the motion side; the scene file's path."""
+    head, tail = scene_path("two_mass_damped").read_text().split("[subsystems.S2]")
+    path = tmp_path / "scene.toml"
+    path.write_text(f'{head}[subsystems.S2]\nmodel = "tests.manager.identified_models:{model}"\nmicro_step = 0.001\n'
+                    f'{extra}points.m2 = {{ force_input = "f_in", position = "x", velocity = "v" }}\n\n'
+                    + tail[tail.index("[couplings.c]"):])
+    return str(path)
 
 
 def test_a_pendulum_is_linearised_about_its_rest_and_predicts_small_motions(tmp_path):
@@ -138,17 +109,19 @@ def test_a_pendulum_is_linearised_about_its_rest_and_predicts_small_motions(tmp_
     predicts is what a run at small amplitude (bob swinging ~1e-5 rad) measures, to 2 % (the slope of the energy
     envelope over the run's second half, docs/numerics.md, where the slower mode's decay has not quite gone); a run
     at large amplitude (~0.5 rad, the spring 1000 N/m of the linearisation softened by sin θ) does not."""
-    path = tmp_path / "pendulum.toml"
-    path.write_text(PENDULUM_SCENE)
-    scheme = uncompensated_scheme(load_scene(str(path)))
+    # the pendulum's linearisation is S2's mass on a spring m g / L = 1000 N/m; 4 ms: unstable, ρ = 1.000356
+    path = _two_mass_damped_with_s2(tmp_path, "Pendulum", 'start = { m = 1.0, L = 0.00981, g = 9.81, c = 0.1 }\n'
+                                                          'energy = "E"\n')
+    small_motion = _steps(0.004) + ["manager.duration=40", "subsystems.S1.bodies.m1.v0=0.001"]
+    scheme = uncompensated_scheme(load_scene(path, small_motion))
     (pendulum,) = scheme.identifications
     assert (pendulum.subsystem, pendulum.exact, pendulum.order) == ("S2", False, 2)
     linearisation = uncompensated_scheme(load_scene("two_mass_damped", _steps(0.004)))
     assert scheme.spectral_radius == pytest.approx(linearisation.spectral_radius, abs=1e-8)
-    assert run_scheme(load_scene(str(path))) is None  # a local verdict is not the run's: the summary measures
-    small = zencosim.run(load_scene(str(path)), "inproc").summary
+    assert run_scheme(load_scene(path, small_motion)) is None  # a local verdict is not the run's: it measures
+    small = zencosim.run(load_scene(path, small_motion), "inproc").summary
     assert small["energy"]["growth_rate_per_s"] == pytest.approx(scheme.growth_rate, rel=0.02)
-    large = zencosim.run(load_scene(str(path), ["subsystems.S1.bodies.m1.v0=0.5"]), "inproc").summary
+    large = zencosim.run(load_scene(path, [*small_motion, "subsystems.S1.bodies.m1.v0=0.5"]), "inproc").summary
     assert abs(large["energy"]["growth_rate_per_s"] - scheme.growth_rate) > 0.5 * scheme.growth_rate
 
 
@@ -174,12 +147,17 @@ def test_analyze_reports_identified_subsystems_in_its_json(examples, tmp_path, c
 
 
 def test_a_subsystem_that_cannot_be_identified_is_refused_in_one_line(tmp_path, capsys):
-    scene = resources.files("zencosim.examples").joinpath("scenes", "two_mass_damped_python.toml").read_text()
-    head, tail = scene.split("[subsystems.S2]")
-    overflowing = ('[subsystems.S2]\nmodel = "tests.manager.identified_models:Overflowing"\nmicro_step = 0.001\n'
-                   'points.m2 = { force_input = "f_in", position = "x", velocity = "v" }\n\n')
-    (tmp_path / "scene.toml").write_text(head + overflowing + tail[tail.index("[couplings.c]"):])
-    assert main(["analyze", str(tmp_path / "scene.toml")]) == 2
+    assert main(["analyze", _two_mass_damped_with_s2(tmp_path, "Overflowing")]) == 2
     err = capsys.readouterr().err
     assert "subsystem S2 cannot be identified: its responses to the probes are not finite" in err
     assert "Traceback" not in err
+
+
+def test_a_run_of_fmus_takes_the_identified_verdict(examples):
+    """The run summary's verdict on an FMU scene is the exact discrete one of its identification (as for a built-in
+    linear scene, docs/numerics.md): unstable at 4 ms, where the energy of a 2 s run barely moves."""
+    scene = load_scene(str(examples / "two_mass_damped_fmu.toml"), _steps(0.004) + ["manager.duration=2.0"])
+    summary = zencosim.run(scene, "inproc").summary
+    assert summary["stable_from"] == "exact discrete spectral radius" and summary["stable"] is False
+    exact = uncompensated_scheme(load_scene("two_mass_damped", _steps(0.004)))
+    assert summary["discrete"]["spectral_radius"] == pytest.approx(exact.spectral_radius, abs=RHO_TOLERANCE)
