@@ -26,9 +26,10 @@ Eigenvalues ``μ`` of ``Ψ`` map to continuous poles by ``s = ln(μ) / T`` (``T`
 spectral radius ``ρ(Ψ)`` decides stability. Zero eigenvalues belong to redundant states (a
 committed motion output equals a component of ``z``) and have no pole. Limits: the steady-state
 map (the first ``p`` steps of a run use fewer samples); external forces of time are a forcing
-term, not part of ``Ψ``; only ``masses`` models whose public matrices are their whole dynamics
-(not ``MassesModel.nonlinear``) and no energy correction (``manager.correction``: its capped
-correction is not linear); ``LinearSceneError`` otherwise.
+term, not part of ``Ψ``; ``masses`` models whose public matrices are their whole dynamics
+(not ``MassesModel.nonlinear``) enter exactly, FMUs and Python models by their identified one-step maps
+(``manager.analysis.identified``, through ``scene_scheme``); no energy correction (``manager.correction``: its
+capped correction is not linear); ``LinearSceneError`` otherwise.
 """
 from __future__ import annotations
 

@@ -9,31 +9,35 @@ of the step; for a linear subsystem::
 
 whose Markov parameters ``h_0 = D'``, ``h_j = C' A^{j-1} B`` are the outputs' responses to a pulse of ``c`` in
 step 0. They are measured by driving the built subsystem alone (``Subsystem.advance``, so that an FMU receives
-its inputs exactly as in a run: set at every micro-step) from its initial state, inputs held at their initial
-values ``w_0`` (the baseline), and with ``c_0 = w_0 ± δ e_j`` in the first step (central differences); each probe
-restores the saved initial state (``Subsystem.save``), or builds a fresh instance where the component cannot
-save its state. The eigensystem realisation algorithm (ERA; Juang & Pappa 1985) realises them: the block Hankel
-matrix ``H_0 = [h_{i+j+1}]`` of ``r`` block rows and columns has the SVD ``U Σ V^T``; its order ``n`` is the number of
-singular values above ``ORDER_TOLERANCE σ_1`` (or above the probes' own error, see below), and::
+its inputs exactly as in a run: the polynomial evaluated at every micro-step) from its initial state, inputs held
+at their values at t_0 ``w_0`` (the baseline), and with a pulse of one coefficient in the first step; each probe
+restores the state saved at t_0 (``Subsystem.save``), or builds a fresh instance where the component cannot
+save its state. Only the inputs a coupling feeds and the outputs another subsystem reads are probed. The
+eigensystem realisation algorithm (ERA; Juang & Pappa 1985) realises them: the block Hankel matrix
+``H_0 = [h_{i+j+1}]`` of ``r`` block rows and columns has the SVD ``U Σ V^T``; its order ``n`` is the number of
+singular values above ``ORDER_TOLERANCE σ_1``, and::
 
     A = Σ_n^{-1/2} U_n^T H_1 V_n Σ_n^{-1/2},   B = Σ_n^{1/2} V_n^T[:, :m],   C' = U_n[:p] Σ_n^{1/2},   D' = h_0
 
 (``H_1 = [h_{i+j+2}]``; the Markov parameters scaled to unit row and column maxima first, so that inputs and
-outputs of different units weigh alike). This is ``control.eigensys_realization`` of python-control, in
-the few lines of numpy it takes. The realisation enters the exact discrete analysis
-(``manager.analysis.discrete``) with the augmented state ``ξ = [s; y]``: ``Φ = [[A, 0], [C', 0]]``,
-``Γ_q = [B_q; D'_q]``, ``C_y = [0 I]``, ``D_y = 0`` — the outputs at a communication point are part of the state;
-``Φ``'s extra eigenvalues are zero (redundant states, no pole).
+outputs of different units weigh alike). This is ``control.eigensys_realization`` of python-control, in the few
+lines of numpy it takes. A slow subsystem's states differ little over a few steps (``σ_n / σ_1`` grows as
+``r²``): ``r`` grows from ``HANKEL_ROWS`` until the weakest state stands ``STATE_GAP`` above the next singular
+value (the probes' error). The realisation enters the exact discrete analysis (``manager.analysis.discrete``)
+with the augmented state ``ξ = [s; y]``: ``Φ = [[A, 0], [C', 0]]``, ``Γ_q = [B_q; D'_q]``, ``C_y = [0 I]``,
+``D_y = 0`` — the outputs at a communication point are part of the state; ``Φ``'s extra eigenvalues are zero
+(redundant states, no pole).
 
-A linear subsystem is identified exactly (to rounding): the probes use amplitudes of the inputs' own size
-(``δ = max(|w_0|, 1) / H^q``), and its responses to ``+δ`` and ``−δ`` are opposite to rounding. Where they are not
-(``nonlinearity`` above ``LINEAR_TOLERANCE``) the subsystem is nonlinear: the probes are repeated at
+A linear subsystem is identified exactly (to rounding): the pulses are of the inputs' own size
+(``δ = max(|w_0|, 1) / H^q``), ``+δ`` and ``−δ/2``, and its responses satisfy ``(y_+ − y_0) + 2 (y_− − y_0) = 0`` to
+rounding (``nonlinearity``: its size relative to ``y_+ − y_−``; even and odd nonlinear terms both break it).
+Above ``LINEAR_TOLERANCE`` the subsystem is nonlinear: the probes are repeated as central differences at
 ``LOCAL_AMPLITUDE`` times that size and the result is a local linearisation about the initial operating point
-(the free response from the initial state), its error of the order of the nonlinearity reported. Modes that the
-fed inputs do not excite or the fed outputs do not show are left out (the minimal realisation): they run free,
-outside the coupling, and are not the scheme's. What cannot be identified — a probe that fails, Markov
-parameters that are not finite, a realisation whose Markov parameters miss the measured ones by more than
-``FIT_TOLERANCE`` (an order above ``HANKEL_ROWS`` times the inputs or outputs) — raises ``IdentificationError``.
+(the free response from the initial state), its order counting singular values above the ``δ²`` error
+(``LOCAL_ORDER_TOLERANCE``). Modes that the fed inputs do not excite or the fed outputs do not show are left out
+(the minimal realisation): they run free, outside the coupling, and are not the scheme's. What cannot be
+identified — a probe that fails at both sizes, responses that are not finite, a realisation whose Markov
+parameters miss the measured ones by more than ``FIT_TOLERANCE`` — raises ``IdentificationError``.
 """
 from __future__ import annotations
 
@@ -47,10 +51,10 @@ from zencosim.subsystems.subsystem import Subsystem
 
 HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix first tried; orders up to r · min(inputs, outputs)
 MAX_HANKEL_ROWS = 256  # the most it grows to (522 steps a probe)
-STATE_GAP = 1e6  # σ_n / σ_{n+1} at which the weakest state is resolved (its eigenvalue error ~ 1e-16 · 1e6 / σ_n ratio)
+STATE_GAP = 1e6  # σ_n / σ_{n+1} at which the weakest state stands clear of the probes' error
 VALIDATION_STEPS = 8  # Markov parameters measured beyond the 2r + 1 that ERA uses, to check the fit
 ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14)
-LINEAR_TOLERANCE = 1e-9  # |y(+δ) + y(−δ) − 2 y_0| / |y(+δ) − y(−δ)| below which the subsystem is linear
+LINEAR_TOLERANCE = 1e-9  # |(y_+ − y_0) + 2 (y_− − y_0)| / |y_+ − y_−| below which the subsystem is linear
 LOCAL_AMPLITUDE = 1e-4  # relative probe size of a local linearisation (central differences: error ~ δ²)
 LOCAL_ORDER_TOLERANCE = 1e-6  # σ_i / σ_1 of a state of a local linearisation: above the δ² ~ 1e-8 of its probes
 FIT_TOLERANCE = 1e-6  # largest relative misfit of the realised Markov parameters of a linear subsystem
@@ -68,7 +72,7 @@ class Identification:
     method: str  # "ERA on Markov parameters from held-input probes"
     order: int  # n, states of the realisation (without the output samples of ξ)
     fit_residual: float  # max |h_realised − h_measured| / max |h_measured| over every measured Markov parameter
-    nonlinearity: float  # |y(+δ) + y(−δ) − 2 y_0| / |y(+δ) − y(−δ)|, largest over the probed coefficients
+    nonlinearity: float  # |(y_+ − y_0) + 2 (y_− − y_0)| / |y_+ − y_−|, largest over the probed coefficients
     exact: bool  # linear to rounding (else a local linearisation about the initial operating point)
     probes: int  # runs of the subsystem alone
     steps: int  # communication steps per probe (of the last Hankel size tried)
