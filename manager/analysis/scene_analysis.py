@@ -122,7 +122,7 @@ class IdentifiedAnalysis:
         return {
             "scene": self.scene.name,
             "interface": {"extrapolation": EXTRAPOLATION_ORDERS[self.scene.manager.extrapolation],
-                          "macro_step": self.scene.manager.macro_step},
+                          "macro_step": self.scene.manager.macro_step, "period": scheme.period},
             "poles": {"cosim_discrete": _pairs(scheme.poles()), "compensated": None},
             "spectral_radius": {"uncompensated": scheme.spectral_radius, "compensated": None},
             "stable": {"uncompensated": scheme.stable, "compensated": None},

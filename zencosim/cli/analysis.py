@@ -38,9 +38,13 @@ def _print_verdicts(report: dict) -> None:
     out.print(verdicts)
     step = report["largest_stable_step"]
     low, high = step["largest_stable"], step["smallest_unstable"]
-    bracket = ("unstable at every step tried" if low is None else f"stable at every step tried, up to {low:.9g} s"
-               if high is None else f"{low:.9g} s (unstable at {high:.9g} s; bisection to "
-               f"{step['relative_tolerance']:g} relative, micro-steps per step kept)")
+    if low is None:
+        bracket = "unstable at every step tried"
+    elif high is None:
+        bracket = f"stable at every step tried, up to {low:.9g} s"
+    else:
+        bracket = (f"{low:.9g} s (unstable at {high:.9g} s; bisection to {step['relative_tolerance']:g} relative, "
+                   "micro-steps per step kept)")
     out.print(f"largest stable macro-step, uncompensated: {bracket}"
               + (f"; {step['unanalysable']} steps not analysable, counted unstable" if step["unanalysable"] else ""))
 
@@ -49,8 +53,8 @@ def _print_identified(result) -> None:
     """How each subsystem was identified, the verdicts and the largest stable step (no monolithic model)."""
     report = result.to_dict()
     interface = report["interface"]
-    out.print(f"[bold]{escape(result.scene.name)}[/]: {interface['extrapolation']}, T_s = {interface['macro_step']:g} s, "
-              "exact discrete scheme of identified subsystems")
+    out.print(f"[bold]{escape(result.scene.name)}[/]: {interface['extrapolation']}, "
+              f"T_s = {interface['macro_step']:g} s, exact discrete scheme of identified subsystems")
     table = Table(title="identified subsystems (discrete-time, at the communication step, about the initial point)")
     for column in ("subsystem", "order", "fit residual", "nonlinearity", "linearisation", "probes × steps"):
         table.add_column(column, justify="left" if column in ("subsystem", "linearisation") else "right")
@@ -58,13 +62,12 @@ def _print_identified(result) -> None:
         table.add_row(escape(name), str(entry["order"]), f"{entry['fit_residual']:.2g}", f"{entry['nonlinearity']:.2g}",
                       entry["linearisation"], f"{entry['probes']} × {entry['steps']}")
     out.print(table)
-    out.print(f"method: {escape(next(iter(report['identification'].values()))['method'])}"
-              if report["identification"] else "method: none identified")
+    out.print(f"method: {escape(next(iter(report['identification'].values()))['method'])}")
     poles = Table(title="poles of the exact discrete scheme, ln(μ) / T [1/s]")
     poles.add_column("λ [1/s]", justify="right")
     poles.add_column("|μ|", justify="right")
     for re, im in sorted(report["poles"]["cosim_discrete"], key=lambda pair: -pair[0]):
-        poles.add_row(_complex(complex(re, im)), f"{math.exp(re * interface['macro_step']):.12f}")
+        poles.add_row(_complex(complex(re, im)), f"{math.exp(re * interface['period']):.12f}")
     out.print(poles)
     _print_verdicts(report)
     out.print(escape(report["not_compensated"]))
