@@ -114,8 +114,10 @@ class DiscreteScheme:
 
     @property
     def growth_rate(self) -> float:
-        """Exponential growth rate [1/s] of the energy of the least damped mode: ``2 ln ρ / T``."""
-        return 2.0 * math.log(self.spectral_radius) / self.period
+        """Exponential growth rate [1/s] of the energy of the least damped mode: ``2 ln ρ / T`` (−∞ for ``ρ = 0``: no
+        loop, every identified subsystem a source or a sink)."""
+        radius = self.spectral_radius
+        return 2.0 * math.log(radius) / self.period if radius > 0.0 else -math.inf
 
     def poles(self) -> np.ndarray:
         """``ln(μ) / T`` [1/s] of every non-zero eigenvalue (principal branch: ``|Im s| <= π / T``)."""
@@ -230,7 +232,8 @@ def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
 def run_scheme(scene: Scene) -> DiscreteScheme | None:
     """The exact discrete scheme of the run ``scene`` describes — compensated when it asks for the compensator,
     as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix), or a
-    subsystem is identified only as a local linearisation (a verdict on small motions, not on the run).
+    subsystem is identified only as a local linearisation (a verdict on small motions, not on the run) or is a
+    source or a sink (its own modes are outside ``Ψ``).
     ``SceneError`` when the compensator cannot be designed."""
     if discrete_unavailable(scene) or scene.manager.corrects:
         return None
@@ -241,4 +244,4 @@ def run_scheme(scene: Scene) -> DiscreteScheme | None:
         scheme = uncompensated_scheme(scene)
     except LinearSceneError:  # a model whose public matrices are not its whole dynamics, one not identified
         return None
-    return scheme if all(i.exact for i in scheme.identifications) else None
+    return scheme if all(i.exact and i.role == "loop" for i in scheme.identifications) else None

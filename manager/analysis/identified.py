@@ -69,7 +69,7 @@ class Identification:
     """How one subsystem was identified (the analyze report's ``identification`` entry)."""
 
     subsystem: str
-    method: str  # "ERA on Markov parameters from held-input probes"
+    method: str  # "ERA on held-input probes", or "none" (a source or a sink)
     order: int  # n, states of the realisation (without the output samples of ξ)
     fit_residual: float  # max |h_realised − h_measured| / max |h_measured| over every measured Markov parameter
     nonlinearity: float  # |(y_+ − y_0) + 2 (y_− − y_0)| / |y_+ − y_−|, largest over the probed coefficients
@@ -77,9 +77,10 @@ class Identification:
     probes: int  # runs of the subsystem alone
     steps: int  # communication steps per probe (of the last Hankel size tried)
     singular_values: tuple[float, ...]  # of the scaled Hankel matrix, largest first (the first order + 2)
+    role: str = "loop"  # "source" (no coupling feeds it), "sink" (none reads it): no state in the scheme
 
     def to_dict(self) -> dict:
-        return {"method": self.method, "order": self.order, "fit_residual": self.fit_residual,
+        return {"method": self.method, "role": self.role, "order": self.order, "fit_residual": self.fit_residual,
                 "nonlinearity": self.nonlinearity,
                 "linearisation": "exact" if self.exact else "local", "probes": self.probes, "steps": self.steps,
                 "singular_values": list(self.singular_values)}
@@ -193,7 +194,14 @@ def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
     """The one-step map of subsystem ``name`` (``n_outputs`` outputs in all) identified from ``probe``: the Hankel
     matrix grows (``HANKEL_ROWS`` × 4 at a time, up to ``MAX_HANKEL_ROWS``) until its weakest state stands
     ``STATE_GAP`` above the probes' error, the next singular value (a slow subsystem's states differ little over a few
-    steps: σ_n / σ_1 grows as r²)."""
+    steps: σ_n / σ_1 grows as r²). A subsystem no coupling feeds (a source: its outputs are forcing) or none
+    reads (a sink) has no state in the loop: order 0, without probes."""
+    if not probe.fed_inputs or not probe.fed_outputs:
+        p, m = len(probe.fed_outputs), probe.rows * len(probe.fed_inputs)
+        role = "source" if not probe.fed_inputs else "sink"
+        report = Identification(name, "none", 0, 0.0, 0.0, True, 0, 0, (), role)
+        return _step_map(probe, n_outputs, np.zeros((0, 0)), np.zeros((0, m)), np.zeros((p, 0)), np.zeros((p, m)),
+                         report)
     rows, probes = HANKEL_ROWS, 0
     while True:
         steps = 2 * rows + 2 + VALIDATION_STEPS
@@ -221,6 +229,15 @@ def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
         raise IdentificationError(f"the realisation of order {n} misses its Markov parameters by "
                                   f"{residual:.3g} (relative): not a linear system of order up to "
                                   f"{rows * min(h.shape[1:])} at this step")
+    report = Identification(name, "ERA on held-input probes", n, residual, nonlinearity,
+                            exact, probes, steps, tuple(float(s) for s in sigma[:n + 2]))
+    return _step_map(probe, n_outputs, A, B, C, D, report)
+
+
+def _step_map(probe: Probe, n_outputs: int, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
+              report: Identification) -> IdentifiedStep:
+    """The realisation ``A, B, C', D'`` (columns: the fed inputs' coefficients, ``q``-major) as a one-step map of
+    ``ξ = [s; y]`` (see the module text), every input and output of the subsystem in its place."""
     n, p = A.shape[0], len(probe.fed_outputs)
     Phi = np.zeros((n + p, n + p))
     Phi[:n, :n], Phi[n:, :n] = A, C
@@ -231,8 +248,6 @@ def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
         Gamma[q][:n, fed], Gamma[q][n:, fed] = B[:, block], D[:, block]
     C_y = np.zeros((n_outputs, n + p))
     C_y[list(probe.fed_outputs), n + np.arange(p)] = 1.0
-    report = Identification(name, "ERA on Markov parameters from held-input probes", n, residual, nonlinearity,
-                            exact, probes, steps, tuple(float(s) for s in sigma[:n + 2]))
     return IdentifiedStep(Phi, Gamma, C_y, np.zeros((n_outputs, probe.w0.size)), report)
 
 

@@ -126,7 +126,8 @@ class IdentifiedAnalysis:
             "poles": {"cosim_discrete": _pairs(scheme.poles()), "compensated": None},
             "spectral_radius": {"uncompensated": scheme.spectral_radius, "compensated": None},
             "stable": {"uncompensated": scheme.stable, "compensated": None},
-            "growth_rate_per_s": {"uncompensated": scheme.growth_rate, "compensated": None},
+            "growth_rate_per_s": {"uncompensated": scheme.growth_rate if scheme.spectral_radius > 0.0 else None,
+                                  "compensated": None},  # null: ρ = 0, no loop (JSON has no −∞)
             "correction": None,
             "not_compensated": COMPENSATOR_LIMIT,
             "identification": {i.subsystem: i.to_dict() for i in scheme.identifications},

@@ -161,3 +161,39 @@ def test_a_run_of_fmus_takes_the_identified_verdict(examples):
     assert summary["stable_from"] == "exact discrete spectral radius" and summary["stable"] is False
     exact = uncompensated_scheme(load_scene("two_mass_damped", _steps(0.004)))
     assert summary["discrete"]["spectral_radius"] == pytest.approx(exact.spectral_radius, abs=RHO_TOLERANCE)
+
+
+ONE_WAY = """name = "one_way"
+description = "one oscillator drives another through a signal: no loop"
+[manager]
+duration = 1.0
+macro_step = 0.001
+[outputs]
+reference = "none"
+[subsystems.A]
+model = "zencosim.examples.oscillator:Oscillator"
+micro_step = 0.001
+start = { k = 10.0, v0 = 1.0 }
+outputs = ["x"]
+[subsystems.B]
+model = "zencosim.examples.oscillator:Oscillator"
+micro_step = 0.001
+start = { k = 100.0 }
+outputs = ["x"]
+[couplings.drive]
+type = "signal"
+output = "A.x"
+input = "B.x_in"
+"""
+
+
+def test_a_source_and_a_sink_have_no_state_in_the_scheme(tmp_path):
+    """Without a loop the scheme has nothing to destabilise (ρ = 0); the run's verdict is then measured, as a
+    subsystem's own modes are outside ``Ψ``."""
+    (tmp_path / "one_way.toml").write_text(ONE_WAY)
+    scene = load_scene(str(tmp_path / "one_way.toml"))
+    scheme = uncompensated_scheme(scene)
+    assert [(i.subsystem, i.role, i.order, i.probes) for i in scheme.identifications] == [
+        ("A", "source", 0, 0), ("B", "sink", 0, 0)]
+    assert scheme.spectral_radius == 0.0 and scheme.stable
+    assert run_scheme(scene) is None

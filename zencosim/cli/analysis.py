@@ -33,7 +33,7 @@ def _print_verdicts(report: dict) -> None:
     verdicts.add_column("verdict")
     for key in ("uncompensated", "compensated"):
         if report["spectral_radius"][key] is not None:
-            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{report['growth_rate_per_s'][key]:.4g}",
+            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{report['growth_rate_per_s'][key] or -math.inf:.4g}",
                              "stable" if report["stable"][key] else "[bold red]UNSTABLE[/]")
     out.print(verdicts)
     step = report["largest_stable_step"]
@@ -56,13 +56,13 @@ def _print_identified(result) -> None:
     out.print(f"[bold]{escape(result.scene.name)}[/]: {interface['extrapolation']}, "
               f"T_s = {interface['macro_step']:g} s, exact discrete scheme of identified subsystems")
     table = Table(title="identified subsystems (discrete-time, at the communication step, about the initial point)")
-    for column in ("subsystem", "order", "fit residual", "nonlinearity", "linearisation", "probes × steps"):
-        table.add_column(column, justify="left" if column in ("subsystem", "linearisation") else "right")
+    for column in ("subsystem", "method", "role", "order", "fit residual", "nonlinearity", "linearisation",
+                   "probes × steps"):
+        table.add_column(column, justify="right" if column in ("order", "fit residual", "nonlinearity") else "left")
     for name, entry in report["identification"].items():
-        table.add_row(escape(name), str(entry["order"]), f"{entry['fit_residual']:.2g}", f"{entry['nonlinearity']:.2g}",
-                      entry["linearisation"], f"{entry['probes']} × {entry['steps']}")
+        table.add_row(escape(name), entry["method"], entry["role"], str(entry["order"]), f"{entry['fit_residual']:.2g}",
+                      f"{entry['nonlinearity']:.2g}", entry["linearisation"], f"{entry['probes']} × {entry['steps']}")
     out.print(table)
-    out.print(f"method: {escape(next(iter(report['identification'].values()))['method'])}")
     poles = Table(title="poles of the exact discrete scheme, ln(μ) / T [1/s]")
     poles.add_column("λ [1/s]", justify="right")
     poles.add_column("|μ|", justify="right")
