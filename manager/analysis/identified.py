@@ -15,7 +15,7 @@ restores the state saved at t_0 (``Subsystem.save``), or builds a fresh instance
 save its state. Only the inputs a coupling feeds and the outputs another subsystem reads are probed. The
 eigensystem realisation algorithm (ERA; Juang & Pappa 1985) realises them: the block Hankel matrix
 ``H_0 = [h_{i+j+1}]`` of ``r`` block rows and columns has the SVD ``U Σ V^T``; its order ``n`` is the number of
-singular values above ``ORDER_TOLERANCE σ_1``, and::
+singular values above ``ORDER_TOLERANCE σ_1`` and ``ERROR_MARGIN`` times the probes' own error, and::
 
     A = Σ_n^{-1/2} U_n^T H_1 V_n Σ_n^{-1/2},   B = Σ_n^{1/2} V_n^T[:, :m],   C' = U_n[:p] Σ_n^{1/2},   D' = h_0
 
@@ -53,8 +53,10 @@ HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix first tried
 MAX_HANKEL_ROWS = 256  # the most it grows to (522 steps a probe)
 STATE_GAP = 1e6  # σ_n / σ_{n+1} at which the weakest state stands clear of the probes' error
 VALIDATION_STEPS = 8  # Markov parameters measured beyond the 2r + 1 that ERA uses, to check the fit
-ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14)
+ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14) …
+ERROR_MARGIN = 100.0  # … and above this many times the probes' own error
 LINEAR_TOLERANCE = 1e-9  # |(y_+ − y_0) + 2 (y_− − y_0)| / |y_+ − y_−| below which the subsystem is linear
+ROUNDING = 1e-12  # relative rounding of a probe's outputs after its steps, discounted from their nonlinearity
 LOCAL_AMPLITUDE = 1e-4  # relative probe size of a local linearisation (central differences: error ~ δ²)
 LOCAL_ORDER_TOLERANCE = 1e-6  # σ_i / σ_1 of a state of a local linearisation: above the δ² ~ 1e-8 of its probes
 FIT_TOLERANCE = 1e-6  # largest relative misfit of the realised Markov parameters of a linear subsystem
@@ -131,16 +133,18 @@ class Probe:
         return y
 
 
-def markov_parameters(probe: Probe, amplitude: float, steps: int, exact: bool) -> tuple[np.ndarray, float, int]:
+def markov_parameters(probe: Probe, amplitude: float, steps: int, exact: bool
+                      ) -> tuple[np.ndarray, float, float, int]:
     """``h`` (steps, fed outputs, rows · fed inputs; columns ``q``-major) from probes of ``δ = amplitude ·
-    max(|w_0|, 1) / H^q``, the nonlinearity of the responses and the number of probes. ``exact``: pulses ``+δ`` and
+    max(|w_0|, 1) / H^q``, the nonlinearity of the responses beyond rounding, their error (the same measure with the
+    rounding: the noise of ``h`` relative to each column's response) and the number of probes. ``exact``: pulses ``+δ`` and
     ``−δ/2``, whose responses ``y_+, y_−`` about the baseline ``y_0`` satisfy ``(y_+ − y_0) + 2 (y_− − y_0) = 0`` for a
     linear subsystem (even and odd nonlinear terms both break it); else central differences ``±δ`` (error ~ δ²),
     their even part ``y_+ + y_− − 2 y_0`` the nonlinearity, and ``IdentificationError`` when ``h`` is not finite."""
     y0 = probe.outputs(np.zeros((probe.rows, probe.w0.size)), steps)
     H = probe.span_ns * 1e-9
     back = 0.5 if exact else 1.0  # the second pulse is −back · δ
-    columns, nonlinearity = [], 0.0
+    columns, nonlinearity, error = [], 0.0, 0.0
     with np.errstate(all="ignore"):  # responses that overflow are judged by their values
         for q in range(probe.rows):
             for i in probe.fed_inputs:
@@ -148,15 +152,25 @@ def markov_parameters(probe: Probe, amplitude: float, steps: int, exact: bool) -
                 pulse = np.zeros((probe.rows, probe.w0.size))
                 pulse[q, i] = delta
                 plus, minus = probe.outputs(pulse, steps), probe.outputs(-back * pulse, steps)
-                odd = np.max(np.abs(plus - minus))
-                if odd > 0.0:
-                    even = np.max(np.abs((plus - y0) + (minus - y0) / back))
-                    nonlinearity = max(nonlinearity, even / odd)
+                beyond_rounding, relative = _nonlinearity(y0, plus, minus, back)
+                nonlinearity, error = max(nonlinearity, beyond_rounding), max(error, relative)
                 columns.append((plus - minus) / ((1.0 + back) * delta))
     h = np.stack(columns, axis=2)
     if not exact and not np.all(np.isfinite(h)):
         raise IdentificationError("its responses to the probes are not finite")
-    return h, nonlinearity, 1 + 2 * len(columns)
+    return h, nonlinearity, error, 1 + 2 * len(columns)
+
+
+def _nonlinearity(y0: np.ndarray, plus: np.ndarray, minus: np.ndarray, back: float) -> tuple[float, float]:
+    """``|(y_+ − y_0) + (y_− − y_0) / back|`` relative to ``|y_+ − y_−|``, largest over the outputs: above the rounding
+    of their values (``ROUNDING`` times their size: a response far smaller than its output's baseline is exact only
+    to that), and as it is."""
+    even = np.max(np.abs((plus - y0) + (minus - y0) / back), axis=0)
+    odd = np.max(np.abs(plus - minus), axis=0)
+    size = np.max(np.abs(y0) + np.abs(plus) + np.abs(minus) / back, axis=0)
+    scale = np.where(odd > 0.0, odd, np.inf)
+    return (float(np.max(np.maximum(even - ROUNDING * size, 0.0) / scale, initial=0.0)),
+            float(np.max(even / scale, initial=0.0)))
 
 
 def eigensystem_realization(h: np.ndarray, rows: int, tolerance: float
@@ -206,17 +220,17 @@ def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
     while True:
         steps = 2 * rows + 2 + VALIDATION_STEPS
         try:
-            h, nonlinearity, count = markov_parameters(probe, 1.0, steps, exact=True)
+            h, nonlinearity, error, count = markov_parameters(probe, 1.0, steps, exact=True)
             exact = nonlinearity <= LINEAR_TOLERANCE and bool(np.all(np.isfinite(h)))
         except IdentificationError:  # the component fails under probes of its inputs' size: small ones may do
             exact, nonlinearity, count = False, None, 0
         probes += count
-        tolerance = ORDER_TOLERANCE
+        tolerance = max(ORDER_TOLERANCE, ERROR_MARGIN * error) if exact else LOCAL_ORDER_TOLERANCE
         if not exact:
-            h, local, count = markov_parameters(probe, LOCAL_AMPLITUDE, steps, exact=False)
+            h, local, error, count = markov_parameters(probe, LOCAL_AMPLITUDE, steps, exact=False)
             probes += count
             nonlinearity = local if nonlinearity is None else nonlinearity
-            tolerance = max(LOCAL_ORDER_TOLERANCE, 100.0 * local)
+            tolerance = max(LOCAL_ORDER_TOLERANCE, ERROR_MARGIN * error)
         A, B, C, D, sigma = eigensystem_realization(h, rows, tolerance)
         n = A.shape[0]
         gap = sigma[n - 1] / sigma[n] if 0 < n < sigma.size and sigma[n] > 0.0 else np.inf
