@@ -23,7 +23,9 @@ singular values above ``ORDER_TOLERANCE σ_1`` and ``ERROR_MARGIN`` times the pr
 outputs of different units weigh alike). This is ``control.eigensys_realization`` of python-control, in the few
 lines of numpy it takes. A slow subsystem's states differ little over a few steps (``σ_n / σ_1`` grows as
 ``r²``): ``r`` grows from ``HANKEL_ROWS`` until the weakest state stands ``STATE_GAP`` above the next singular
-value (the probes' error). The realisation enters the exact discrete analysis (``manager.analysis.discrete``)
+value (the probes' error). A linear probe's pulse grows (up to
+``MAX_PULSE_GAIN``) until its responses match their outputs' baseline: a response far below it is exact only to
+the baseline's rounding. The realisation enters the exact discrete analysis (``manager.analysis.discrete``)
 with the augmented state ``ξ = [s; y]``: ``Φ = [[A, 0], [C', 0]]``, ``Γ_q = [B_q; D'_q]``, ``C_y = [0 I]``,
 ``D_y = 0`` — the outputs at a communication point are part of the state; ``Φ``'s extra eigenvalues are zero
 (redundant states, no pole).
@@ -51,12 +53,14 @@ from zencosim.subsystems.subsystem import Subsystem
 
 HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix first tried; orders up to r · min(inputs, outputs)
 MAX_HANKEL_ROWS = 256  # the most it grows to (522 steps a probe)
-STATE_GAP = 1e6  # σ_n / σ_{n+1} at which the weakest state stands clear of the probes' error
+STATE_GAP = 1e8  # σ_n / σ_{n+1} at which the weakest state stands clear of the probes' error (its relative error
+# ~ σ_{n+1} / σ_n: measured 3.8e-12 on ρ at a gap of 7e9, 1e-8 at 4e6)
 VALIDATION_STEPS = 8  # Markov parameters measured beyond the 2r + 1 that ERA uses, to check the fit
 ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14) …
 ERROR_MARGIN = 100.0  # … and above this many times the probes' own error
 LINEAR_TOLERANCE = 1e-9  # |(y_+ − y_0) + 2 (y_− − y_0)| / |y_+ − y_−| below which the subsystem is linear
 ROUNDING = 1e-12  # relative rounding of a probe's outputs after its steps, discounted from their nonlinearity
+MAX_PULSE_GAIN = 1e8  # the most a linear probe's pulse grows to match its responses to their outputs' baseline
 LOCAL_AMPLITUDE = 1e-4  # relative probe size of a local linearisation (central differences: error ~ δ²)
 LOCAL_ORDER_TOLERANCE = 1e-6  # σ_i / σ_1 of a state of a local linearisation: above the δ² ~ 1e-8 of its probes
 FIT_TOLERANCE = 1e-6  # largest relative misfit of the realised Markov parameters of a linear subsystem
@@ -144,7 +148,7 @@ def markov_parameters(probe: Probe, amplitude: float, steps: int, exact: bool
     y0 = probe.outputs(np.zeros((probe.rows, probe.w0.size)), steps)
     H = probe.span_ns * 1e-9
     back = 0.5 if exact else 1.0  # the second pulse is −back · δ
-    columns, nonlinearity, error = [], 0.0, 0.0
+    columns, nonlinearity, error, probes = [], 0.0, 0.0, 1
     with np.errstate(all="ignore"):  # responses that overflow are judged by their values
         for q in range(probe.rows):
             for i in probe.fed_inputs:
@@ -152,13 +156,30 @@ def markov_parameters(probe: Probe, amplitude: float, steps: int, exact: bool
                 pulse = np.zeros((probe.rows, probe.w0.size))
                 pulse[q, i] = delta
                 plus, minus = probe.outputs(pulse, steps), probe.outputs(-back * pulse, steps)
+                probes += 2
+                gain = _pulse_gain(y0, plus, minus) if exact else 1.0
+                if gain > 1.0:  # a response below its outputs' baseline is exact only to their rounding: larger
+                    delta, pulse = gain * delta, gain * pulse
+                    plus, minus = probe.outputs(pulse, steps), probe.outputs(-back * pulse, steps)
+                    probes += 2
                 beyond_rounding, relative = _nonlinearity(y0, plus, minus, back)
                 nonlinearity, error = max(nonlinearity, beyond_rounding), max(error, relative)
                 columns.append((plus - minus) / ((1.0 + back) * delta))
     h = np.stack(columns, axis=2)
     if not exact and not np.all(np.isfinite(h)):
         raise IdentificationError("its responses to the probes are not finite")
-    return h, nonlinearity, error, 1 + 2 * len(columns)
+    return h, nonlinearity, error, probes
+
+
+def _pulse_gain(y0: np.ndarray, plus: np.ndarray, minus: np.ndarray) -> float:
+    """How much larger a pulse must be for its weakest response after the pulse's step (the Markov parameters of the
+    Hankel matrix: the step's own is the feedthrough ``D'``) to match its output's baseline (at most
+    ``MAX_PULSE_GAIN``; 1 when every response does already, or none moves)."""
+    response, baseline = np.max(np.abs(plus[1:] - minus[1:]), axis=0), np.max(np.abs(y0), axis=0)
+    moved = (response > 0.0) & (baseline > 0.0)
+    if not np.any(moved):
+        return 1.0
+    return float(np.clip(np.max(baseline[moved] / response[moved]), 1.0, MAX_PULSE_GAIN))
 
 
 def _nonlinearity(y0: np.ndarray, plus: np.ndarray, minus: np.ndarray, back: float) -> tuple[float, float]:
@@ -207,8 +228,8 @@ def realised_markov(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
 def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
     """The one-step map of subsystem ``name`` (``n_outputs`` outputs in all) identified from ``probe``: the Hankel
     matrix grows (``HANKEL_ROWS`` × 4 at a time, up to ``MAX_HANKEL_ROWS``) until its weakest state stands
-    ``STATE_GAP`` above the probes' error, the next singular value (a slow subsystem's states differ little over a few
-    steps: σ_n / σ_1 grows as r²). A subsystem no coupling feeds (a source: its outputs are forcing) or none
+    ``STATE_GAP`` above the probes' error, the next singular value (a slow subsystem's states differ little over a
+    few steps: σ_n / σ_1 grows as r²). A subsystem no coupling feeds (a source: its outputs are forcing) or none
     reads (a sink) has no state in the loop: order 0, without probes."""
     if not probe.fed_inputs or not probe.fed_outputs:
         p, m = len(probe.fed_outputs), probe.rows * len(probe.fed_inputs)
