@@ -40,6 +40,7 @@ import tomli_w
 
 from zencosim.manager.bus.children import cpu_time_s, exit_reason, process_state, start_child, working
 from zencosim.manager.bus.signals import DeferredSignals
+from zencosim.manager.bus.watchdog import model_watch
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
@@ -290,6 +291,7 @@ class Recorder:
             self._recorder, _ = self._start(
                 "zencosim.recordings.recorder_process", f"recorder of {self.path}",
                 {"path": str(self.path.resolve()), "metadata": metadata, "scene_toml": scene_toml, "channels": channels})
+            model_watch().recording(self._recorder.process.pid)  # a watched run's parent waits for it (in process)
         if self.rerun is not None:
             self._live, self.live = self._start("zencosim.recordings.rerun_live", f"live view ({self.rerun})",
                                                 {"target": self.rerun, "metadata": metadata, "scene_toml": scene_toml,

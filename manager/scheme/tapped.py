@@ -39,6 +39,13 @@ HANDOVER_SHARE = 64
 HANDOVER_NS = 1_000_000
 
 
+def handover_size(done: int, full: int) -> int:
+    """How much a loop that has done ``done`` requests (steps, replies) hands over at a time, at the most: a block
+    (``full``), or less early in a run, so that what a process that ends takes with it stays a small part of what it
+    did (``HANDOVER_STEPS``, or a ``HANDOVER_SHARE``-th of ``done``)."""
+    return min(full, max(HANDOVER_STEPS, done // HANDOVER_SHARE))
+
+
 def takes_blocks(tap, plan: Plan, paced: bool) -> bool:
     """Whether a direct run hands ``tap`` blocks of arrays: where the tap takes them (``take_steps``, ``take_rows``),
     the run is not paced (a real-time run's live view follows it step by step) and a block, which holds whole
@@ -173,7 +180,7 @@ class _InBlocks:
             self.hand_over(requests >= full)
             self.handed_ns = now_ns
         held = self.requests
-        return min(full, held + max(HANDOVER_STEPS, (self.handed + held) // HANDOVER_SHARE))
+        return min(full, held + handover_size(self.handed + held, full))
 
     def hand_over(self, full: bool) -> None:
         """Hand the block over (``flush``), ``full`` or not."""
