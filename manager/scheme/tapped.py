@@ -33,10 +33,12 @@ BLOCK_STEPS = 256  # requests of the stepping loop handed over at once (TakenSte
 LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tapped exchange by exchange
 # what a direct run's loop holds and has not handed over is handed over, the block full or not, once it holds
 # HANDOVER_STEPS requests, or a HANDOVER_SHARE-th of those of the loop so far, whichever is more, and the last
-# hand-over is HANDOVER_NS old (_InBlocks.handed_over)
+# hand-over is HANDOVER_NS old (_InBlocks.handed_over); a generated loop's, which hands over its rows as a block,
+# ROWS_HANDOVER_NS old
 HANDOVER_STEPS = 16
 HANDOVER_SHARE = 64
 HANDOVER_NS = 1_000_000
+ROWS_HANDOVER_NS = 10_000_000
 
 
 def handover_size(done: int, full: int) -> int:
@@ -162,21 +164,23 @@ class _InBlocks:
         if self.initial_replies.last:
             self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
 
+    soonest_ns = HANDOVER_NS  # [ns] after the last hand-over, what a block that is not full holds is handed over
+
     def handed_over(self, now_ns: int, full: int) -> int:
-        """The stepping loop, at ``now_ns`` (perf_counter_ns) where a period starts, holds ``requests`` of a block of
-        ``full``: hand the block over when it is full, else what it holds when the last hand-over is ``HANDOVER_NS``
-        old (``hand_over``). Returns the requests the loop is to hold when it calls again: ``HANDOVER_STEPS``, or a
-        ``HANDOVER_SHARE``-th of its requests so far, more than it holds after this call, at most ``full``.
+        """The stepping loop, at ``now_ns`` (perf_counter_ns) where a period starts, holds what a block of ``full``
+        requests does: hand the block over when it is full, else what it holds when the last hand-over is
+        ``soonest_ns`` old (``hand_over``). Returns the requests the loop is to hold when it calls again:
+        ``handover_size`` more than it holds after this call, at most ``full``.
 
         So a model that ends the run's process (``os._exit``, a segmentation fault) takes with it at most the
         larger of ``HANDOVER_STEPS``, ``1 / HANDOVER_SHARE`` of the steps computed and what the loop computes in
-        ``HANDOVER_NS``, and a loop whose steps fill a block within ``HANDOVER_NS`` hands over what it did before
+        ``soonest_ns``, and a loop whose steps fill a block within ``soonest_ns`` hands over what it did before
         (one call more per ``HANDOVER_STEPS``, the calls fewer as the run goes on). Its first call (the loop
         starts) hands over nothing."""
         requests = self.requests
         if self.handed_ns is None:
             self.handed_ns = now_ns
-        elif requests >= full or now_ns - self.handed_ns >= HANDOVER_NS:
+        elif requests >= full or now_ns - self.handed_ns >= self.soonest_ns:
             self.hand_over(requests >= full)
             self.handed_ns = now_ns
         held = self.requests
@@ -429,6 +433,8 @@ class TakenRows(_InBlocks):
     ends and when it fails. The messages are built from them by the recorder's processes
     (``recordings.rows_frame``), so a recorded run's stepping loop is the unrecorded one's (issue 26). The
     initialisation goes exchange by exchange, as :class:`TakenSteps` hands it."""
+
+    soonest_ns = ROWS_HANDOVER_NS  # its rows go as a block (a ROWS frame), which costs more than a PENDING frame
 
     def __init__(self, tap, plan: Plan, status: bool) -> None:
         super().__init__(tap, plan)
