@@ -14,13 +14,15 @@ it — one C call for the tap, a fifth of the time of joining the messages and l
 processes run the same Python, whose marshal format this is); :func:`split_batch` gives them in the run's
 order. ``STEPS`` frames hold a block of a direct (in-process) run's exchanges as arrays, and ``ROWS`` frames a
 generated loop's rows, from which :func:`frame_messages` builds the same messages (``recordings.steps_frame``,
-``recordings.rows_frame``). The same input serves both buses: on
+``recordings.rows_frame``); ``PENDING`` frames the requests a direct run took since its last block, recorded only
+when no block follows them (``steps_frame.pending_steps``). The same input serves both buses: on
 the Zenoh bus the manager's replica, which follows the run, is the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
 (also sent by the kernel when the manager dies) and an end of input without END finish the file with
-what has arrived, the frames still in the pipe among it. Standard output gets one JSON line when ready and one when finished; a write that fails
-(a full disk) ends it with status 1 after a line that says why (``failed``).
+what has arrived, the frames still in the pipe among it, and the last PENDING frames' requests (``record_pipe``).
+Standard output gets one JSON line when ready and one when finished; a write that fails (a full disk) ends it with
+status 1 after a line that says why (``failed``).
 """
 from __future__ import annotations
 
