@@ -129,15 +129,15 @@ class _Observer:
         for part in parts:
             view = memoryview(part)
             while view:
+                try:
+                    view = view[os.write(fd, view):]
+                    continue
+                except BlockingIOError:
+                    pass  # no room (or for less than one pipe page): wait for it
                 if not select.select([], [fd], [], stall_s)[1]:
                     stalls += 1
                     since = since or time.monotonic() - stall_s
                     stalled(self, stalls * stall_s)
-                    continue
-                try:
-                    view = view[os.write(fd, view):]
-                except BlockingIOError:
-                    continue  # room for less than one pipe page: wait again
         if stalls:
             stalled(self, since - time.monotonic())
 
@@ -371,8 +371,8 @@ class Recorder:
             payload = pending_payload(pending, self._report.n_residuals,
                                       (start_ns, residuals[logged_residuals:], times[logged_times:]))
             self._log_sent = (len(residuals), len(times))
-            try:
-                recorder.write((FRAME.pack(PENDING, len(payload), time_ns()), payload), self._stall_s, self._stalled)
+            try:  # small: one write
+                recorder.write((FRAME.pack(PENDING, len(payload), time_ns()) + payload,), self._stall_s, self._stalled)
             except BrokenPipeError:
                 self._lose(recorder)
 

@@ -18,9 +18,9 @@ class _KeptPipe:
         self.frames = frames
         self.pending: list[tuple[int, bytes]] = []
 
-    def write(self, parts: tuple[bytes, bytes], _stall_s, _stalled) -> None:
-        assert FRAME.unpack(parts[0])[0] == PENDING
-        self.pending.append((len(self.frames), parts[1]))
+    def write(self, parts: tuple[bytes], _stall_s, _stalled) -> None:
+        assert FRAME.unpack_from(parts[0])[0] == PENDING
+        self.pending.append((len(self.frames), parts[0][FRAME.size:]))
 
 
 class FramesRecorder(Recorder):
