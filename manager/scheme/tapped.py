@@ -18,6 +18,7 @@ the recorder's processes build the same messages (``recordings.rows_frame``).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -32,13 +33,13 @@ from zencosim.manager.wire.protocol import Kind, command_ref, encode
 BLOCK_STEPS = 256  # requests of the stepping loop handed over at once (TakenSteps)
 LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tapped exchange by exchange
 # what a direct run's loop holds and has not handed over is handed over, the block full or not, once it holds
-# HANDOVER_STEPS requests, or a HANDOVER_SHARE-th of those of the loop so far, whichever is more, and the last
-# hand-over is HANDOVER_NS old (_InBlocks.handed_over); a generated loop's, which hands over its rows as a block,
-# ROWS_HANDOVER_NS old
+# HANDOVER_STEPS requests, or a HANDOVER_SHARE-th of those of the loop so far, whichever is more, and the loop has
+# run HANDOVER_COSTS times as long as the last such hand-over took of its CPU, or FIRST_HANDOVER_NS, whichever is
+# less (_InBlocks.handed_over): on a faster host the loop waits as many steps
 HANDOVER_STEPS = 16
 HANDOVER_SHARE = 64
-HANDOVER_NS = 1_000_000
-ROWS_HANDOVER_NS = 10_000_000
+HANDOVER_COSTS = 20
+FIRST_HANDOVER_NS = 1_000_000
 
 
 def handover_size(done: int, full: int) -> int:
@@ -154,6 +155,7 @@ class _InBlocks:
         self.tap = tap
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
         self.handed_ns: int | None = None  # when the stepping loop last handed something over (``handed_over``)
+        self.soonest_ns = FIRST_HANDOVER_NS  # [ns] of the loop after it, what a block not full holds is handed over
 
     def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
         """As :meth:`Taken.initial`."""
@@ -164,25 +166,29 @@ class _InBlocks:
         if self.initial_replies.last:
             self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
 
-    soonest_ns = HANDOVER_NS  # [ns] after the last hand-over, what a block that is not full holds is handed over
-
     def handed_over(self, now_ns: int, full: int) -> int:
         """The stepping loop, at ``now_ns`` (perf_counter_ns) where a period starts, holds what a block of ``full``
-        requests does: hand the block over when it is full, else what it holds when the last hand-over is
-        ``soonest_ns`` old (``hand_over``). Returns the requests the loop is to hold when it calls again:
+        requests does: hand the block over when it is full, else what it holds once the loop has run ``soonest_ns``
+        since the last hand-over (``hand_over``): ``HANDOVER_COSTS`` times the CPU time the last that was not full
+        took, at most ``FIRST_HANDOVER_NS``. Returns the requests the loop is to hold when it calls again:
         ``handover_size`` more than it holds after this call, at most ``full``.
 
         So a model that ends the run's process (``os._exit``, a segmentation fault) takes with it at most the
-        larger of ``HANDOVER_STEPS``, ``1 / HANDOVER_SHARE`` of the steps computed and what the loop computes in
-        ``soonest_ns``, and a loop whose steps fill a block within ``soonest_ns`` hands over what it did before
-        (one call more per ``HANDOVER_STEPS``, the calls fewer as the run goes on). Its first call (the loop
-        starts) hands over nothing."""
+        larger of ``HANDOVER_STEPS``, ``1 / HANDOVER_SHARE`` of the steps computed and the steps the loop computes
+        in ``soonest_ns`` (a few tens of a slow model's, no more on a faster host), and a loop whose steps fill a
+        block sooner hands over what it did before (one call more per ``handover_size`` requests). Its first call
+        (the loop starts) hands over nothing."""
         requests = self.requests
         if self.handed_ns is None:
             self.handed_ns = now_ns
-        elif requests >= full or now_ns - self.handed_ns >= self.soonest_ns:
-            self.hand_over(requests >= full)
+        elif requests >= full:
+            self.hand_over(True)
             self.handed_ns = now_ns
+        elif now_ns - self.handed_ns >= self.soonest_ns:
+            cpu_ns = time.thread_time_ns()
+            self.hand_over(False)
+            self.soonest_ns = min(FIRST_HANDOVER_NS, HANDOVER_COSTS * (time.thread_time_ns() - cpu_ns))
+            self.handed_ns = time.perf_counter_ns()
         held = self.requests
         return min(full, held + handover_size(self.handed + held, full))
 
@@ -433,8 +439,6 @@ class TakenRows(_InBlocks):
     ends and when it fails. The messages are built from them by the recorder's processes
     (``recordings.rows_frame``), so a recorded run's stepping loop is the unrecorded one's (issue 26). The
     initialisation goes exchange by exchange, as :class:`TakenSteps` hands it."""
-
-    soonest_ns = ROWS_HANDOVER_NS  # its rows go as a block (a ROWS frame), which costs more than a PENDING frame
 
     def __init__(self, tap, plan: Plan, status: bool) -> None:
         super().__init__(tap, plan)

@@ -188,11 +188,13 @@ def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arra
 def test_a_run_that_ends_after_any_pending_frame_leaves_every_message_up_to_it(name, overrides, duration,
                                                                                  monkeypatch):
     """The scheme's loop hands the recorder process what it holds as PENDING frames between its blocks (every
-    handover_size requests here: no 1 ms to wait, soonest_ns = 0), and a recorder process whose run's process ended
-    records the block it builds from those since the last block (recordings.steps_frame.pending_steps). Whichever
+    handover_size requests here: no time to wait, FIRST_HANDOVER_NS = HANDOVER_COSTS = 0), and a recorder process
+    whose run's process ended records the block it builds from those since the last block
+    (recordings.steps_frame.pending_steps). Whichever
     PENDING frame is the last, what it then holds is the run's messages up to there: a prefix of every message the
     run hands over, byte for byte (a status's wall times aside), that grows with each PENDING frame."""
-    monkeypatch.setattr(tapped.TakenSteps, "soonest_ns", 0)
+    monkeypatch.setattr(tapped, "FIRST_HANDOVER_NS", 0)
+    monkeypatch.setattr(tapped, "HANDOVER_COSTS", 0)
     scene = load_scene(name, [*overrides, f"manager.duration={duration}"])
     plan, subsystems = plan_scene(scene)
     status = StatusReport(plan, False)
