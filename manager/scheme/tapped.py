@@ -37,7 +37,7 @@ LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tap
 # run HANDOVER_COSTS times as long as the last such hand-over took of its CPU, or FIRST_HANDOVER_NS, whichever is
 # less (_InBlocks.handed_over): on a faster host the loop waits as many steps
 HANDOVER_STEPS = 16
-HANDOVER_SHARE = 64
+HANDOVER_SHARE = 32
 HANDOVER_COSTS = 20
 FIRST_HANDOVER_NS = 1_000_000
 
