@@ -269,7 +269,7 @@ COMPUTED_STEPS = 1499  # the macro-steps of 1 ms the run completes before: its s
                                         pytest.param("zenoh", "segfault", marks=pytest.mark.slow)])
 def test_a_recorded_run_whose_model_ends_its_process_keeps_what_it_computed(processes, tmp_path, bus, fault):
     """The model ends its process in the step from t = 1.499 s: the recording keeps at least 95 % of the 1,499 steps
-    the run completed (in process the loop hands over what it holds every max(16, a 64th of its steps), and the
+    the run completed (in process the loop hands over what it holds every max(16, a 32nd of its steps), and the
     recorder records what was in its pipe; over Zenoh each subsystem's batches for the manager are as small early in a
     run), the command returns once the file is finished (inspect, run at once, reads it whole), and inspect and
     replay --verify agree on its last step. Before (issue 42): 0–511 steps in process, and inspect said "steps 0 …
