@@ -17,6 +17,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 PARENT_PID = "ZENCOSIM_PARENT_PID"  # set by start_child for the child's end_with_parent
@@ -80,6 +81,20 @@ def cpu_time_s(pid: int) -> float:
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
     except (IndexError, ValueError):
         return 0.0
+
+
+def wait_while_working(pid: int, stall_s: float, look_s: float = 0.1) -> bool:
+    """Linux: wait for process ``pid``, not necessarily a child, to exit, for as long as it makes progress (uses CPU,
+    or waits only for a CPU or its disk); True once it has exited, False once it made none for ``stall_s``."""
+    still_from, cpu = time.monotonic(), cpu_time_s(pid)
+    while (fields := _stat_fields(pid)) and fields[0] not in ("Z", "X"):
+        time.sleep(look_s)
+        now, used = time.monotonic(), cpu_time_s(pid)
+        if used > cpu or working(pid):
+            still_from, cpu = now, used
+        elif now - still_from >= stall_s:
+            return False
+    return True
 
 
 def exit_reason(returncode: int) -> str:

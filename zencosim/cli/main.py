@@ -71,8 +71,8 @@ def _interrupt(signum: int, _frame) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """The command line's exit status for ``argv`` (default: the process's arguments). Run from the command line
-    (``argv`` None), ``run --bus inproc`` runs in a child process that this one watches (``manager.bus.watchdog``):
-    a model that ends or hangs the process is named."""
+    (``argv`` None), ``run --bus inproc`` and ``replay --verify`` (whose re-run is in process) run in a child process
+    that this one watches (``manager.bus.watchdog``): a model that ends or hangs the process is named."""
     command_line = argv is None
     argv = sys.argv[1:] if command_line else argv
     if argv == VERSION_ONLY:
@@ -82,12 +82,19 @@ def main(argv: list[str] | None = None) -> int:
     from zencosim.manager.bus.watchdog import WATCHABLE, watched
     if command_line and args.command == "run" and args.bus == "inproc" and WATCHABLE:
         return watched(lambda: _handle(args), _failed)
+    if command_line and args.command == "replay" and args.verify and WATCHABLE:  # its re-run is an in-process run
+        return watched(lambda: _handle(args), _rerun_failed)
     return _handle(args)
 
 
 def _failed(reason: str) -> None:
     from zencosim.cli.console import err, warn
     err.print("[bold red]run failed:[/]", highlight=False, end=" ")
+    warn(reason)
+
+
+def _rerun_failed(reason: str) -> None:
+    err.print("[bold red]the re-run failed:[/]", highlight=False, end=" ")
     warn(reason)
 
 
