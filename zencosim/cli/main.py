@@ -87,15 +87,14 @@ def main(argv: list[str] | None = None) -> int:
     return _handle(args)
 
 
-def _failed(reason: str) -> None:
+def _failed(reason: str, what: str = "run failed:") -> None:
     from zencosim.cli.console import err, warn
-    err.print("[bold red]run failed:[/]", highlight=False, end=" ")
+    err.print(f"[bold red]{what}[/]", highlight=False, end=" ")
     warn(reason)
 
 
 def _rerun_failed(reason: str) -> None:
-    err.print("[bold red]the re-run failed:[/]", highlight=False, end=" ")
-    warn(reason)
+    _failed(reason, "the re-run failed:")
 
 
 def _handle(args: argparse.Namespace) -> int:
@@ -117,6 +116,7 @@ def _handle(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         err.print("interrupted")
         return 130
+
 
 if __name__ == "__main__":
     sys.exit(main())
