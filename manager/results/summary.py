@@ -373,17 +373,23 @@ def finite_or_null(value, key: str, non_finite: dict[str, str]):
 
 
 def correction_summary(scene, record: RunRecord) -> dict | None:
-    """The energy correction's settings and, per corrected point, the work it injected (None: no correction)."""
+    """The energy correction's settings and, per corrected point, the work W it injected, the energy error Σ ζ it
+    was meant to cancel (paper 002 Eq. 13, summed) and ``adds_energy_error``: W went past −Σ ζ so far, or the
+    wrong way, that the net |Σ ζ + W| is larger than |Σ ζ|, the error without the correction (None: no
+    correction)."""
     if not record.corrections:
         return None
     settings = scene.manager.correction
     groups = {}
     for log in record.corrections:
         max_force = max(float(np.linalg.norm(force, axis=1).max()) for _, force in row_blocks(log.force))
+        work = last_finite(log.work)
         groups[log.name] = {"subsystem": log.subsystem, "mu": dict(zip(log.bonds, log.mu)),
-                            "work_injected": last_finite(log.work),
+                            "work_injected": work, "energy_error": log.energy_error,
+                            "adds_energy_error": bool(abs(log.energy_error + work) > abs(log.energy_error)),
                             "uncorrected_energy": last_finite(log.uncorrected_energy),
-                            "max_force": max_force, "capped_steps": log.capped_steps, "steps": log.steps}
+                            "max_force": max_force, "capped_steps": log.capped_steps,
+                            "withheld_steps": log.withheld_steps, "steps": log.steps}
     return {"mu": settings.mu, "nu": settings.nu, "cap_fraction": settings.cap_fraction, "cap_force": settings.cap_force,
             "work_injected": sum(g["work_injected"] for g in groups.values()), "points": groups}
 

@@ -80,6 +80,10 @@ def _print_summary(summary: dict) -> None:
         "yes" if summary["reliable"] else "NO")
     if summary["correction"] is not None:
         row("work injected by correction [J]", f"{summary['correction']['work_injected']:.6g}")
+        for name, point in summary["correction"]["points"].items():
+            if point["adds_energy_error"]:
+                row(f"correction at {name}", f"ADDS ERROR: its work {point['work_injected']:.3g} J against the energy "
+                    f"error {point['energy_error']:.3g} J it was to cancel; compare with the uncorrected run")
     timing = summary["timing"]
     row("wall time [s]", f"{timing['wall_s']:.3f}")
     row("macro-steps per second", f"{timing['steps_per_s']:.0f}")
