@@ -209,10 +209,10 @@ def test_a_recorded_run_verifies_and_reads_back_as_it_ran(tmp_path):
 @pytest.mark.multiprocess
 def test_over_zenoh_the_run_is_the_in_process_one():
     """Every process follows every bond, so the steps — and the digest — are the same (FOH inputs: polynomials
-    through points at varying spacing on the wire; and the multi-rate crane)."""
+    through points at varying spacing on the wire, the default abs_tolerance from the energy at t_0 that every
+    process reads from its own replica; and the multi-rate crane)."""
     scene = zencosim.load_scene(energy_scene(0.3, abs_tolerance=1.0).path, {
-        **FINE, "manager.duration": 0.3, "manager.extrapolation": 1, "manager.energy_control.max_step_size": 0.01,
-        "manager.energy_control.abs_tolerance": 1.0})
+        **FINE, "manager.duration": 0.3, "manager.extrapolation": 1, "manager.energy_control.max_step_size": 0.01})
     crane = zencosim.load_scene("hydraulic_crane", {"manager.duration": 0.2, "manager.step_control": "energy",
                                                     "manager.energy_control.max_step_size": 0.001,
                                                     "manager.energy_control.abs_tolerance": 10.0})  # multi-rate
