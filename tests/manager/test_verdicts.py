@@ -145,3 +145,19 @@ def test_the_compensators_refusal_states_why_the_discrete_correction_failed():
     assert "assigns the monolithic poles" in problem.reason
     assert "no longer complex-conjugate pairs" in problem.reason
     assert "a shorter macro-step" in problem.reason
+
+
+def test_an_output_in_joules_stands_in_for_an_energy_no_subsystem_declares(tmp_path):
+    """The drive with no ``energy`` keys but the motor's E published as a signal (``outputs = ["E"]``): its only
+    recorded output in J is the energy the verdict measures — the same numbers as when the scene declares it."""
+    source = (resources.files("zencosim.examples") / "scenes" / "dc_motor_drive.toml").read_text()
+    bare = source.replace('energy = "E"\n', "")
+    motor = "[subsystems.motor]\n"
+    published, declared = tmp_path / "published.toml", tmp_path / "declared.toml"
+    published.write_text(bare.replace(motor, motor + 'outputs = ["E"]\n'))
+    declared.write_text(bare.replace(motor, motor + 'energy = "E"\n'))
+    summaries = [zencosim.run(load_scene(str(path), ["manager.duration=0.05"])).summary for path in (published, declared)]
+    assert summaries[0]["energy"].pop("outputs") == ["motor.E"] and "outputs" not in summaries[1]["energy"]
+    assert summaries[0]["energy"] == summaries[1]["energy"] and summaries[0]["energy"]["final"] > 1.0  # [J]
+    assert summaries[0]["stable_from"] == summaries[1]["stable_from"] == "measured energy growth"
+    assert summaries[0]["stable"] is summaries[1]["stable"] is True
