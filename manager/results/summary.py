@@ -41,6 +41,7 @@ from zencosim.manager.scheme.window import BLOCK_ROWS, read_rows, row_blocks
 
 STABLE_GROWTH_RATE = 0.01  # [1/s]
 ENERGY_WINDOWS = 20
+AT_LIMIT_SHARE = 0.5  # a step that sat at a bound for more than this share of the run is reported (``at_limit``)
 
 
 def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
@@ -274,9 +275,6 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     summary = finite_or_null(summary, "", non_finite)
     summary["non_finite"] = non_finite
     return summary
-
-
-AT_LIMIT_SHARE = 0.5  # a step that sat at a bound for more than this share of the run is reported (``at_limit``)
 
 
 def energy_candidates(scene: Scene) -> list[str]:
