@@ -78,9 +78,11 @@ class EnergyControlSettings:
     ECCO method), its parameters under its names (``manager.scheme.energy_step`` gives the law).
 
     Every macro-step is a whole multiple of ``manager.macro_step`` (the subsystems' micro-steps divide it), so
-    are ``step_size`` (the first step), ``min_step_size`` and ``max_step_size``. Defaults: libcosimpy's
-    ``EccoParams`` where they make a working controller, its README's change rates (libcosimpy's 0.01 … 0.2
-    would only ever shrink the step).
+    are ``step_size`` (the first step), ``min_step_size`` and ``max_step_size``. Defaults: the step sizes and
+    ``abs_tolerance`` from the scene (None: ``manager.scheme.energy_step.step_bounds`` and ``abs_tolerance``: the
+    macro-step as the first and smallest step, some tens of it as the largest, a tolerance relative to the energy at
+    t_0), the rest libcosimpy's ``EccoParams`` where they make a working controller, its README's change rates
+    (libcosimpy's 0.01 … 0.2 would only ever shrink the step).
 
     The law's other parameters are bounded (docs/step-control.md gives the reasons): a safety factor of 0.1 to 1
     (a fraction of the step the tolerance allows), change rates of 1e-3 to 1e3 (a step changes at most a
@@ -90,14 +92,14 @@ class EnergyControlSettings:
     order; the law raises the error to minus their sum, which stays finite).
     """
 
-    max_step_size: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
+    max_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: 20 min_step_size
     step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # the first [s]; None: min_step_size
     min_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: manager.macro_step
     safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.1, maximum=1.0))
     min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=1e-3, maximum=1e3))  # per step
     max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=1e-3, maximum=1e3))
-    # residual energy per step [J]
-    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0, exclusive_minimum=True))
+    # residual energy per step [J]; None: 1e-3 of the energy at t_0
+    abs_tolerance: float | None = field(default=None, metadata=quantity("J", minimum=0.0, exclusive_minimum=True))
     rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0, maximum=1.0))
     p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))
     i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))

@@ -89,8 +89,9 @@ def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int, sign
                 "nrms": {}, "energy_error": None, "digest": None, "inproc": None}
     if summary["step_control"] is not None:  # energy-controlled: the macro-steps it took
         row["steps"] = summary["steps"]
+    run_verdict = summary["stable"] if summary["stable"] is not None else not summary["diverged"]  # no energy: finite
     return {**row,
-            "stable": summary["stable"] if predicted is None else predicted,
+            "stable": run_verdict if predicted is None else predicted,
             "stable_run": summary["stable"],
             "failed": None,
             "reference": summary["reference"],

@@ -14,6 +14,7 @@ from zencosim.extras import require
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.energy_step import step_bounds
 
 ANALYSIS_COLUMNS = {"monolithic": "monolithic", "cosim_pade": "co-sim. Padé", "cosim": "co-sim. D(s)",
                     "cosim_discrete": "co-sim. discrete", "compensated_model": "compensated D(s)",
@@ -127,9 +128,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     (_print_identified if isinstance(result, IdentifiedAnalysis) else _print_analysis)(result)
     control = scene.manager.energy_control
     if scene.manager.step_control == "energy":  # the analysis is of one fixed macro-step: say which
+        longest = step_bounds(control, scene.manager.macro_step_ns)[2] * 1e-9
         warn(f"manager.step_control = 'energy': this is the scheme at a fixed macro-step of "
-             f"{scene.manager.macro_step:g} s; the run varies it up to {control.max_step_size:g} s (analyse that "
-             f"one with --set manager.macro_step={control.max_step_size:g} --set manager.step_control=fixed)")
+             f"{scene.manager.macro_step:g} s; the run varies it up to {longest:g} s (analyse that "
+             f"one with --set manager.macro_step={longest:g} --set manager.step_control=fixed)")
     if json_path:
         json_path.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
     if plot_path:

@@ -13,6 +13,7 @@ from zencosim.cli.console import add_scene_arguments, examples, out, say
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import SceneError, bundled_scene_names, load_scene, scene_from_text
+from zencosim.manager.scheme.energy_step import step_bounds
 from zencosim.subsystems.params import Problem
 from zencosim.subsystems.ports import Port
 
@@ -38,8 +39,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     control = scene.manager.energy_control  # read whenever given; used with step_control = "energy" only
     steps = (f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s"
              if scene.manager.step_control != "energy" else
-             f"energy-controlled macro-steps of {control.min_step_size or scene.manager.macro_step:g} … "
-             f"{control.max_step_size:g} s (whole multiples of {scene.manager.macro_step:g} s)")
+             "energy-controlled macro-steps of {:g} … {:g} s".format(
+                 *(ns * 1e-9 for ns in step_bounds(control, scene.manager.macro_step_ns)[::2]))
+             + f" (whole multiples of {scene.manager.macro_step:g} s)")
     out.print(f"{steps}, scheme {scene.manager.scheme}, "
               f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(bonds) or 'none'}")
     signals = [c for c in scene.couplings.values() if c.kind == "signal"]
