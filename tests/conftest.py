@@ -12,11 +12,17 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 import zencosim
 from zencosim.subsystems.native import CACHE_DIR
 
 REPO = Path(__file__).resolve().parents[1]
+
+# every property test draws the same examples on every run (seeds explicit): a CI run cannot fail on an example
+# that the runs before it never drew; a test's own @settings change only what they name
+settings.register_profile("derandomized", derandomize=True, database=None)
+settings.load_profile("derandomized")
 
 
 EXAMPLE_MODEL = "zencosim.examples.oscillator:Oscillator"

@@ -345,7 +345,7 @@ def first_non_finite_time(record: RunRecord) -> float | None:
 def discrete_verdict(scene: Scene) -> dict | None:
     """``zencosim analyze``'s verdict on the scheme this scene runs: ``spectral_radius`` ρ, ``growth_rate_per_s``
     ``2 ln ρ / T``, ``stable`` (ρ <= 1) and the predicted growth's time scale, ``energy_doubling_time_s``
-    ``ln 2 / growth_rate_per_s`` (None where ρ <= 1); None when the scene is not linear or corrects energy."""
+    ``ln 2 / growth_rate_per_s`` (None where stable: ρ <= 1 up to round-off); None when the scene is not linear or corrects energy."""
     try:
         scheme = run_scheme(scene)
     except (ValueError, ArithmeticError):  # a transition matrix that cannot be built or decomposed (singular)
@@ -354,7 +354,7 @@ def discrete_verdict(scene: Scene) -> dict | None:
         return None
     growth = scheme.growth_rate
     return {"spectral_radius": scheme.spectral_radius, "growth_rate_per_s": growth, "stable": scheme.stable,
-            "energy_doubling_time_s": math.log(2.0) / growth if growth > 0.0 else None}
+            "energy_doubling_time_s": None if scheme.stable else math.log(2.0) / growth}
 
 
 def finite_or_null(value, key: str, non_finite: dict[str, str]):

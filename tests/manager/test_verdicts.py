@@ -122,13 +122,19 @@ def test_the_issues_two_mass_damped_case_is_unstable_in_both_commands(tmp_path):
 
 
 def test_no_verdict_without_energy(tmp_path):
-    """The DC motor drive without its ``energy`` keys: no subsystem reports an energy, so neither a measured
-    verdict nor a reliable run; the summary names the outputs in J that could be declared (issue 42)."""
+    """The DC motor drive without its ``energy`` keys: no subsystem reports an energy. At a fixed step its
+    Python models are identified exactly, so the exact discrete verdict stands; with the energy-controlled step
+    (no fixed step to analyse) there is neither a measured verdict nor a reliable run; the summary names the
+    outputs in J that could be declared (issue 42)."""
     source = (resources.files("zencosim.examples") / "scenes" / "dc_motor_drive.toml").read_text()
     scene = tmp_path / "drive.toml"
     scene.write_text(source.replace('energy = "E"\n', ""))
     assert 'energy = "E"' not in scene.read_text()
-    summary = zencosim.run(load_scene(str(scene), ["manager.duration=0.01"])).summary
+    fixed = zencosim.run(load_scene(str(scene), ["manager.duration=0.01"])).summary
+    assert fixed["energy"] is None and fixed["discrete"]["stable"] is True
+    assert fixed["stable"] is True and fixed["stable_from"] == "exact discrete spectral radius"
+    assert fixed["discrete"]["energy_doubling_time_s"] is None  # stable: the energy does not double
+    summary = zencosim.run(load_scene(str(scene), ["manager.duration=0.01", "manager.step_control=energy"])).summary
     assert summary["energy"] is None and summary["discrete"] is None
     assert summary["stable"] is None and summary["stable_from"] is None and summary["reliable"] is None
     assert summary["energy_candidates"] == ["supply.E", "motor.E", "load.E"]
@@ -149,7 +155,7 @@ def test_the_compensators_refusal_states_why_the_discrete_correction_failed():
 
 def test_an_output_in_joules_stands_in_for_an_energy_no_subsystem_declares(tmp_path):
     """The drive with no ``energy`` keys but the motor's E published as a signal (``outputs = ["E"]``): its only
-    recorded output in J is the energy the verdict measures — the same numbers as when the scene declares it."""
+    recorded output in J is the energy the summary measures — the same numbers as when the scene declares it."""
     source = (resources.files("zencosim.examples") / "scenes" / "dc_motor_drive.toml").read_text()
     bare = source.replace('energy = "E"\n', "")
     motor = "[subsystems.motor]\n"
@@ -159,5 +165,6 @@ def test_an_output_in_joules_stands_in_for_an_energy_no_subsystem_declares(tmp_p
     summaries = [zencosim.run(load_scene(str(path), ["manager.duration=0.05"])).summary for path in (published, declared)]
     assert summaries[0]["energy"].pop("outputs") == ["motor.E"] and "outputs" not in summaries[1]["energy"]
     assert summaries[0]["energy"] == summaries[1]["energy"] and summaries[0]["energy"]["final"] > 1.0  # [J]
-    assert summaries[0]["stable_from"] == summaries[1]["stable_from"] == "measured energy growth"
+    # the Python models are identified exactly, so the verdict is the exact one in both; the energy is the same
+    assert summaries[0]["stable_from"] == summaries[1]["stable_from"] == "exact discrete spectral radius"
     assert summaries[0]["stable"] is summaries[1]["stable"] is True
