@@ -112,6 +112,7 @@ class _Observer:
         except OSError:
             self.capacity = None  # cannot tell: a lossy observer is waited for like any other
         self.writes = 0  # writes into its pipe since it was last seen empty (_room_for)
+        self.behind = False  # a lossy observer that was skipped a batch and has not taken all it holds since
         os.set_blocking(fd, False)
 
     def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None],
@@ -120,10 +121,12 @@ class _Observer:
         ``stalled(self, -waited_s)`` once it takes bytes again after that. ``steps``: the frame is a batch of
         that many macro-steps, which a lossy observer without room skips."""
         fd = self.process.stdin.fileno()
-        if steps is not None and self.lossy and not self._room_for(sum(map(len, parts)), len(parts)):
-            self.skipped[0] += 1
-            self.skipped[1] += steps
-            return
+        if steps is not None and self.lossy and (self.behind or not self._room_for(sum(map(len, parts)), len(parts))):
+            self.behind = not self._drained()  # skipped until it has taken all it holds: one gap, however
+            if self.behind:  # the batches' sizes vary (a small one fits where a large one did not)
+                self.skipped[0] += 1
+                self.skipped[1] += steps
+                return
         self.writes += len(parts)
         stalls, since = 0, 0.0
         for part in parts:
@@ -147,16 +150,27 @@ class _Observer:
         fit in the last page's room starts a new one: each write since the pipe was empty may have left up to a page
         unused (with 147 KB frames, six fitted in 1 MiB by their bytes and the seventh did not: the run waited for
         a frozen live view)."""
+        unread = self._unread()
+        if unread is None:
+            return True  # cannot tell: wait for room
+        if self.capacity is None or unread == 0:
+            self.writes = 0
+            return True
+        pages = -(-unread // PAGE_BYTES) + self.writes + -(-size // PAGE_BYTES) + writes  # at the most
+        return pages * PAGE_BYTES <= self.capacity
+
+    def _drained(self) -> bool:
+        """Whether its pipe holds no unread byte (or that cannot be told)."""
+        return not self._unread()
+
+    def _unread(self) -> int | None:
+        """The bytes its pipe holds that it has not read (None: cannot tell)."""
         unread = array("i", [0])
         try:
             fcntl.ioctl(self.process.stdin.fileno(), termios.FIONREAD, unread)
         except OSError:
-            return True  # cannot tell: wait for room
-        if self.capacity is None or unread[0] == 0:
-            self.writes = 0
-            return True
-        pages = -(-unread[0] // PAGE_BYTES) + self.writes + -(-size // PAGE_BYTES) + writes  # at the most
-        return pages * PAGE_BYTES <= self.capacity
+            return None
+        return unread[0]
 
     def ended(self) -> str:
         """How the process ended (``"killed by SIGKILL"``, ``"exited with code 1: writing the file failed: No
