@@ -227,6 +227,7 @@ class _CpuWatch:
                 return
 
 
+@pytest.hookimpl(optionalhook=True)  # pytest-timeout's hook: without that plugin (-p no:timeout), unused
 def pytest_timeout_set_timer(item, settings):
     """For a test marked ``cpu_timeout``: the CPU watch instead of pytest-timeout's wall-clock timer."""
     marker = item.get_closest_marker("cpu_timeout")
