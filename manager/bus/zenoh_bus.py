@@ -34,6 +34,7 @@ from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, mer
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.signals import DeferredSignals
 from zencosim.manager.bus.zenoh_session import (
+    STOP_RECEIVED,
     ZenohOptions,
     concrete_endpoint,
     coupling_publisher,
@@ -107,6 +108,7 @@ class ZenohBus:
         self._lost: list[str] = []
         self._started_at = time.monotonic()  # the last time a subsystem joined or became ready (start-up progress)
         self._driving = False
+        self._stop_sent = False  # whether the manager has sent its subsystems STOP (only when it closes the bus)
         self._session: zenoh.Session | None = None
         self._entities: list = []
         self.dropped = DroppedMessages()  # what the manager took off the network and dropped (manager.bus.dropped)
@@ -219,10 +221,16 @@ class ZenohBus:
         return "\n".join(text.splitlines()[-lines:])
 
     def _exited(self, name: str) -> SubsystemFailure | None:
+        """The failure of subsystem ``name`` when the manager spawned its process and it has exited: its exit
+        status and the end of its log, or, when a STOP ended it that the manager did not send, where that came from."""
         child = self.children.get(name)
         if child is None or child.poll() is None:
             return None
         tail = self.log_tail(name)
+        if not self._stop_sent and f"subsystem {name}: {STOP_RECEIVED}" in tail:
+            return SubsystemFailure(name, f"a STOP that the manager did not send ended its process: another process "
+                                          f"that reaches the run published it on {key(self.run_id, name, 'u')} (without "
+                                          f"credentials every process on the run's hosts can: docs/security.md):\n{tail}")
         return SubsystemFailure(name, f"process exited with code {child.returncode}" + (f":\n{tail}" if tail else ""))
 
     def _handshake(self) -> None:
@@ -518,6 +526,7 @@ class ZenohBus:
     def _stop_children(self) -> None:
         """STOP every subsystem process; terminate, then kill, those that do not exit in ``STOP_GRACE_S``."""
         if self._session is not None:
+            self._stop_sent = True
             for publisher in getattr(self, "_publishers", {}).values():
                 publisher.put(encode(Kind.STOP, 0, 0))
         deadline = time.monotonic() + STOP_GRACE_S

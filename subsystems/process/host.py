@@ -31,6 +31,7 @@ from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.bus.timing import step_timing
 from zencosim.manager.bus.zenoh_session import (
+    STOP_RECEIVED,
     ZenohOptions,
     concrete_endpoint,
     coupling_publisher,
@@ -249,7 +250,8 @@ class _Host:
         self.dropped.add(key(self.run_id, sender, "y"), reason)
 
     def on_control(self, sample: zenoh.Sample) -> None:
-        """STOP from the manager; anything else on ``<sub>/u`` is dropped and counted."""
+        """STOP (the manager's, or one another process that reaches the run published: the manager tells them
+        apart); anything else on ``<sub>/u`` is dropped and counted."""
         data = sample.payload.to_bytes()
         try:
             kind = decode_header(data, "manager")[0]
@@ -259,7 +261,8 @@ class _Host:
         if kind != Kind.STOP:
             self.dropped.add(str(sample.key_expr), f"a {kind.name} message; only STOP is sent here", publisher(sample))
             return
-        self.stop("stopped by the manager")
+        source = publisher(sample)
+        self.stop(STOP_RECEIVED + (f" (from {source})" if source else ""))
 
     def on_liveliness(self, sample: zenoh.Sample) -> None:
         who = str(sample.key_expr).split("/")[-2]
@@ -339,4 +342,4 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         host.log.undeclare()
     deadline_timer.cancel()
     print(printable(f"subsystem {name}: {host.reasons[0]}"), file=sys.stderr)
-    return 0 if host.reasons[0] == "stopped by the manager" else 1
+    return 0 if host.reasons[0].startswith(STOP_RECEIVED) else 1

@@ -114,6 +114,20 @@ def test_a_forged_error_fails_the_run_with_its_text_escaped(processes, tmp_path)
     assert "\x1b" not in stderr and "\x07" not in stderr and "\\x1b]0;owned\\x07\\x1b[2Jgone" in stderr
 
 
+@pytest.mark.timeout(240)
+def test_a_stop_the_manager_did_not_send_is_named_as_coming_from_elsewhere(processes, tmp_path):
+    """A peer of the test's own (no credentials, as any local process on a default loopback run) publishes a
+    STOP on S1's control key: the run fails naming where it came from, never as stopped by the manager."""
+    def inject(session: zenoh.Session, run_id: str) -> None:
+        session.put(key(run_id, "S1", "u"), encode(Kind.STOP, 0, 0))
+
+    manager, stderr, _ = _run_with_stray_traffic(processes, tmp_path, inject)
+    assert manager.returncode == 1 and "Traceback" not in stderr
+    assert stderr.startswith("run failed: subsystem S1: a STOP that the manager did not send ended its process: "
+                             "another process that reaches the run published it on zencosim/"), stderr
+    assert "stopped by the manager" not in stderr
+
+
 @pytest.mark.timeout(60)
 def test_an_occupied_listen_port_is_one_line(processes):
     with socket.socket() as taken:

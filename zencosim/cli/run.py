@@ -18,6 +18,7 @@ from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.results.tables import check_table_path, record_tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import load_scene
+from zencosim.subsystems.models.external.fmi_steps import uncompiled_fmus
 
 DIVERGED = 3  # exit status of a run whose values did not stay finite, or that --strict fails (zencosim.cli.main)
 
@@ -182,6 +183,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         from zencosim.recordings.recorder import Recorder
         recorder = Recorder(check_output_file(record_path, "recording") if record_path else None, args.record_host_info,
                             args.rerun, _wait_while_serving if args.rerun == "serve" else None, args.record_lost, warn)
+    slow = uncompiled_fmus({name: s.spec for name, s in scene.subsystems.items()})
+    if slow and not args.quiet:
+        warn(f"no working C compiler ($CC, else cc or gcc): each step of FMU{'s' if len(slow) > 1 else ''} "
+             f"{', '.join(slow)} is a ctypes call per FMI call from Python, several times slower than one compiled "
+             "call (docs/models.md, \"One call per step\"); install a C compiler for the fast path")
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
