@@ -17,7 +17,7 @@ an OSP file of plain connections, x[0] -> position and force -> f[0], with c[0] 
 percent past the boundary ρ − 1 = 3.9e-3 a step, the next mode's |λ| = 0.90 (of the exact zero-order-hold loop,
 whose boundary is 0.42698 s). The runs start from 0.1 s (at 10 ms the slow approach to the setpoint overshoots
 within 300 steps and reads as growth). The prediction's bracket is narrowed to the runs' 0.25 % only: the
-target is 1 %, and each of its steps identifies the oscillator anew (2 s a step).
+target is 1 %, and each of its steps identifies the oscillator anew.
 """
 from __future__ import annotations
 
