@@ -15,8 +15,8 @@ The same controller positions axis 0 of crane-fmu's ``HarmonicOscillator6D.fmu``
 each step with scipy's ``solve_ivp``, RK45 at a relative tolerance of 1e-3, and cannot save its state either) in
 an OSP file of plain connections, x[0] -> position and force -> f[0], with c[0] = 10 N s/m (m = k = 1): one
 percent past the boundary ρ − 1 = 3.9e-3 a step, the next mode's |λ| = 0.90 (of the exact zero-order-hold loop,
-whose boundary is 0.42698 s). The runs start from 0.1 s (at 10 ms the slow approach to the setpoint overshoots
-within 300 steps and reads as growth). The prediction's bracket is narrowed to the runs' 0.25 % only: the
+whose boundary is 0.42698 s). The runs start from 0.1 s (300 steps of 10 ms, 3 s, end within the transient, its
+slowest mode -0.27 1/s, which the criterion reads as growth). The prediction's bracket is narrowed to the runs' 0.25 % only: the
 target is 1 %, and each of its steps identifies the oscillator anew.
 """
 from __future__ import annotations
