@@ -10,8 +10,9 @@ then, around every call into a model (its constructor, every command of the step
 that are not zencosim's own, which alone can end the process), which subsystem it is in and from what simulation
 time; as its command ends it writes that it has ended. The parent, when the child ends
 without that mark, names the subsystem it was in and how the process ended (``exited with code 0``, ``killed by
-SIGSEGV``: exit status 1); when one call into a model lasts longer than ``manager.timeout``, it kills the child and
-names the subsystem as the Zenoh bus does a subsystem that does not answer (exit status 1). A constructor is not
+SIGSEGV``: exit status 1); when one call into a model lasts longer than ``manager.timeout`` — as the stall clock
+counts (``manager.bus.stall``: not the time the child waited for a CPU; or the child's own CPU time) — it kills the
+child and names the subsystem as the Zenoh bus does a subsystem that does not answer (exit status 1). A constructor is not
 timed (an FMU may unpack and load a large binary on a busy machine): a model that hangs there is interrupted
 with Ctrl-C.
 
@@ -36,6 +37,7 @@ from contextlib import AbstractContextManager, contextmanager
 from typing import Callable, Iterator
 
 from zencosim.manager.bus.children import exit_reason
+from zencosim.manager.bus.stall import StallClock
 
 SUBSYSTEM, PHASE, CALLS, T_NS, TIMEOUT_NS, ENDED, NAMES_BYTES = range(7)  # the int64 slots of the shared page
 NAMES_AT, PAGE_BYTES = 64, 1 << 16  # the subsystems' names (JSON) from byte NAMES_AT
@@ -181,7 +183,7 @@ def _end_with(parent: int) -> None:
 def _wait(pid: int, watch: ModelWatch, failed: Callable[[str], None]) -> int:
     """Wait for the child ``pid``: pass signals on, time the calls into models, and name how it ended."""
     interrupted, timed_out = False, None
-    calls, since = -1, 0.0
+    calls, clock, run = -1, StallClock(), {"run": pid}
     while True:
         info = signal.sigtimedwait((*PASSED_ON, signal.SIGCHLD), POLL_S)
         if info is not None and info.si_signo != signal.SIGCHLD:
@@ -193,8 +195,12 @@ def _wait(pid: int, watch: ModelWatch, failed: Callable[[str], None]) -> int:
             break
         now = time.monotonic()
         if watch.slots[SUBSYSTEM] < 0 or watch.slots[PHASE] != STEPPING or watch.slots[CALLS] != calls:
-            calls, since = watch.slots[CALLS], now
-        elif watch.slots[TIMEOUT_NS] and now - since > watch.slots[TIMEOUT_NS] * 1e-9:
+            calls = watch.slots[CALLS]
+            clock.restart(now)
+            clock.look(now, run)
+            continue
+        clock.look(now, run)
+        if watch.slots[TIMEOUT_NS] and clock.verdict(watch.slots[TIMEOUT_NS] * 1e-9, list(run)) is not None:
             timed_out = watch.where()
             if timed_out is not None:  # else it has just returned
                 os.kill(pid, signal.SIGKILL)

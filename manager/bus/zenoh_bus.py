@@ -486,7 +486,7 @@ class ZenohBus:
             self._stall.look(now, self._watched_pids())
             self._stall_looked = True
             return None
-        if now - self._stall.last < STALL_LOOK_S:
+        if now - self._stall.last < min(STALL_LOOK_S, self.timeout_s / 4):  # at least 4 looks within the limit
             return None
         self._stall.look(now, self._watched_pids())
         local = [name for name in self.names if name in self.children]
