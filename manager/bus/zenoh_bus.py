@@ -245,21 +245,32 @@ class ZenohBus:
         spawned subsystem, progress is another one joining or connecting, or its own process still working
         its way up (``STARTUP_CPU_S`` more CPU time: 33 processes starting on 2 cores under load take longer
         than one, but each uses CPU; one waiting for a link that never comes does not); for one started by
-        hand, the wait since it began."""
+        hand, the wait since it began. Without progress, a spawned one's wait runs on the stall clock
+        (``manager.bus.stall``: its waits for a CPU, and the manager's, are not counted)."""
         waited_from = time.monotonic()
-        working_from, cpu_mark = waited_from, cpu_time_s(self.children[name].pid) if name in self.children else 0.0
+        child = self.children.get(name)
+        pids = {"manager": os.getpid(), name: child.pid} if child is not None else {}
+        clock, mark = StallClock(), (waited_from, cpu_time_s(child.pid) if child is not None else 0.0)
+        clock.restart(waited_from)
+        clock.look(waited_from, pids)
         while not event.wait(0.05):
             failure = next(filter(None, map(self._exited, self.names)), None)
             if failure:
                 raise failure
             now = time.monotonic()
-            if name in self.children and now - working_from >= 1.0:
-                cpu = cpu_time_s(self.children[name].pid)
-                if cpu - cpu_mark >= STARTUP_CPU_S:
-                    working_from, cpu_mark = now, cpu
-            since = waited_from if name in self.external else max(waited_from, self._started_at, working_from)
-            if now > since + wait_s:
-                tail = self.log_tail(name) if name in self.children else ""
+            if child is None:
+                stalled = now > waited_from + wait_s
+            elif now - clock.last >= 1.0:
+                cpu = cpu_time_s(child.pid)
+                if cpu - mark[1] >= STARTUP_CPU_S or self._started_at > mark[0]:  # progress: the clock starts again
+                    mark = (now, cpu)
+                    clock.restart(now)
+                clock.look(now, pids)
+                stalled = clock.stalled_s > wait_s
+            else:
+                continue
+            if stalled:
+                tail = self.log_tail(name) if child is not None else ""
                 raise SubsystemFailure(name, f"{failing} within {wait_s:g} s" + (f"; its output:\n{tail}" if tail else ""))
 
     def _patient(self, ask: Callable[[], bool], names: list[str]) -> str | None:
