@@ -28,6 +28,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Mapping
 
+from zencosim.manager.bus.children import cpu_time_s, stat_fields
+
 STOPPED = ("T", "t")  # /proc/PID/stat states of a stopped process (proc(5))
 
 
@@ -43,15 +45,10 @@ class Reading:
 
 def read_process(pid: int) -> Reading | None:
     """What ``/proc`` says of process ``pid``; None when it is gone (or ``/proc/PID`` is unreadable)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
-    except OSError:
+    fields = stat_fields(pid)
+    if not fields:
         return None if Path("/proc/self/stat").exists() else Reading("", None, None)
-    try:
-        cpu_s = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (IndexError, ValueError):
-        cpu_s = None
-    return Reading(fields[0] if fields else "", cpu_s, _waited_s(pid))
+    return Reading(fields[0], cpu_time_s(pid, fields), _waited_s(pid))
 
 
 def _waited_s(pid: int) -> float | None:
