@@ -279,6 +279,7 @@ def test_a_subsystem_that_hangs_in_its_step_is_the_one_named(processes, tmp_path
         stderr
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_a_subsystem_that_has_cpu_and_answers_nothing_is_named(processes, tmp_path):
     """S2 loops in its step, on the CPU: however busy the machine, it is named once it has used manager.timeout of

@@ -108,6 +108,7 @@ def _lowest_priority(pid: int) -> None:
             os.setpriority(os.PRIO_PROCESS, process, 19)
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(240)
 def test_a_run_starved_of_cpu_by_a_stall_limit_below_its_waits_completes(processes, tmp_path):
