@@ -4,11 +4,13 @@ A run's processes wait for one another; when the run has not advanced for a whil
 did says nothing on a machine with more runnable processes than cores (34 processes at load 90 on 2 cores: a
 healthy manager or subsystem may not run for 16 s). The :class:`StallClock` counts only the time that is the
 processes' own: the wall time since the run last advanced, less the time that its processes waited for a CPU
-(Linux: ``run_delay`` of every thread, ``/proc/PID/task/TID/schedstat``; per look, the largest of any process,
-at most the look's wall time). So:
+(Linux: ``run_delay`` of every thread, ``/proc/PID/task/TID/schedstat``, and the whole look for a thread
+runnable at both its ends that did not run between; per look, summed over the processes —
+a step passes through them in turn, each waiting in its turn — at most the look's wall time). So:
 
 * a process that sleeps waiting for what never comes (a model that hangs) gets nothing taken off: the clock
-  runs at wall speed;
+  runs at wall speed, less what the run's other processes wait for a CPU meanwhile (on a loaded machine their
+  brief wake-ups: the hang is named later, once they stop waiting);
 * a process starved of CPU waits in the run queue: the clock stands still, and the run waits for it;
 * a process in a loop that never answers gets its CPU share: the clock runs at that share, and its own CPU time
   since the run last advanced (``cpu_s``) reaches the limit too: a process that had CPU and made no progress;
@@ -36,11 +38,14 @@ STOPPED = ("T", "t")  # /proc/PID/stat states of a stopped process (proc(5))
 @dataclass(frozen=True)
 class Reading:
     """One process at one moment: its state letter ("" unknown), CPU time [s] (user + system, all threads; None
-    unknown), and the time [s] its threads have waited for a CPU, summed (None unknown)."""
+    unknown), the time [s] its threads have waited for a CPU, summed (None unknown), and its threads that are
+    runnable (id, CPU time [ns]): the kernel adds a wait to ``run_delay`` only once it ends, so a thread runnable
+    at two looks with no CPU time between them has waited all along."""
 
     state: str
     cpu_s: float | None
     waited_s: float | None
+    runnable: frozenset[tuple[int, int]] = frozenset()
 
 
 def read_process(pid: int) -> Reading | None:
@@ -48,23 +53,27 @@ def read_process(pid: int) -> Reading | None:
     fields = stat_fields(pid)
     if not fields:
         return None if Path("/proc/self/stat").exists() else Reading("", None, None)
-    return Reading(fields[0], cpu_time_s(pid, fields), _waited_s(pid))
+    return Reading(fields[0], cpu_time_s(pid, fields), *_threads(pid))
 
 
-def _waited_s(pid: int) -> float | None:
-    """The time [s] process ``pid``'s threads have spent runnable but not running (sum of ``run_delay``)."""
-    waited_ns, read = 0, False
+def _threads(pid: int) -> tuple[float | None, frozenset[tuple[int, int]]]:
+    """The time [s] process ``pid``'s threads have spent runnable but not running (sum of ``run_delay``, None
+    where unreadable), and its runnable threads (id, CPU time [ns])."""
+    waited_ns, read, runnable = 0, False, set()
     try:
         tasks = os.listdir(f"/proc/{pid}/task")
     except OSError:
-        return None
+        return None, frozenset()
     for task in tasks:
         try:
-            waited_ns += int(Path(f"/proc/{pid}/task/{task}/schedstat").read_text().split()[1])
-            read = True
+            ran_ns, delay_ns = map(int, Path(f"/proc/{pid}/task/{task}/schedstat").read_text().split()[:2])
+            state = Path(f"/proc/{pid}/task/{task}/stat").read_text().rpartition(")")[2].split()[0]
         except (OSError, IndexError, ValueError):
             continue  # a thread that ended meanwhile, or no schedstat
-    return waited_ns * 1e-9 if read else None
+        waited_ns, read = waited_ns + delay_ns, True
+        if state == "R":
+            runnable.add((int(task), ran_ns))
+    return (waited_ns * 1e-9 if read else None), frozenset(runnable)
 
 
 def load1() -> float:
@@ -113,16 +122,18 @@ class StallClock:
         self.latest = readings
 
     def _excused_s(self, wall_s: float, readings: Mapping[str, Reading | None]) -> float:
-        """The part of ``wall_s`` the processes spent waiting for a CPU: none while one is stopped; else the most
-        any one waited (schedstat), or the load's share where no process's waits can be read."""
+        """The part of ``wall_s`` the processes spent waiting for a CPU: none while one is stopped; else their
+        waits summed (schedstat: a step passes through the processes in turn, each waiting for a CPU in its turn),
+        at most ``wall_s``; or the load's share where no process's waits can be read."""
         present = {name: r for name, r in readings.items() if r is not None}
         if any(r.state in STOPPED for r in present.values()):
             return 0.0
-        waits = [r.waited_s - previous.waited_s for name, r in present.items()
+        waits = [r.waited_s - previous.waited_s + wall_s * len(r.runnable & previous.runnable)
+                 for name, r in present.items()
                  if r.waited_s is not None and (previous := self.latest.get(name)) is not None
                  and previous.waited_s is not None]
         if waits:
-            return min(wall_s, max(0.0, *waits))
+            return min(wall_s, max(0.0, sum(waits)))
         if any(r.waited_s is not None for r in present.values()):
             return 0.0  # the first look at these processes: nothing to compare with yet
         return wall_s * (1.0 - self.share())

@@ -534,7 +534,7 @@ class ZenohBus:
         if self.announce is None or waited_s < self.timeout_s * (self._said_waiting + 1):
             return
         self._said_waiting = int(waited_s // self.timeout_s)
-        self.announce(f"run {self.run_id}: no step for {waited_s:.0f} s; {self._stall.excused_s:.1f} s of it its "
+        self.announce(f"run {self.run_id}: no step for {waited_s:.1f} s; {self._stall.excused_s:.1f} s of it its "
                       f"processes waited for a CPU (load {load1():.1f} on {os.cpu_count()} CPUs): waiting; "
                       f"{self._stall.stalled_s:.1f} s of the limit of {self.stall_limit_s:g} s counted")
 
