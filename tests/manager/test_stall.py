@@ -47,6 +47,18 @@ def test_a_process_starved_of_cpu_is_waited_for_however_long():
     assert clock.verdict(LIMIT_S, ["S1", "S2"]) is None
 
 
+def test_a_wait_the_kernel_has_not_yet_added_to_run_delay_counts_and_waits_in_turn_add_up():
+    """run_delay grows only when a wait ends: a thread runnable at two looks that did not run between them waited
+    all along. And a step that passes through S1 then S2, each waiting half a look in its turn, waited the whole."""
+    queued = frozenset({(4242, 7_000_000)})
+    still = _clock({"S1": [Reading("R", 1.0, 5.0, queued)] * 21})
+    assert still.stalled_s == 0.0 and still.verdict(LIMIT_S, ["S1"]) is None
+    ran = _clock({"S1": [Reading("R", 1.0, 5.0, frozenset({(4242, 7_000_000 + i)})) for i in range(21)]})
+    assert ran.stalled_s == pytest.approx(LIMIT_S)  # it ran between looks: not a pending wait
+    in_turn = _clock({"S1": _process("S", 0.0, 0.25, 21), "S2": _process("S", 0.0, 0.25, 21)})
+    assert in_turn.stalled_s == pytest.approx(0.0) and in_turn.excused_s == pytest.approx(LIMIT_S)
+
+
 def test_a_process_that_sleeps_without_answering_fails_at_the_limit_in_wall_time():
     """A model that hangs in a sleep: no CPU used, no wait for a CPU: the clock is the wall time."""
     clock = _clock({"S1": _process("S", 0.0, 0.0, 21), "S2": _process("S", 0.0, 0.0, 21)})
@@ -113,7 +125,7 @@ def test_a_run_whose_subsystems_are_starved_of_cpu_waits_says_so_and_completes(p
     """The subsystem processes at idle priority beside three CPU-bound processes per core (in the run's session,
     held stopped until the run steps, so that they do not slow its start), for STARVED_S, with manager.timeout =
     0.2 s: the manager, at normal priority, looks at a run that does not advance for far longer than 0.2 s (judged
-    by wall time, the run failed: ``subsystem S1: did not answer within the timeout of 0.2 s``, as chain 9
+    by wall time, the run failed: ``subsystem S1 (or S2): did not answer within the timeout of 0.2 s``, as chain 9
     did at load 37),
     but its subsystems wait in the run queue: it says that it waits for them, and the run completes with the
     in-process digest. No wall-clock assertion."""
