@@ -10,8 +10,8 @@ it follows the replies, checks that every subsystem executed the commands the ma
 produces the run record; it takes the replies in the batches the subsystems send it (``<sub>/log``,
 see ``subsystems.process.host``), off the critical path. A recorded run taps the manager's replica,
 as in process: it holds every command, reply and status of the run. A watchdog on the main thread
-names any subsystem that dies or stops answering and ends the run within the scene's timeout; no
-child process outlives the bus.
+names any subsystem that dies or stops answering and ends the run within the scene's timeout, as the stall clock
+counts it (``manager.bus.stall``: a process starved of CPU is waited for); no child process outlives the bus.
 """
 from __future__ import annotations
 
@@ -492,12 +492,13 @@ class ZenohBus:
         if not missing or self._following or not self._batches.empty() or advanced > self._stall_from:
             self._stall_from, self._said_waiting, self._stall_looked = now, 0, False
             return None
-        if not self._stall_looked:  # the first tick without an advance: the baseline of what each used and waited
+        look_s = min(STALL_LOOK_S, self.timeout_s / 4)  # at least 4 looks within the limit; /proc is read at most
+        if now - self._stall.last < look_s:  # this often (two files per thread of every process), advancing or not
+            return None
+        if not self._stall_looked:  # the first look without an advance: the baseline of what each used and waited
             self._stall.restart(now)
             self._stall.look(now, self._watched_pids())
             self._stall_looked = True
-            return None
-        if now - self._stall.last < min(STALL_LOOK_S, self.timeout_s / 4):  # at least 4 looks within the limit
             return None
         self._stall.look(now, self._watched_pids())
         local = [name for name in self.names if name in self.children]
