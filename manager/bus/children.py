@@ -50,7 +50,7 @@ _STATES = {"T": "is frozen (process stopped, state T: SIGSTOP or a debugger)",
            "Z": "has exited (state Z)"}
 
 
-def _stat_fields(pid: int) -> list[str]:
+def stat_fields(pid: int) -> list[str]:
     """The fields of ``/proc/PID/stat`` after the process's name (proc(5): the state first, then its parent, …);
     empty where they cannot be read (not Linux, or the process is gone)."""
     try:
@@ -62,21 +62,21 @@ def _stat_fields(pid: int) -> list[str]:
 def process_state(pid: int) -> str | None:
     """Linux: why process ``pid`` does not answer, from its state in ``/proc/PID/stat`` ("is frozen (process
     stopped, …)", "has exited", …); None when it runs or sleeps normally, or the state cannot be read."""
-    fields = _stat_fields(pid)
+    fields = stat_fields(pid)
     return _STATES.get(fields[0]) if fields else None
 
 
 def working(pid: int) -> bool:
     """Linux: whether process ``pid`` is running, waiting only for a CPU (state R) or for its disk (state D): slowed
     by a busy machine, not waiting for something that may never come."""
-    fields = _stat_fields(pid)
+    fields = stat_fields(pid)
     return bool(fields) and fields[0] in ("R", "D")
 
 
-def cpu_time_s(pid: int) -> float:
-    """The CPU time [s] process ``pid`` has used so far (user and system, ``/proc/PID/stat``; 0 where it cannot
-    be read)."""
-    fields = _stat_fields(pid)
+def cpu_time_s(pid: int, fields: list[str] | None = None) -> float:
+    """The CPU time [s] process ``pid`` has used so far (user and system, ``/proc/PID/stat``, or its ``fields``
+    already read; 0 where they cannot be read)."""
+    fields = stat_fields(pid) if fields is None else fields
     try:
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
     except (IndexError, ValueError):

@@ -12,9 +12,10 @@ time; as its command ends it writes that it has ended. The parent, when the chil
 without that mark, names the subsystem it was in and how the process ended (``exited with code 0``, ``killed by
 SIGSEGV``: exit status 1), once the run's recorder, whose process the child names there too, has finished the file
 with what the run had handed over (so that the file is complete when the command returns); when one call into a
-model lasts longer than ``manager.timeout``, it kills the child and names the subsystem as the Zenoh bus does a
-subsystem that does not answer (exit status 1). A constructor is not timed (an FMU may unpack and load a large
-binary on a busy machine): a model that hangs there is interrupted with Ctrl-C.
+model lasts longer than ``manager.timeout`` — as the stall clock counts (``manager.bus.stall``: not the time the
+child waited for a CPU; or the child's own CPU time) — it kills the child and names the subsystem as the Zenoh bus
+does a subsystem that does not answer (exit status 1). A constructor is not timed (an FMU may unpack and load a
+large binary on a busy machine): a model that hangs there is interrupted with Ctrl-C.
 
 Signals: the parent blocks SIGINT, SIGTERM and SIGHUP and passes each on to the child, except one the terminal sent
 to its whole foreground process group (``si_code`` ``SI_KERNEL``), which the child has received itself; the child
@@ -37,6 +38,7 @@ from contextlib import AbstractContextManager, contextmanager
 from typing import Callable, Iterator
 
 from zencosim.manager.bus.children import exit_reason, wait_while_working
+from zencosim.manager.bus.stall import StallClock
 
 # the int64 slots of the shared page
 SUBSYSTEM, PHASE, CALLS, T_NS, TIMEOUT_NS, ENDED, NAMES_BYTES, RECORDER, SAID_BYTES = range(9)
@@ -200,7 +202,7 @@ def _end_with(parent: int) -> None:
 def _wait(pid: int, watch: ModelWatch, failed: Callable[[str], None]) -> int:
     """Wait for the child ``pid``: pass signals on, time the calls into models, and name how it ended."""
     interrupted, timed_out = False, None
-    calls, since = -1, 0.0
+    calls, clock, run = -1, StallClock(), {"run": pid}
     while True:
         info = signal.sigtimedwait((*PASSED_ON, signal.SIGCHLD), POLL_S)
         if info is not None and info.si_signo != signal.SIGCHLD:
@@ -212,8 +214,12 @@ def _wait(pid: int, watch: ModelWatch, failed: Callable[[str], None]) -> int:
             break
         now = time.monotonic()
         if watch.slots[SUBSYSTEM] < 0 or watch.slots[PHASE] != STEPPING or watch.slots[CALLS] != calls:
-            calls, since = watch.slots[CALLS], now
-        elif watch.slots[TIMEOUT_NS] and now - since > watch.slots[TIMEOUT_NS] * 1e-9:
+            calls = watch.slots[CALLS]
+            clock.restart(now)
+            clock.look(now, run)
+            continue
+        clock.look(now, run)
+        if watch.slots[TIMEOUT_NS] and clock.verdict(watch.slots[TIMEOUT_NS] * 1e-9, list(run)) is not None:
             timed_out = watch.where()
             if timed_out is not None:  # else it has just returned
                 os.kill(pid, signal.SIGKILL)

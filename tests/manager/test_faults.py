@@ -236,6 +236,8 @@ class Faulty(Oscillator):
                 raise KeyboardInterrupt
             if fault == "hang":
                 time.sleep(600)
+            while fault == "spin":
+                pass
             if fault == "os-exit":
                 os._exit(0)
             if fault == "segfault":
@@ -371,6 +373,18 @@ def test_a_subsystem_that_hangs_in_its_step_is_the_one_named(processes, tmp_path
     assert status == 1 and "Traceback" not in stderr, stderr
     assert stderr.startswith("run failed: subsystem S2: did not answer within the timeout of 2 s (manager.timeout)"), \
         stderr
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_a_subsystem_that_has_cpu_and_answers_nothing_is_named(processes, tmp_path):
+    """S2 loops in its step, on the CPU: however busy the machine, it is named once it has used manager.timeout of
+    CPU time without the run advancing, or the stall clock (which counts its CPU share) reaches the timeout."""
+    status, stderr = _faulty_run(processes, tmp_path, "spin", "zenoh", "--set", "manager.timeout=1")
+    assert status == 1 and "Traceback" not in stderr, stderr
+    assert re.match(r"run failed: subsystem S2: did not answer within the timeout of 1 s \(manager\.timeout\)"
+                    r"(: its process used \d+\.\d s of CPU time since the run last advanced, and answered nothing)?",
+                    stderr), stderr
 
 
 @pytest.mark.timeout(120)
