@@ -87,7 +87,7 @@ def wait_while_working(pid: int, stall_s: float, look_s: float = 0.1) -> bool:
     """Linux: wait for process ``pid``, not necessarily a child, to exit, for as long as it makes progress (uses CPU,
     or waits only for a CPU or its disk); True once it has exited, False once it made none for ``stall_s``."""
     still_from, cpu = time.monotonic(), cpu_time_s(pid)
-    while (fields := _stat_fields(pid)) and fields[0] not in ("Z", "X"):
+    while (fields := stat_fields(pid)) and fields[0] not in ("Z", "X"):
         time.sleep(look_s)
         now, used = time.monotonic(), cpu_time_s(pid)
         if used > cpu or working(pid):

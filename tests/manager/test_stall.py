@@ -98,6 +98,7 @@ def test_a_real_process_stopped_with_sigstop_is_read_as_stopped_and_one_gone_as_
         clock = StallClock()
         clock.restart(0.0)
         os.kill(child.pid, signal.SIGSTOP)
+        os.waitpid(child.pid, os.WUNTRACED)  # returns once it is stopped: the signal is delivered asynchronously
         clock.look(0.0, {"S1": child.pid})
         clock.look(LIMIT_S, {"S1": child.pid})
         assert clock.stopped() == ["S1"] and clock.verdict(LIMIT_S, ["S1"]) == ("S1", "stopped")
