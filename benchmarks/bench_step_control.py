@@ -8,7 +8,10 @@ q × its comm_ratio in every run, so that the methods integrate alike and differ
 extrapolation order:
 
 * fixed, Jacobi and Gauss–Seidel (manager.scheme, its default order): manager.macro_step H = q × 1, 2, 3, 4, 5, 6,
-  8, 10, 15, 20, 30, 50, 100;
+  7, 8, 10, 12, 15, 20, 25, 30, 40, 50, 70, 100; a step whose period (H × the lcm of the comm_ratios) does not divide the duration runs
+  to the first whole number of periods past it (its exchanges: that number, as a run that cuts its last step to
+  end at the duration takes), against the reference computed that far; a step the scene refuses for another
+  reason is listed, with the reason, under ``skipped``;
 * energy: manager.step_control = "energy", macro_step q, min_step_size q, max_step_size 100 q, first step q,
   rel_tolerance 0 and abs_tolerance 10^(k/2) J for k = -12 … 6 (docs/step-control.md).
 
@@ -33,7 +36,7 @@ from zencosim.manager.results.summary import nrms
 from zencosim.manager.run import execute, references
 from zencosim.manager.scheme.base import SubsystemFailure
 
-FIXED = (1, 2, 3, 4, 5, 6, 8, 10, 15, 20, 30, 50, 100)  # macro-steps in quanta
+FIXED = (1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 15, 20, 25, 30, 40, 50, 70, 100)  # macro-steps in quanta
 TOLERANCES = tuple(10.0 ** (k / 2) for k in range(-12, 7))  # abs_tolerance [J]
 TARGETS = (1e-2, 1e-3)
 
@@ -91,22 +94,31 @@ def study(name: str, orders: tuple[int, ...], methods: tuple[str, ...], divisor:
         zencosim.load_scene(name, {**fine, **energy_keys})
     except zencosim.SceneError as refused:
         return {"refused": "; ".join(f"{p.key}: {p.reason}" for p in refused.problems)}
-    reference_scene = zencosim.load_scene(name, fine)
+    period = math.lcm(*(sub.settings.comm_ratio for sub in base.subsystems.values()))
+    longest = max(FIXED) * quantum * period  # the furthest a fixed-step run goes past the duration [s]
+    reference_scene = zencosim.load_scene(name, {**fine, "manager.duration": base.manager.duration + longest})
     found, reason = references(reference_scene)
     reference = found.get("analytic") or found.get("solve_ivp")
     if reference is None:
         return {"refused": reason or "no reference"}
     points = {method: [] for method in methods}
-    largest_stable = {}
+    largest_stable, skipped = {}, []
     for order in orders:
         extrapolation = {"manager.extrapolation": order}
         for scheme in [m for m in methods if m != "energy"]:
             for multiple in FIXED:
+                step_ns = multiple * quantum_ns
+                periods = -(-round(base.manager.duration * 1e9) // (step_ns * period))  # past the duration, whole
                 try:
                     scene = zencosim.load_scene(name, {**overrides(base, quantum), **extrapolation,
-                                                       "manager.scheme": scheme, "manager.macro_step": multiple * quantum})
-                except zencosim.SceneError:
-                    continue  # the duration is no whole number of these steps
+                                                       "manager.scheme": scheme, "manager.macro_step": step_ns * 1e-9,
+                                                       "manager.duration": periods * period * step_ns * 1e-9})
+                except zencosim.SceneError as refused:
+                    skipped.append({"scheme": scheme, "order": order, "macro_step": multiple * quantum,
+                                    "reason": "; ".join(f"{p.key}: {p.reason}" for p in refused.problems)})
+                    print(f"{name}	{scheme}, order {order}	{multiple * quantum:g}	skipped: {skipped[-1]['reason']}",
+                          flush=True)
+                    continue
                 point = {"order": order, "macro_step": multiple * quantum, **run(scene, reference, quantum_ns)}
                 points[scheme].append(point)
                 if math.isfinite(point["nrms"]) and point["nrms"] < 1:
@@ -124,7 +136,8 @@ def study(name: str, orders: tuple[int, ...], methods: tuple[str, ...], divisor:
                   f"{point['cpu_s']:.2f}", flush=True)
     answers = {f"{target:g}": {method: cheapest(found, target) for method, found in points.items()}
                for target in TARGETS}
-    return {"quantum": quantum, "points": points, "answers": answers, "largest_stable_fixed_step": largest_stable}
+    return {"quantum": quantum, "points": points, "answers": answers, "largest_stable_fixed_step": largest_stable,
+            "skipped": skipped}
 
 
 def main() -> None:
@@ -153,6 +166,8 @@ def main() -> None:
                                                 else f"{p['macro_step']:g} s")
                 cells.append("none" if p is None else f"{p['exchanges']} ({setting}, {p['order']}, {p['cpu_s']:.2f})")
             print(f"{name}\t{target}\t" + "\t".join(cells))
+        for step in result["skipped"]:
+            print(f"{name}\tskipped {step['scheme']}, order {step['order']}, {step['macro_step']:g} s: {step['reason']}")
     if args.json:
         with open(args.json, "w") as out:
             json.dump(report, out, indent=2)

@@ -16,6 +16,7 @@ from fractions import Fraction
 import numpy as np
 
 MU_SINGLE_RATE = 0.5  # paper 002 §3.3: single rate, one subsystem with direct feedthrough
+AT_REST = 1e-9  # a flow no larger than this fraction of the next one's was at rest (EnergyCorrection's guard)
 
 
 def correction_coefficient(feedthrough: bool, step_feedthrough: Fraction | float, step_other: Fraction | float,
@@ -51,11 +52,19 @@ class EnergyCorrection:
        (Eq. 16);
     2. returns ``f_corr,k+1 = −(ζ_{k+1} + ν 𝒰_k) v_{k+1} / (|v_{k+1}|² H)`` (Eq. 17; on a line this is
        ``−(ζ + ν𝒰)/(v H)``; in the plane it is the smallest force that does that work), limited in
-       magnitude to ``cap_fraction |f_{k+1}|`` and to ``cap_force`` (either may be None: no limit).
-       A zero velocity gives no correction.
+       magnitude to ``cap_fraction |f_{k+1}|`` and to ``cap_force`` (either may be None: no limit) — the
+       paper's safeguard for a v that approaches zero (§3.2, after Eq. 14: "the maximum admissible
+       correction must be limited … set to a percentage of the uncorrected coupling force").
+
+    Where the division of Eq. 14 has no meaning the force is withheld (zero; ζ then stays in 𝒰 by Eq. 15):
+    a zero velocity, and a flow that leaves rest — ``|v_k| <= AT_REST |v_{k+1}|`` with v_k the flow at the
+    previous correction point (``previous_velocity`` for the first one: the flow at t_0). Such a flow (a
+    current that starts at 0 A, a body the wave has just reached) grows by about itself in every step, so
+    Eq. 14's assumption that v stays near v_{k+1} over the next step fails by 100 % or more, and a force
+    sized on v_{k+1} drives the next residual (and with it the next correction) the other way.
 
     The manager applies f_corr,k+1 over [t_{k+1}, t_{k+2}]. 𝒰 uses the force actually applied, so
-    energy a cap kept from being removed is accumulated too.
+    energy a cap or the guard kept from being removed is accumulated too.
     """
 
     nu: float  # ν in [0, 1], Eq. 17
@@ -66,6 +75,8 @@ class EnergyCorrection:
     zeta: float = field(default=0.0, init=False)  # ζ of the step whose correction is being applied [J]
     force: np.ndarray = field(init=False)  # f_corr being applied [N]
     capped: bool = field(default=False, init=False)  # whether a cap limited the force being applied
+    withheld: bool = field(default=False, init=False)  # whether the force being applied was withheld (v left rest)
+    previous_velocity: np.ndarray | None = None  # v_k [m/s]: the flow at the previous correction point (t_0 first)
 
     def __post_init__(self) -> None:
         self.force = np.zeros(self.dimension)
@@ -84,8 +95,11 @@ class EnergyCorrection:
         v = np.asarray(velocity, dtype=np.float64)
         self.uncorrected += self.zeta + float(self.force.dot(v)) * macro_step
         speed2 = float(v.dot(v))
+        previous = self.previous_velocity
+        self.previous_velocity = v.copy()
+        self.withheld = speed2 > 0.0 and previous is not None and float(previous.dot(previous)) <= AT_REST ** 2 * speed2
         force = np.zeros(self.dimension)
-        if speed2 > 0.0:
+        if speed2 > 0.0 and not self.withheld:
             force = -(zeta + self.nu * self.uncorrected) * v / (speed2 * macro_step)
         magnitude = float(np.linalg.norm(force))
         limit = self.limit(np.asarray(coupling_force, dtype=np.float64))

@@ -116,6 +116,9 @@ def references(scene: Scene, keep: bool | None = None) -> tuple[dict, str | None
     references are spilled to temporary files as they are computed)."""
     if scene.outputs.reference == "none":
         return {}, None
+    if scene.outputs.reference == "extrapolated":
+        return {}, ("no reference: 'extrapolated' is extrapolated by `zencosim study` from runs at several "
+                    "macro-steps (docs/study.md); a single run has none")
     spill = spill_for(scene.manager.duration_ns // scene.manager.macro_step_ns, keep)
     if scene.outputs.reference == "solve_ivp":
         try:

@@ -40,17 +40,19 @@ import tomli_w
 
 from zencosim.manager.bus.children import cpu_time_s, exit_reason, process_state, start_child, working
 from zencosim.manager.bus.signals import DeferredSignals
+from zencosim.manager.bus.watchdog import model_watch
 from zencosim.manager.plan.run_plan import Plan
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import Exchange
-from zencosim.manager.scheme.tapped import RowsBlock, StepsBlock
+from zencosim.manager.scheme.tapped import PendingSteps, RowsBlock, StepsBlock
 from zencosim.manager.wire.status import Statuses, StatusReport
 from zencosim.recordings import RecorderFailed, RecorderLost, RecordingError
 from zencosim.recordings.layout import ChannelSpec, channel_specs, run_metadata, status_index
-from zencosim.recordings.recorder_process import BATCH, BATCH_HEAD, CONTROL, FRAME, ROWS, STEPS, channel_index
+from zencosim.recordings.recorder_process import (BATCH, BATCH_HEAD, CONTROL, FRAME, PENDING, ROWS, STEPS,
+                                                  channel_index)
 from zencosim.recordings.rows_frame import rows_about, rows_frame
-from zencosim.recordings.steps_frame import steps_frame
+from zencosim.recordings.steps_frame import pending_payload, steps_frame
 
 STALL_S = 10.0  # an observer that makes no progress for this long fails (the scene's manager.timeout, once known)
 PROGRESS_LOOK_S = 0.5  # while it is waited for, its CPU time and state are looked at this often [s]
@@ -110,6 +112,7 @@ class _Observer:
         except OSError:
             self.capacity = None  # cannot tell: a lossy observer is waited for like any other
         self.writes = 0  # writes into its pipe since it was last seen empty (_room_for)
+        self.behind = False  # a lossy observer that was skipped a batch and has not taken all it holds since
         os.set_blocking(fd, False)
 
     def write(self, parts: tuple[bytes, ...], stall_s: float, stalled: Callable[["_Observer", float], None],
@@ -118,24 +121,26 @@ class _Observer:
         ``stalled(self, -waited_s)`` once it takes bytes again after that. ``steps``: the frame is a batch of
         that many macro-steps, which a lossy observer without room skips."""
         fd = self.process.stdin.fileno()
-        if steps is not None and self.lossy and not self._room_for(sum(map(len, parts)), len(parts)):
-            self.skipped[0] += 1
-            self.skipped[1] += steps
-            return
+        if steps is not None and self.lossy and (self.behind or not self._room_for(sum(map(len, parts)), len(parts))):
+            self.behind = not self._drained()  # skipped until it has taken all it holds: one gap, however
+            if self.behind:  # the batches' sizes vary (a small one fits where a large one did not)
+                self.skipped[0] += 1
+                self.skipped[1] += steps
+                return
         self.writes += len(parts)
         stalls, since = 0, 0.0
         for part in parts:
             view = memoryview(part)
             while view:
+                try:
+                    view = view[os.write(fd, view):]
+                    continue
+                except BlockingIOError:
+                    pass  # no room (or for less than one pipe page): wait for it
                 if not select.select([], [fd], [], stall_s)[1]:
                     stalls += 1
                     since = since or time.monotonic() - stall_s
                     stalled(self, stalls * stall_s)
-                    continue
-                try:
-                    view = view[os.write(fd, view):]
-                except BlockingIOError:
-                    continue  # room for less than one pipe page: wait again
         if stalls:
             stalled(self, since - time.monotonic())
 
@@ -145,16 +150,27 @@ class _Observer:
         fit in the last page's room starts a new one: each write since the pipe was empty may have left up to a page
         unused (with 147 KB frames, six fitted in 1 MiB by their bytes and the seventh did not: the run waited for
         a frozen live view)."""
+        unread = self._unread()
+        if unread is None:
+            return True  # cannot tell: wait for room
+        if self.capacity is None or unread == 0:
+            self.writes = 0
+            return True
+        pages = -(-unread // PAGE_BYTES) + self.writes + -(-size // PAGE_BYTES) + writes  # at the most
+        return pages * PAGE_BYTES <= self.capacity
+
+    def _drained(self) -> bool:
+        """Whether its pipe holds no unread byte (or that cannot be told)."""
+        return not self._unread()
+
+    def _unread(self) -> int | None:
+        """The bytes its pipe holds that it has not read (None: cannot tell)."""
         unread = array("i", [0])
         try:
             fcntl.ioctl(self.process.stdin.fileno(), termios.FIONREAD, unread)
         except OSError:
-            return True  # cannot tell: wait for room
-        if self.capacity is None or unread[0] == 0:
-            self.writes = 0
-            return True
-        pages = -(-unread[0] // PAGE_BYTES) + self.writes + -(-size // PAGE_BYTES) + writes  # at the most
-        return pages * PAGE_BYTES <= self.capacity
+            return None
+        return unread[0]
 
     def ended(self) -> str:
         """How the process ended (``"killed by SIGKILL"``, ``"exited with code 1: writing the file failed: No
@@ -275,6 +291,7 @@ class Recorder:
         self._about = b""  # what every ROWS frame of the run says of it (recordings.rows_frame)
         self._tapped = np.zeros(0, dtype=np.int64)  # messages handed over, per channel index
         self._signals: DeferredSignals | None = None  # SIGINT and SIGTERM held during a flush, from start to close
+        self._log_sent = (0, 0)  # the status log's residuals and times sent in PENDING frames since the last block
 
     def start(self, scene: Scene, plan: Plan, status: StatusReport, bus: str, run_id: str, realtime: bool) -> None:
         """Start the recorder process and the live view, and wait until they are ready."""
@@ -288,6 +305,7 @@ class Recorder:
             self._recorder, _ = self._start(
                 "zencosim.recordings.recorder_process", f"recorder of {self.path}",
                 {"path": str(self.path.resolve()), "metadata": metadata, "scene_toml": scene_toml, "channels": channels})
+            model_watch().recording(self._recorder.process.pid)  # a watched run's parent waits for it (in process)
         if self.rerun is not None:
             self._live, self.live = self._start("zencosim.recordings.rerun_live", f"live view ({self.rerun})",
                                                 {"target": self.rerun, "metadata": metadata, "scene_toml": scene_toml,
@@ -335,7 +353,7 @@ class Recorder:
         self._index = index = channel_index(specs)  # (source, channel) → index
         self.exchange = self._tap(index, max(1, round(HANDOVER_S * 1e9 / status.base_step_ns)) if realtime else None)
         if not realtime:  # a real-time run's tap hands a batch over every HANDOVER_S: exchange by exchange
-            self.take_steps, self.take_rows = self._take_steps, self._take_rows
+            self.take_steps, self.take_rows, self.take_pending = self._take_steps, self._take_rows, self._take_pending
         return specs
 
     def _take_steps(self, block: StepsBlock) -> None:
@@ -345,11 +363,32 @@ class Recorder:
         self.flush()
         with self._signals.held() if self._signals is not None else contextlib.nullcontext():
             statuses = self._report.take(block.statuses)
+            self._log_sent = (0, 0)  # the recorder process drops what PENDING frames held: all of the log is new
             if self._all_gone:
                 return
             counts = self._counts(block.names, [len(s.steps) for s in block.subsystems],
                                   [len(s.ticks) for s in block.subsystems], block.statuses)
             self._send(STEPS, steps_frame(block, statuses), self._reached(statuses), counts, block.last)
+
+    def _take_pending(self, pending: PendingSteps) -> None:
+        """Requests a direct run took since it last handed something over, not yet a block (``TakenSteps.hand_over``),
+        and the statuses logged since then: sent to the recorder process alone as a PENDING frame, which it records
+        only if no block of them follows (the run's process ended), so they are not counted; after what ``exchange``
+        holds, with SIGINT and SIGTERM deferred, as ``flush`` does."""
+        self.flush()
+        recorder = self._recorder
+        with self._signals.held() if self._signals is not None else contextlib.nullcontext():
+            if recorder is None or recorder.gone is not None:
+                return
+            start_ns, residuals, times = self._report.log()
+            logged_residuals, logged_times = self._log_sent
+            payload = pending_payload(pending, self._report.n_residuals,
+                                      (start_ns, residuals[logged_residuals:], times[logged_times:]))
+            self._log_sent = (len(residuals), len(times))
+            try:  # small: one write
+                recorder.write((FRAME.pack(PENDING, len(payload), time_ns()) + payload,), self._stall_s, self._stalled)
+            except BrokenPipeError:
+                self._lose(recorder)
 
     def _take_rows(self, block: RowsBlock) -> None:
         """The tap of a generated loop (``manager.scheme.compiled``), its rows a block at a time (``TakenRows``): sent

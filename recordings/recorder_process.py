@@ -14,13 +14,15 @@ it — one C call for the tap, a fifth of the time of joining the messages and l
 processes run the same Python, whose marshal format this is); :func:`split_batch` gives them in the run's
 order. ``STEPS`` frames hold a block of a direct (in-process) run's exchanges as arrays, and ``ROWS`` frames a
 generated loop's rows, from which :func:`frame_messages` builds the same messages (``recordings.steps_frame``,
-``recordings.rows_frame``). The same input serves both buses: on
+``recordings.rows_frame``); ``PENDING`` frames the requests a direct run took since its last block, recorded only
+when no block follows them (``steps_frame.pending_steps``). The same input serves both buses: on
 the Zenoh bus the manager's replica, which follows the run, is the one tapped.
 
 SIGINT is ignored (a Ctrl-C reaches the whole process group; the manager then sends END). SIGTERM
 (also sent by the kernel when the manager dies) and an end of input without END finish the file with
-what has arrived. Standard output gets one JSON line when ready and one when finished; a write that fails
-(a full disk) ends it with status 1 after a line that says why (``failed``).
+what has arrived, the frames still in the pipe among it, and the last PENDING frames' requests (``record_pipe``).
+Standard output gets one JSON line when ready and one when finished; a write that fails (a full disk) ends it with
+status 1 after a line that says why (``failed``).
 """
 from __future__ import annotations
 
@@ -40,13 +42,14 @@ from zencosim.manager.bus.signals import SignalNote
 from zencosim.recordings import RecordingError
 from zencosim.recordings.layout import ChannelSpec, status_index
 from zencosim.recordings.rows_frame import rows_messages
-from zencosim.recordings.steps_frame import steps_messages
+from zencosim.recordings.steps_frame import pending_steps, steps_messages
 from zencosim.recordings.writer import RecordingWriter
 
 FRAME = struct.Struct("<HIq")
-CONTROL, BATCH, STEPS, ROWS = 0xFFFF, 0xFFFE, 0xFFFD, 0xFFFC
+CONTROL, BATCH, STEPS, ROWS, PENDING = 0xFFFF, 0xFFFE, 0xFFFD, 0xFFFC, 0xFFFB
 BATCH_HEAD = struct.Struct("<III")
 IDLE_S = 0.1  # the pipe reader lets the writer flush after this long without input
+DRAIN_BYTES = 4 << 20  # after SIGTERM at most this much more is read: what the pipe holds (1 MiB asked) and more
 NO_END = "the manager ended without closing the recording"
 
 
@@ -60,20 +63,30 @@ class FrameReader:
         self.idle = idle
         self.buffer = bytearray()
         self.at = 0
+        self.drained = 0  # bytes read after SIGTERM
 
     def _fill(self) -> bool:
-        while self.stop.received is None:
-            if not select.select([self.fd], [], [], IDLE_S)[0]:
+        """Read what arrived into the buffer; False at the end of input. After SIGTERM only what the pipe holds
+        already is read, at most ``DRAIN_BYTES``: a manager that died (the kernel sends SIGTERM) wrote every frame
+        it handed over into the pipe, and they are recorded, not left in it; one that still runs is not waited for."""
+        while True:
+            stopped = self.stop.received is not None
+            if stopped and self.drained >= DRAIN_BYTES:
+                return False
+            if not select.select([self.fd], [], [], 0 if stopped else IDLE_S)[0]:
+                if stopped:
+                    return False
                 self.idle()
                 continue
             data = os.read(self.fd, 1 << 20)
             if not data:
                 return False
+            if stopped:
+                self.drained += len(data)
             del self.buffer[:self.at]
             self.at = 0
             self.buffer += data
             return True
-        return False
 
     def next(self) -> tuple[int, bytes, int] | None:
         """(kind, payload, wall-clock ns) of the next frame."""
@@ -140,14 +153,23 @@ def frame_messages(kind: int, data: bytes, index: dict[tuple[str, str], int], st
 
 
 def record_pipe(frames: FrameReader, writer: RecordingWriter) -> tuple[str, dict | None]:
-    """Record the wire messages of a run until END; return (outcome, published)."""
+    """Record the wire messages of a run until END; return (outcome, published). PENDING frames are kept until a
+    frame that holds their requests follows them, and recorded when none does: the run's process ended (a model
+    ended it) before it handed them over as a block."""
     status, index = status_index(writer.channels), channel_index(writer.channels)
+    pending: list[bytes] = []
     while (frame := frames.next()) is not None:
         kind, data, _ = frame
         if kind == CONTROL:
             end = json.loads(data)
             return end["outcome"], end["published"]
+        if kind == PENDING:
+            pending.append(data)
+            continue
+        pending.clear()
         writer.write(*frame_messages(kind, data, index, status))
+    if pending and (steps := pending_steps(pending)) is not None:
+        writer.write(*frame_messages(STEPS, steps, index, status))
     return ("stopped by SIGTERM: " if frames.stop.received else "") + NO_END, None
 
 

@@ -6,7 +6,9 @@ live run and the replay of its recording log the same values.
 
 Entities, one per series, grouped by quantity so that a panel never holds two units:
 ``/<quantity>/<subsystem>/<signal>`` for every output (and every received input: the value of its
-polynomial at the start of each step), e.g. ``/positions/S2/x2``, ``/forces/S2/fc*``;
+polynomial at the start of each step), e.g. ``/positions/S2/x2``, ``/forces/S2/fc*``; a dimensionless
+signal (unit ``1``: no unit tells what it is) has ``/signals_1/<subsystem>/<signal>`` and a panel of its own,
+so that a ±1 force does not flatten a ±0.17 position beside it;
 ``/residual_power/<bond>`` and ``/residual_energy/<bond>`` (and any other per-bond status field,
 ``/<field>/<bond>``); ``/step_timing/<field>`` [µs] and ``/wall_time`` [s]; with an energy-controlled step,
 ``/macro_step`` [ms], the length of each macro-step (docs/step-control.md). Each series is named
@@ -37,6 +39,7 @@ QUANTITIES = {  # unit → entity root, panel title: one panel per quantity and 
     "m": ("positions", "positions"), "m/s": ("velocities", "velocities"), "m/s^2": ("accelerations", "accelerations"),
     "N": ("forces", "forces"), "J": ("energies", "energies"), "1/kg": ("inverse_masses", "inverse masses"),
 }
+DIMENSIONLESS = "1"  # the unit of a signal without one (subsystems.units): a panel per signal
 STATUS_QUANTITIES = {"delta_p": ("residual_power", "residual power δP"), "delta_e": ("residual_energy",
                                                                                       "residual energy δE")}
 STEP_TIMING = ("step_timing", "step timing")  # the measured per-step durations, shown in µs
@@ -61,10 +64,10 @@ def _lighter(color: tuple[int, ...]) -> tuple[int, ...]:
 
 @dataclass(frozen=True)
 class Series:
-    """One plotted signal: its entity, panel (root, title with unit), name, unit, colour and where its values are."""
+    """One plotted signal: its entity, panel (origin, title with unit), name, unit, colour and where its values are."""
 
     entity: str
-    root: str
+    origin: str  # the entity path of its panel: its quantity's root, or the series itself (a dimensionless one)
     panel: str  # the panel's title, with the unit
     label: str  # the series' name, with the unit
     unit: str
@@ -81,20 +84,22 @@ def series_of(spec: ChannelSpec, color: tuple[int, ...]) -> list[Series]:
             prefix, dot, bond = name.partition(".")
             if dot:
                 root, title = STATUS_QUANTITIES.get(prefix, (re.sub(r"\W", "_", prefix), prefix))
-                found.append(Series(_path(root, bond), root, f"{title} [{unit}]", f"{title} {bond} [{unit}]", unit,
-                                    PALETTE[(j + 3) % len(PALETTE)], j))
+                found.append(Series(_path(root, bond), _path(root), f"{title} [{unit}]", f"{title} {bond} [{unit}]",
+                                    unit, PALETTE[(j + 3) % len(PALETTE)], j))
             elif name in spec.measured and unit == "s" and name != "wall_time":
-                found.append(Series(_path(STEP_TIMING[0], name), STEP_TIMING[0], f"{STEP_TIMING[1]} [µs]",
+                found.append(Series(_path(STEP_TIMING[0], name), _path(STEP_TIMING[0]), f"{STEP_TIMING[1]} [µs]",
                                     f"{name.replace('_', ' ')} [µs]", "µs", PALETTE[(j + 5) % len(PALETTE)], j, 1e6))
             else:
                 root, title = WALL_TIME if name == "wall_time" else (re.sub(r"\W", "_", name), name.replace("_", " "))
-                found.append(Series(_path(root), root, f"{title} [{unit}]", f"{title} [{unit}]", unit, PALETTE[7], j))
+                label = f"{title} [{unit}]"
+                found.append(Series(_path(root), _path(root), label, label, unit, PALETTE[7], j))
             continue
         root, title = QUANTITIES.get(unit, ("signals_" + re.sub(r"\W", "_", unit), "signals"))
         received = spec.role == "inputs"
         label = f"{spec.source} {name}{' (received)' if received else ''} [{unit}]"
-        found.append(Series(_path(root, spec.source, name), root, f"{title} [{unit}]", label, unit,
-                            _lighter(color) if received else color, j))
+        entity = _path(root, spec.source, name)
+        origin, panel = (entity, label) if unit == DIMENSIONLESS else (_path(root), f"{title} [{unit}]")
+        found.append(Series(entity, origin, panel, label, unit, _lighter(color) if received else color, j))
     return found
 
 
@@ -126,7 +131,7 @@ class RunView:
         # an energy-controlled run's macro-steps (manager.scheme.energy_step): a series of their lengths, from the
         # status times; the time of the last status fed (t_0 before the first)
         varying = scene is not None and scene.manager.step_control == "energy"
-        self.macro_step = Series(_path(MACRO_STEP[0]), MACRO_STEP[0], f"{MACRO_STEP[1]} [ms]", f"{MACRO_STEP[1]} [ms]",
+        self.macro_step = Series(_path(MACRO_STEP[0]), _path(MACRO_STEP[0]), f"{MACRO_STEP[1]} [ms]", f"{MACRO_STEP[1]} [ms]",
                                  "ms", PALETTE[0], -1, 1e-6) if varying else None
         self._last_status_ns = 0
         self._macro_steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
@@ -141,12 +146,11 @@ class RunView:
                             rr.AnyValues(unit=series.unit), static=True)
 
     def panels(self) -> dict[str, str]:
-        """Entity root → panel title, in the order of :data:`QUANTITIES` then the status's."""
-        found = {s.root: s.panel for group in self.series.values() for s in group}
+        """Panel origin (an entity path) → panel title, in the order of :data:`QUANTITIES` then the status's."""
+        found = {s.origin: s.panel for group in self.series.values() for s in group}
         if self.macro_step is not None:
-            found[MACRO_STEP[0]] = self.macro_step.panel
-        order = [q[0] for q in QUANTITIES.values()] + [q[0] for q in STATUS_QUANTITIES.values()] + [STEP_TIMING[0],
-                                                                                                     WALL_TIME[0]]
+            found[self.macro_step.origin] = self.macro_step.panel
+        order = [_path(q[0]) for q in (*QUANTITIES.values(), *STATUS_QUANTITIES.values(), STEP_TIMING, WALL_TIME)]
         return dict(sorted(found.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order)))
 
     def feed(self, topic: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:
@@ -160,7 +164,7 @@ class RunView:
             self.mechanism.outputs(spec.source, steps, values)
         self._columns.setdefault(topic, []).append((steps, times, values))
         for series in self.series[topic]:
-            if series.root == STEP_TIMING[0] and np.isfinite(values[:, series.column]).any():
+            if series.origin == _path(STEP_TIMING[0]) and np.isfinite(values[:, series.column]).any():
                 p99 = np.nanpercentile(values[:, series.column], 99) * series.scale
                 self.timing_p99 = max(self.timing_p99, float(p99))
         if spec.role == "status" and self.macro_step is not None:
@@ -319,8 +323,9 @@ def ordered_commands(channels: dict[str, list[bytes]]) -> list[tuple[str, bytes]
 
 
 def blueprint(view: RunView, highlight: tuple[float, float] | None = None) -> rrb.Blueprint:
-    """The mechanism and the events beside one time-series panel per quantity and unit, the whole run in
-    view on the ``sim_time`` timeline; ``highlight`` [s] is selected on the time panel.
+    """The mechanism and the events beside one time-series panel per quantity and unit (per signal for a
+    dimensionless one), the whole run in view on the ``sim_time`` timeline; ``highlight`` [s] is selected on the
+    time panel.
 
     A mechanism that moves along a line (more than ``WIDE`` times wider than high) gets a strip across
     the top instead of a square at the left. The step-timing panel opens on 0 to ``TIMING_RANGE`` times
@@ -329,10 +334,10 @@ def blueprint(view: RunView, highlight: tuple[float, float] | None = None) -> rr
     whole_run = rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.infinite(),
                                      end=rrb.TimeRangeBoundary.infinite())
     timing = rrb.ScalarAxis(range=(0.0, TIMING_RANGE * view.timing_p99)) if view.timing_p99 > 0 else None
-    plots = [rrb.TimeSeriesView(origin=_path(root), name=title, time_ranges=[whole_run],
+    plots = [rrb.TimeSeriesView(origin=origin, name=title, time_ranges=[whole_run],
                                 plot_legend=rrb.PlotLegend(visible=True),
-                                axis_y=timing if root == STEP_TIMING[0] else None)
-             for root, title in view.panels().items()]
+                                axis_y=timing if origin == _path(STEP_TIMING[0]) else None)
+             for origin, title in view.panels().items()]
     events = rrb.TextLogView(origin=EVENTS, name="events")
     mechanism, wide = None, False
     if view.mechanism is not None and view.mechanism.drawn:

@@ -18,13 +18,14 @@ subsystem its commands' ticks (i64) and values (f64), its replies' steps (i64) a
 from __future__ import annotations
 
 import json
+import marshal
 import struct
 
 import numpy as np
 
-from zencosim.manager.scheme.tapped import StepsBlock, SubsystemSteps
+from zencosim.manager.scheme.tapped import PendingSteps, StepsBlock, StepsSchedule, SubsystemSteps, TakenSteps
 from zencosim.manager.wire.protocol import Kind, command_refs, encode_rows
-from zencosim.manager.wire.status import Statuses
+from zencosim.manager.wire.status import Statuses, StatusReport
 from zencosim.recordings.encoding import write_rows
 
 STEPS_HEAD = struct.Struct("<IIII")
@@ -43,6 +44,27 @@ def steps_frame(block: StepsBlock, statuses: Statuses) -> bytes:
         parts += [s.ticks.astype("<i8").tobytes(), s.polynomials.astype("<f8").tobytes(),
                   s.steps.astype("<i8").tobytes(), s.outputs.astype("<f8").tobytes()]
     return b"".join(parts)
+
+
+def pending_payload(pending: PendingSteps, n_residuals: int, log: tuple[int | None, list[float], list[int]]) -> bytes:
+    """A PENDING frame: requests a direct run took since it last handed something over (``TakenSteps.hand_over``),
+    and what its status log took since then (``log``: the release of step 0 once known, residuals and times; each
+    step's ``n_residuals``), as ``marshal`` writes them (one C call on the stepping loop)."""
+    return marshal.dumps((tuple(pending.schedule), pending.ticks, pending.shapes, pending.commands, pending.outputs,
+                          n_residuals, log))
+
+
+def pending_steps(payloads: list[bytes]) -> bytes | None:
+    """The STEPS frame of the block the run would have handed over where it sent the last of the PENDING frames
+    ``payloads``, those since its last block (``TakenSteps.pending_block``), with the statuses its log held then;
+    None where they hold no request."""
+    parts = [marshal.loads(payload) for payload in payloads]
+    schedule = StepsSchedule(*parts[0][0])
+    block = TakenSteps.pending_block([PendingSteps(schedule, *part[1:5]) for part in parts])
+    if block is None:
+        return None
+    log = (parts[-1][6][0], [r for part in parts for r in part[6][1]], [t for part in parts for t in part[6][2]])
+    return steps_frame(block, StatusReport.from_log(parts[0][5], schedule.base_step_ns, log).take(block.statuses))
 
 
 def steps_messages(frame: bytes, index: dict[tuple[str, str], int], status: int

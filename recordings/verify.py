@@ -5,7 +5,9 @@ the next recorded message of the same channel: kind, step, time, rows, reference
 value by its bits (NaN included). The status's measured fields (wall-clock times) are not compared. The first
 difference stops the re-run and is reported with its channel, step, value name and both values; a
 recording that ends early (a failed or interrupted run) is compared up to its last message; one with no
-message to compare never passes (it verifies nothing).
+message to compare never passes (it verifies nothing). A run that failed in its model (a subsystem's failure) fails
+again in the re-run, after its last recorded message: the verdict is on the messages, and the re-run's failure is
+given beside the recorded outcome; a re-run that fails before the recording's end does not pass.
 
 The re-run is planned for no more macro-steps than the recording holds statuses (plus one; an energy-controlled
 run, whose steps vary: up to its last status), so what it allocates is bounded by the file's size
@@ -17,11 +19,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
 from zencosim.manager.assembly import make_scheme, plan_scene
 from zencosim.manager.bus.inproc import run_in_process
+from zencosim.manager.bus.watchdog import model_watch
+from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.replica import PerMessage
 from zencosim.manager.wire.protocol import Kind, decode
@@ -52,6 +57,13 @@ class Verification:
     completed_run: bool  # the recording says its run completed: then it must hold every message
     truncated: str | None  # why the file was read only in part (Recording.truncated)
     damage: tuple[str, ...]  # every check the file failed (Recording.damage)
+    failure: str | None = None  # why the re-run failed (a subsystem's failure), once it had compared what it could
+    outcome: str | None = None  # the recorded run's outcome (its end record), when the recorder finished
+
+    @property
+    def reproduced(self) -> bool:
+        """The re-run failed as the recorded run did (the same reason)."""
+        return self.failure is not None and self.outcome == f"failed: {self.failure}"
 
     @property
     def empty(self) -> bool:
@@ -60,7 +72,10 @@ class Verification:
 
     @property
     def passed(self) -> bool:
-        return (self.divergence is None and not (self.completed_run and self.note) and self.truncated is None
+        """Every message bit-identical, the file intact; a re-run that failed did so only after every recorded message
+        and where the recorded run did not complete."""
+        return (self.divergence is None and not ((self.completed_run or self.failure is not None) and self.note)
+                and not (self.completed_run and self.failure is not None) and self.truncated is None
                 and not self.damage and not self.empty)
 
 
@@ -79,9 +94,11 @@ def _value_text(x: float) -> str:
 class _Comparer:
     """The tap of the re-run: compares every message with the recording's next one on the same channel."""
 
-    def __init__(self, recording: Recording, status_names: tuple[str, ...]) -> None:
+    def __init__(self, recording: Recording, status_names: tuple[str, ...], all_compared: Callable[[], None]) -> None:
         self.recording = recording
         self.cursor = {topic: 0 for topic in recording.channels}
+        self.left = sum(len(channel.messages) for channel in recording.channels.values())  # not yet compared
+        self.all_compared = all_compared  # called once the last is
         self.divergence: Divergence | None = None
         self.exhausted: str | None = None
         self.last_step = 0
@@ -102,6 +119,7 @@ class _Comparer:
                               else f"the recording holds no message of {topic}")
             raise _Stop
         self.cursor[topic] = index + 1
+        self.left -= 1
         recorded = messages[index]
         if recorded.kind != message.kind:
             self._diverged(topic, message.step, "kind", _kind_name(recorded.kind), message.kind.name)
@@ -112,7 +130,13 @@ class _Comparer:
         if message.kind == Kind.ERROR:
             if recorded.text != message.text():
                 self._diverged(topic, message.step, "error text", recorded.text, message.text())
-            return
+        else:
+            self._compare_values(topic, message, recorded)
+        if not self.left:
+            self.all_compared()
+
+    def _compare_values(self, topic: str, message, recorded) -> None:
+        """The values of the re-run's ``message`` of ``topic`` against the ``recorded`` one, bit for bit."""
         if topic == STATUS_TOPIC:
             pairs = self.status_pairs
             self.last_step = message.step
@@ -147,8 +171,11 @@ def _cut_to(scene: Scene, steps: int) -> Scene:
     return replace(scene, manager=replace(scene.manager, duration=ticks * scene.manager.macro_step_ns * 1e-9))
 
 
-def verify(recording: Recording) -> Verification:
-    """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run."""
+def verify(recording: Recording, compared: Callable[[Verification], None] = lambda result: None) -> Verification:
+    """Re-run ``recording``'s scene in process and compare; raise RecordingError when it cannot be re-run.
+    ``compared(result)`` is called once every recorded message has been compared, with the verdict so far, when the
+    re-run goes on (to a failure of the recorded run's model, which may end the process: ``zencosim replay --verify``
+    has it said then, ``manager.bus.watchdog``)."""
     statuses = recording.channels[STATUS_TOPIC].messages if STATUS_TOPIC in recording.channels else []
     scene = recording.scene()
     # energy-controlled steps vary: the re-run ends at the last status recorded (its base step), which it reaches by
@@ -172,16 +199,26 @@ def verify(recording: Recording) -> Verification:
         if spec.role != "status" and recorded.names != spec.names:
             raise RecordingError(f"{recording.path}: channel {topic} holds {', '.join(recorded.names)}; "
                                  f"this zencosim has {', '.join(spec.names)}")
-    comparer = _Comparer(recording, tuple(f.name for f in status.fields))
+    comparer = _Comparer(recording, tuple(f.name for f in status.fields),
+                         lambda: compared(_verification(recording, comparer, None)))
+    model_watch().start(list(scene.subsystems), scene.manager.timeout)  # a watched re-run names a model that hangs
+    failure = None
     try:
         run_in_process(make_scheme(scene, plan, status=status), plan, subsystems, PerMessage(comparer.tap, status))
     except _Stop:
         pass
+    except SubsystemFailure as error:  # a run that failed in its model fails again: after its last message, or sooner
+        failure = str(error)
+    return _verification(recording, comparer, failure)
+
+
+def _verification(recording: Recording, comparer: _Comparer, failure: str | None) -> Verification:
+    """The verdict of ``comparer`` on ``recording``, the re-run having failed with ``failure`` (None: it did not)."""
     note = comparer.exhausted or ""
     if comparer.divergence is None and not note:
         extra = {t: n for t, c in recording.channels.items() if (n := len(c.messages) - comparer.cursor[t])}
         if extra:
             note = "the recording holds more messages than the re-run: " + ", ".join(f"{t} {n}" for t, n in extra.items())
-    completed = recording.end is not None and recording.end["outcome"] == "completed"
-    return Verification(dict(comparer.cursor), comparer.last_step, comparer.divergence, note, completed,
-                        recording.truncated, tuple(recording.damage))
+    outcome = recording.end["outcome"] if recording.end is not None else None
+    return Verification(dict(comparer.cursor), comparer.last_step, comparer.divergence, note, outcome == "completed",
+                        recording.truncated, tuple(recording.damage), failure, outcome)

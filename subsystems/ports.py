@@ -52,6 +52,9 @@ class Port:
     feedthrough: bool = False  # an output that depends on the inputs at the same instant
     signal_unit: str | None = None  # the SI unit of a "signal": any other quantity (a component's variable)
     depends_on: tuple[str, ...] | None = None  # the inputs a feedthrough output depends on (None: all of them)
+    # feedthrough only by default: the component does not say what the output depends on (an FMU output without
+    # ``dependencies``, which FMI reads as every input); initialised as libcosim does (run_plan._init_rounds)
+    undeclared: bool = False
     discrete: bool = False  # an Integer or Boolean variable's: held over a step (extrapolated with order 0)
 
     @property

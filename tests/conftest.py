@@ -1,6 +1,7 @@
 """Shared helpers: run a bundled scene with overrides, manage real child processes, write the examples."""
 from __future__ import annotations
 
+import faulthandler
 import os
 import shutil
 import signal
@@ -12,11 +13,17 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 import zencosim
 from zencosim.subsystems.native import CACHE_DIR
 
 REPO = Path(__file__).resolve().parents[1]
+
+# every property test draws the same examples on every run (seeds explicit): a CI run cannot fail on an example
+# that the runs before it never drew; a test's own @settings change only what they name
+settings.register_profile("derandomized", derandomize=True, database=None)
+settings.load_profile("derandomized")
 
 
 EXAMPLE_MODEL = "zencosim.examples.oscillator:Oscillator"
@@ -172,3 +179,78 @@ def end_busy(pids: Path) -> None:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+# ---- @pytest.mark.cpu_timeout(cpu_s): a time limit that follows the test's work, not the wall clock --------------
+# pytest-timeout's limit is wall time: on a loaded machine (a load of 35–90 on 2 cores) a test doing the same work
+# takes twenty times longer and fails. A test marked cpu_timeout instead fails when it and every process it started
+# have used more than cpu_s of CPU (the size of its work, which the load hardly changes), or when together they have
+# used none for CPU_STALL_S of wall time (a hang: waiting for what never comes). It replaces pytest-timeout's timer
+# for that test (setup, call and teardown), through pytest-timeout's own hook.
+CPU_STALL_S = 120.0  # 2 cores at a load of 90 still give a process 2 % of one: 2.7 s of CPU in this time
+CPU_PROGRESS_S = 0.05  # the CPU time that counts as progress
+CPU_LOOK_S = 0.5  # how often the watch looks
+
+
+def _cpu_with_ended_children_s(pid: int) -> float:
+    """User and system time of live process ``pid`` and of its children that ended (utime, stime, cutime, cstime)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return sum(int(f) for f in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0  # it ended meanwhile: its time moves to its parent's
+
+
+def tree_cpu_s() -> float:
+    """The CPU time [s] this process and every process it started, live or ended, have used so far."""
+    own = os.times()
+    return (own.user + own.system + own.children_user + own.children_system
+            + sum(_cpu_with_ended_children_s(pid) for pid in children_of(os.getpid())))
+
+
+class _CpuWatch:
+    """Fails the running test (SIGALRM to the main thread) when its CPU budget is spent or it stalls."""
+
+    def __init__(self, cpu_s: float) -> None:
+        self.cpu_s, self.reason = cpu_s, None
+        self.start = tree_cpu_s()
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._watch, name="cpu_timeout", daemon=True)
+
+    def _watch(self) -> None:
+        progress_cpu, progress_at = 0.0, time.monotonic()
+        while not self.done.wait(CPU_LOOK_S):
+            used, now = tree_cpu_s() - self.start, time.monotonic()
+            if used - progress_cpu >= CPU_PROGRESS_S:
+                progress_cpu, progress_at = used, now
+            if used > self.cpu_s:
+                self.reason = f"cpu_timeout: the test and its processes used {used:.1f} s of CPU, over {self.cpu_s:g} s"
+            elif now - progress_at > CPU_STALL_S:
+                self.reason = (f"cpu_timeout: the test and its processes used no CPU for {CPU_STALL_S:g} s "
+                               f"(after {used:.1f} s of CPU): hung")
+            if self.reason is not None:
+                os.kill(os.getpid(), signal.SIGALRM)
+                return
+
+
+@pytest.hookimpl(optionalhook=True)  # pytest-timeout's hook: without that plugin (-p no:timeout), unused
+def pytest_timeout_set_timer(item, settings):
+    """For a test marked ``cpu_timeout``: the CPU watch instead of pytest-timeout's wall-clock timer."""
+    marker = item.get_closest_marker("cpu_timeout")
+    if marker is None or threading.current_thread() is not threading.main_thread():
+        return None  # pytest-timeout's own timer
+    watch = _CpuWatch(float(marker.args[0]))
+
+    def fail(_signum, _frame):
+        faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        pytest.fail(watch.reason, pytrace=False)
+
+    def cancel() -> None:
+        watch.done.set()
+        watch.thread.join()
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)
+
+    signal.signal(signal.SIGALRM, fail)
+    item.cancel_timeout = cancel  # what pytest-timeout's cancel hook calls
+    watch.thread.start()
+    return True

@@ -26,9 +26,10 @@ Eigenvalues ``μ`` of ``Ψ`` map to continuous poles by ``s = ln(μ) / T`` (``T`
 spectral radius ``ρ(Ψ)`` decides stability. Zero eigenvalues belong to redundant states (a
 committed motion output equals a component of ``z``) and have no pole. Limits: the steady-state
 map (the first ``p`` steps of a run use fewer samples); external forces of time are a forcing
-term, not part of ``Ψ``; only ``masses`` models whose public matrices are their whole dynamics
-(not ``MassesModel.nonlinear``) and no energy correction (``manager.correction``: its capped
-correction is not linear); ``LinearSceneError`` otherwise.
+term, not part of ``Ψ``; ``masses`` models whose public matrices are their whole dynamics
+(not ``MassesModel.nonlinear``) enter exactly, FMUs and Python models by their identified one-step maps
+(``manager.analysis.identified``, through ``scene_scheme``); no energy correction (``manager.correction``: its
+capped correction is not linear); ``LinearSceneError`` otherwise.
 """
 from __future__ import annotations
 
@@ -37,12 +38,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from zencosim.manager.analysis.monolithic import linear_unavailable
+from zencosim.manager.analysis.identified import (
+    Identification,
+    IdentificationError,
+    IdentifiedStep,
+    identified_steps,
+)
+from zencosim.manager.analysis.monolithic import discrete_unavailable
 from zencosim.manager.plan.attachments import build_subsystem, coupling_attachments
 from zencosim.manager.plan.run_plan import Plan, compile_plan
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.extrapolation import extrapolation_matrix
 from zencosim.subsystems.integrators.base import composed_linear_step
+from zencosim.subsystems.models.external.fmu import FmuError
+from zencosim.subsystems.models.external.model import ExternalModel
 from zencosim.subsystems.models.masses import MassesModel
 from zencosim.subsystems.subsystem import Subsystem
 
@@ -76,6 +85,11 @@ def subsystem_map(sub: Subsystem, span_ns: int, order: int) -> SubsystemMap:
     return SubsystemMap(Phi, Gamma.transpose(1, 0, 2), model.C_y, model.D_y, span_ns * 1e-9)
 
 
+def identified_map(step: IdentifiedStep, span_ns: int) -> SubsystemMap:
+    """The one-step map of an identified subsystem (its state ``ξ = [s; y]``, ``manager.analysis.identified``)."""
+    return SubsystemMap(step.Phi, step.Gamma, step.C_y, step.D_y, span_ns * 1e-9)
+
+
 @dataclass(frozen=True)
 class DiscreteScheme:
     """``X⁺ = Ψ X`` over one period of the schedule, and the layout of ``X``."""
@@ -84,6 +98,7 @@ class DiscreteScheme:
     period: float  # [s]
     z_index: tuple[slice, ...]  # per subsystem (plan order): its state z = [x, v]
     history_index: tuple[tuple[slice, ...], ...]  # per subsystem: its output samples, oldest first
+    identifications: tuple[Identification, ...] = ()  # how each identified subsystem was (plan order)
 
     def eigenvalues(self) -> np.ndarray:
         return np.linalg.eigvals(self.Psi)
@@ -99,8 +114,10 @@ class DiscreteScheme:
 
     @property
     def growth_rate(self) -> float:
-        """Exponential growth rate [1/s] of the energy of the least damped mode: ``2 ln ρ / T``."""
-        return 2.0 * math.log(self.spectral_radius) / self.period
+        """Exponential growth rate [1/s] of the energy of the least damped mode: ``2 ln ρ / T`` (−∞ for ``ρ = 0``: no
+        loop, every identified subsystem a source or a sink)."""
+        radius = self.spectral_radius
+        return 2.0 * math.log(radius) / self.period if radius > 0.0 else -math.inf
 
     def poles(self) -> np.ndarray:
         """``ln(μ) / T`` [1/s] of every non-zero eigenvalue (principal branch: ``|Im s| <= π / T``)."""
@@ -127,13 +144,17 @@ class DiscreteScheme:
         return poles[pick], shapes
 
 
-def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
+def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem],
+                    identified: dict[str, IdentifiedStep] | None = None) -> DiscreteScheme:
     """``Ψ`` of the explicit scheme (``manager.scheme.jacobi``: Jacobi, or Gauss–Seidel stage after stage as
-    ``plan.stages`` orders them) for ``plan`` and its built subsystems."""
+    ``plan.stages`` orders them) for ``plan`` and its built subsystems, those in ``identified`` by their identified
+    one-step maps (``manager.analysis.identified``)."""
     subs = plan.subsystems
     depth = max(s.order for s in subs)  # history kept: depth + 1 samples of every subsystem
     base = plan.base_step_ns
-    maps = [subsystem_map(subsystems[s.name], s.ratio * base, s.order) for s in subs]
+    identified = identified or {}
+    maps = [identified_map(identified[s.name], s.ratio * base) if s.name in identified
+            else subsystem_map(subsystems[s.name], s.ratio * base, s.order) for s in subs]
 
     z_index, history_index, offset = [], [], 0
     for m in maps:
@@ -177,16 +198,28 @@ def discrete_scheme(plan: Plan, subsystems: dict[str, Subsystem]) -> DiscreteSch
             for index, y in pending.pop(tick + 1, []):
                 history[index].append(y)
     Psi = np.vstack(z + [sample for samples in history for sample in samples[-(depth + 1):]])
-    return DiscreteScheme(Psi, period * base * 1e-9, tuple(z_index), tuple(history_index))
+    return DiscreteScheme(Psi, period * base * 1e-9, tuple(z_index), tuple(history_index),
+                          tuple(identified[s.name].identification for s in subs if s.name in identified))
 
 
 def scene_scheme(scene: Scene, subsystems: dict[str, Subsystem]) -> DiscreteScheme:
-    """``discrete_scheme`` of a scene's built subsystems (the run plan compiled from their ports)."""
+    """``discrete_scheme`` of a scene's built subsystems (the run plan compiled from their ports), its FMUs and
+    Python models identified (``manager.analysis.identified``; ``LinearSceneError`` when one cannot be)."""
     if scene.manager.corrects:
         raise LinearSceneError(f"scene {scene.name}: the discrete analysis does not model energy correction "
                                "(manager.correction); expected it disabled")
     plan = compile_plan(scene, {name: (s.inputs, s.outputs, s.effects) for name, s in subsystems.items()})
-    return discrete_scheme(plan, subsystems)
+    external = {name for name, sub in subsystems.items() if isinstance(sub.model, ExternalModel)}
+    if not external:
+        return discrete_scheme(plan, subsystems)
+    attached = coupling_attachments(scene)
+    try:
+        identified = identified_steps(plan, subsystems, external,
+                                      lambda name: build_subsystem(scene, name, attached[name]),
+                                      lambda name: scene.subsystems[name].spec.can_save_state)
+    except (IdentificationError, FmuError) as error:
+        raise LinearSceneError(f"scene {scene.name}: {error}") from None
+    return discrete_scheme(plan, subsystems, identified)
 
 
 def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
@@ -198,14 +231,17 @@ def uncompensated_scheme(scene: Scene) -> DiscreteScheme:
 
 def run_scheme(scene: Scene) -> DiscreteScheme | None:
     """The exact discrete scheme of the run ``scene`` describes — compensated when it asks for the compensator,
-    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix).
+    as ``analyze`` reports it — or None when the scene is not linear or corrects energy (no transition matrix), or a
+    subsystem is identified only as a local linearisation (a verdict on small motions, not on the run) or is a
+    source or a sink (its own modes are outside ``Ψ``).
     ``SceneError`` when the compensator cannot be designed."""
-    if linear_unavailable(scene) or scene.manager.corrects:
+    if discrete_unavailable(scene) or scene.manager.corrects:
         return None
     try:
         if scene.manager.compensation == "eigenstructure":
             from zencosim.manager.analysis.compensator import scene_compensator  # needs scipy.optimize
             return scene_compensator(scene).scheme
-        return uncompensated_scheme(scene)
-    except LinearSceneError:  # a model whose public matrices are not its whole dynamics
+        scheme = uncompensated_scheme(scene)
+    except LinearSceneError:  # a model whose public matrices are not its whole dynamics, one not identified
         return None
+    return scheme if all(i.exact and i.role == "loop" for i in scheme.identifications) else None

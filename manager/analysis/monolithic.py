@@ -14,6 +14,8 @@ from zencosim.compensation.linear_model import ForceDisplacementBond, LinearMode
 from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.effects import PlacedEffect
 from zencosim.subsystems.integrators import INTEGRATORS
+from zencosim.subsystems.models import model_class
+from zencosim.subsystems.models.external.model import ExternalModel
 from zencosim.subsystems.models.masses import MassesModel, MassesSpec
 from zencosim.subsystems.params import Problem
 from zencosim.subsystems.ports import Attachments
@@ -22,20 +24,37 @@ from zencosim.subsystems.subsystem import Subsystem
 LINEAR_KINDS = ("linear", "external")  # effect kinds of a linear model (an external force is a forcing term)
 
 
-def linear_unavailable(scene: Scene) -> str | None:
-    """Why the scene has no linear model ``M, C, K`` (None when it has one); integrators do not matter."""
+def discrete_unavailable(scene: Scene) -> str | None:
+    """Why the explicit scheme of the scene has no transition matrix, exact or identified (None when it has one):
+    ``masses`` subsystems with linear effects enter exactly, external models (FMUs, Python models) identified
+    (``manager.analysis.identified``); other built-in models and rigid joints do not."""
     joints = [name for name, c in scene.couplings.items() if c.kind == "rigid_joint"]
     if joints:
         return (f"the scene has a rigid joint ({', '.join(joints)}); its reference is 'solve_ivp', the "
                 "subsystems integrated together with the joint held exactly")
-    models = {s.settings.model for s in scene.subsystems.values()}
-    if models != {MassesModel.name}:
-        return f"the monolithic model is assembled for '{MassesModel.name}' subsystems only, got {sorted(models)}"
-    nonlinear = sorted(f"{s.name}.{e.name}" for s in scene.subsystems.values() for e in s.spec.effects
+    if scene.manager.scheme == "implicit":
+        return "manager.scheme = 'implicit': the analysis is of the explicit schemes (jacobi, gauss-seidel)"
+    built_in = sorted({s.settings.model for s in scene.subsystems.values() if s.settings.model != MassesModel.name
+                       and not issubclass(model_class(s.settings.model), ExternalModel)})
+    if built_in:
+        return (f"built-in models {built_in} are not linear; expected '{MassesModel.name}' subsystems or external "
+                "models (FMUs, Python models), which are identified")
+    nonlinear = sorted(f"{s.name}.{e.name}" for s in scene.subsystems.values() for e in getattr(s.spec, "effects", ())
                        if e.effect.kind not in LINEAR_KINDS)
     nonlinear += sorted(e.name for c in scene.couplings.values() for e in c.effects if e.effect.kind not in LINEAR_KINDS)
     if nonlinear:
         return f"nonlinear effects {', '.join(nonlinear)}"
+    return None
+
+
+def linear_unavailable(scene: Scene) -> str | None:
+    """Why the scene has no linear model ``M, C, K`` (None when it has one); integrators do not matter."""
+    reason = discrete_unavailable(scene)
+    if reason:
+        return reason
+    models = {s.settings.model for s in scene.subsystems.values()}
+    if models != {MassesModel.name}:
+        return f"the monolithic model is assembled for '{MassesModel.name}' subsystems only, got {sorted(models)}"
     return None
 
 

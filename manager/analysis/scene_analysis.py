@@ -16,15 +16,19 @@ import numpy as np
 
 from zencosim.compensation.eigenstructure.analysis import Analysis, analyze
 from zencosim.compensation.eigenstructure.architecture import full_feedback, rank_one
+from zencosim.compensation.eigenstructure.interface import EXTRAPOLATION_ORDERS
 from zencosim.compensation.eigenstructure.modes import CosimEigenstructure, cosimulated_eigenstructure
 from zencosim.compensation.eigenstructure.perturbation import cosimulated_stiffness
 from zencosim.manager.analysis import compensator
 from zencosim.manager.analysis.compensator import scene_compensator
-from zencosim.manager.analysis.discrete import DiscreteScheme, uncompensated_scheme
-from zencosim.manager.analysis.monolithic import linear_model, linear_unavailable
+from zencosim.manager.analysis.discrete import DiscreteScheme, LinearSceneError, uncompensated_scheme
+from zencosim.manager.analysis.monolithic import discrete_unavailable, linear_model, linear_unavailable
+from zencosim.manager.analysis.stable_step import StableStep, largest_stable_step
 from zencosim.manager.scene.checks import check_compensation
 from zencosim.manager.scene.load import Scene, SceneError
 from zencosim.subsystems.params import Problem, Problems
+
+COMPENSATOR_LIMIT = "compensator: built-in models only (the design needs the monolithic model M, C, K)"
 
 # --architecture: the runtime's (Eq. 24 / 47 without the exchanged acceleration) and the two of §4.3 that
 # cannot assign the eigenstructure (ranks 7 != 8 and 4 != 5 for the two-mass systems)
@@ -54,6 +58,7 @@ class SceneAnalysis:
     compensated_model: CosimEigenstructure | None = None  # D(s) model of the compensator's last design
     compensated: Eigenpairs | None = None  # discrete, the compensated runtime
     not_compensated: str | None = None  # why there is no compensator
+    stable_step: StableStep | None = None  # the largest stable macro-step, uncompensated
 
     @property
     def monolithic(self) -> Eigenpairs:
@@ -92,7 +97,42 @@ class SceneAnalysis:
                                  "pole_error": self.compensator.pole_error,
                                  "targets": _pairs(self.compensator.targets)}
         out["not_compensated"] = self.not_compensated
+        out["identification"] = {}
+        out["largest_stable_step"] = None if self.stable_step is None else self.stable_step.to_dict()
         return out
+
+
+@dataclass(frozen=True)
+class IdentifiedAnalysis:
+    """The exact discrete scheme of a scene with identified subsystems (FMUs, Python models): no monolithic model,
+    no ``D(s)`` model and no compensator (``COMPENSATOR_LIMIT``); the JSON keeps ``SceneAnalysis``'s keys for what it
+    has (``poles.cosim_discrete``: every pole of ``Ψ``, unpaired) and adds ``identification``."""
+
+    scene: Scene
+    uncompensated: DiscreteScheme
+    stable_step: StableStep
+
+    def systems(self) -> dict[str, Eigenpairs]:
+        """The poles of the pole map: the exact discrete scheme's, every one (no mode shapes)."""
+        poles = self.uncompensated.poles()
+        return {"cosim_discrete": Eigenpairs(poles, np.zeros((0, poles.size)))}
+
+    def to_dict(self) -> dict:
+        scheme = self.uncompensated
+        return {
+            "scene": self.scene.name,
+            "interface": {"extrapolation": EXTRAPOLATION_ORDERS[self.scene.manager.extrapolation],
+                          "macro_step": self.scene.manager.macro_step, "period": scheme.period},
+            "poles": {"cosim_discrete": _pairs(scheme.poles()), "compensated": None},
+            "spectral_radius": {"uncompensated": scheme.spectral_radius, "compensated": None},
+            "stable": {"uncompensated": scheme.stable, "compensated": None},
+            "growth_rate_per_s": {"uncompensated": scheme.growth_rate if scheme.spectral_radius > 0.0 else None,
+                                  "compensated": None},  # null: ρ = 0, no loop (JSON has no −∞)
+            "correction": None,
+            "not_compensated": COMPENSATOR_LIMIT,
+            "identification": {i.subsystem: i.to_dict() for i in scheme.identifications},
+            "largest_stable_step": self.stable_step.to_dict(),
+        }
 
 
 def modal_parameters(poles: np.ndarray, reference: np.ndarray) -> dict[str, list[float]]:
@@ -108,21 +148,29 @@ def _pairs(values: np.ndarray) -> list[list[float]]:
 
 
 def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order: int = compensator.PADE_ORDER
-                  ) -> SceneAnalysis:
-    """Analyse ``scene`` (whatever its ``manager.compensation``); ``SceneError`` for a scene that is not
-    linear or a compensator that cannot be designed."""
-    reason = linear_unavailable(scene)
+                  ) -> SceneAnalysis | IdentifiedAnalysis:
+    """Analyse ``scene`` (whatever its ``manager.compensation``); ``SceneError`` for a scene whose scheme has no
+    transition matrix, a subsystem that cannot be identified, or a compensator that cannot be designed. A scene with
+    FMUs or Python models gives an ``IdentifiedAnalysis``."""
+    reason = discrete_unavailable(scene)
     if reason:
         raise SceneError(scene.path, [Problem("scene", f"expected a linear scene for the analysis: {reason}")])
     if scene.manager.corrects:
         raise SceneError(scene.path, [Problem("manager.correction", "expected no energy correction: the exact "
                                               "discrete analysis covers the linear scheme only")])
+    try:
+        uncompensated = uncompensated_scheme(scene)
+    except LinearSceneError as error:
+        raise SceneError(scene.path, [Problem("scene", str(error))]) from None
+    stable_step = largest_stable_step(scene)
+    if linear_unavailable(scene):  # identified subsystems
+        return IdentifiedAnalysis(scene, uncompensated, stable_step)
     model = linear_model(scene)
     interface = compensator.interface_of(scene)
     analysis = analyze(model, interface, pade_order)
-    uncompensated = uncompensated_scheme(scene)
     result = SceneAnalysis(scene, model.dof_names, analysis, uncompensated,
-                           Eigenpairs(*uncompensated.primary_eigenstructure(analysis.monolithic.poles)))
+                           Eigenpairs(*uncompensated.primary_eigenstructure(analysis.monolithic.poles)),
+                           stable_step=stable_step)
     problems = Problems()
     check_compensation(scene.manager, scene.couplings, scene.subsystems, problems)
     if problems:

@@ -17,6 +17,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 PARENT_PID = "ZENCOSIM_PARENT_PID"  # set by start_child for the child's end_with_parent
@@ -49,7 +50,7 @@ _STATES = {"T": "is frozen (process stopped, state T: SIGSTOP or a debugger)",
            "Z": "has exited (state Z)"}
 
 
-def _stat_fields(pid: int) -> list[str]:
+def stat_fields(pid: int) -> list[str]:
     """The fields of ``/proc/PID/stat`` after the process's name (proc(5): the state first, then its parent, …);
     empty where they cannot be read (not Linux, or the process is gone)."""
     try:
@@ -61,25 +62,39 @@ def _stat_fields(pid: int) -> list[str]:
 def process_state(pid: int) -> str | None:
     """Linux: why process ``pid`` does not answer, from its state in ``/proc/PID/stat`` ("is frozen (process
     stopped, …)", "has exited", …); None when it runs or sleeps normally, or the state cannot be read."""
-    fields = _stat_fields(pid)
+    fields = stat_fields(pid)
     return _STATES.get(fields[0]) if fields else None
 
 
 def working(pid: int) -> bool:
     """Linux: whether process ``pid`` is running, waiting only for a CPU (state R) or for its disk (state D): slowed
     by a busy machine, not waiting for something that may never come."""
-    fields = _stat_fields(pid)
+    fields = stat_fields(pid)
     return bool(fields) and fields[0] in ("R", "D")
 
 
-def cpu_time_s(pid: int) -> float:
-    """The CPU time [s] process ``pid`` has used so far (user and system, ``/proc/PID/stat``; 0 where it cannot
-    be read)."""
-    fields = _stat_fields(pid)
+def cpu_time_s(pid: int, fields: list[str] | None = None) -> float:
+    """The CPU time [s] process ``pid`` has used so far (user and system, ``/proc/PID/stat``, or its ``fields``
+    already read; 0 where they cannot be read)."""
+    fields = stat_fields(pid) if fields is None else fields
     try:
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
     except (IndexError, ValueError):
         return 0.0
+
+
+def wait_while_working(pid: int, stall_s: float, look_s: float = 0.1) -> bool:
+    """Linux: wait for process ``pid``, not necessarily a child, to exit, for as long as it makes progress (uses CPU,
+    or waits only for a CPU or its disk); True once it has exited, False once it made none for ``stall_s``."""
+    still_from, cpu = time.monotonic(), cpu_time_s(pid)
+    while (fields := stat_fields(pid)) and fields[0] not in ("Z", "X"):
+        time.sleep(look_s)
+        now, used = time.monotonic(), cpu_time_s(pid)
+        if used > cpu or working(pid):
+            still_from, cpu = now, used
+        elif now - still_from >= stall_s:
+            return False
+    return True
 
 
 def exit_reason(returncode: int) -> str:

@@ -10,10 +10,12 @@ then, around every call into a model (its constructor, every command of the step
 that are not zencosim's own, which alone can end the process), which subsystem it is in and from what simulation
 time; as its command ends it writes that it has ended. The parent, when the child ends
 without that mark, names the subsystem it was in and how the process ended (``exited with code 0``, ``killed by
-SIGSEGV``: exit status 1); when one call into a model lasts longer than ``manager.timeout``, it kills the child and
-names the subsystem as the Zenoh bus does a subsystem that does not answer (exit status 1). A constructor is not
-timed (an FMU may unpack and load a large binary on a busy machine): a model that hangs there is interrupted
-with Ctrl-C.
+SIGSEGV``: exit status 1), once the run's recorder, whose process the child names there too, has finished the file
+with what the run had handed over (so that the file is complete when the command returns); when one call into a
+model lasts longer than ``manager.timeout`` — as the stall clock counts (``manager.bus.stall``: not the time the
+child waited for a CPU; or the child's own CPU time) — it kills the child and names the subsystem as the Zenoh bus
+does a subsystem that does not answer (exit status 1). A constructor is not timed (an FMU may unpack and load a
+large binary on a busy machine): a model that hangs there is interrupted with Ctrl-C.
 
 Signals: the parent blocks SIGINT, SIGTERM and SIGHUP and passes each on to the child, except one the terminal sent
 to its whole foreground process group (``si_code`` ``SI_KERNEL``), which the child has received itself; the child
@@ -35,10 +37,13 @@ import time
 from contextlib import AbstractContextManager, contextmanager
 from typing import Callable, Iterator
 
-from zencosim.manager.bus.children import exit_reason
+from zencosim.manager.bus.children import exit_reason, wait_while_working
+from zencosim.manager.bus.stall import StallClock
 
-SUBSYSTEM, PHASE, CALLS, T_NS, TIMEOUT_NS, ENDED, NAMES_BYTES = range(7)  # the int64 slots of the shared page
-NAMES_AT, PAGE_BYTES = 64, 1 << 16  # the subsystems' names (JSON) from byte NAMES_AT
+# the int64 slots of the shared page
+SUBSYSTEM, PHASE, CALLS, T_NS, TIMEOUT_NS, ENDED, NAMES_BYTES, RECORDER, SAID_BYTES = range(9)
+NAMES_AT, SAID_AT, PAGE_BYTES = 128, 1 << 15, 1 << 16  # the subsystems' names (JSON) from byte NAMES_AT, a line
+# the parent says if the child ends in a model (``say_if_ended``) from byte SAID_AT
 CONSTRUCTING, STEPPING = 1, 2  # PHASE: what the child runs of the subsystem it is in
 POLL_S = 0.25  # how often the parent looks at a child that has not ended
 PASSED_ON = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -60,7 +65,7 @@ class ModelWatch:
     def start(self, names: list[str], timeout_s: float) -> None:
         """The run's subsystems (in the order their marks refer to) and its ``manager.timeout``."""
         self._order = {name: i for i, name in enumerate(names)}
-        text = json.dumps(names).encode()[:PAGE_BYTES - NAMES_AT]
+        text = json.dumps(names).encode()[:SAID_AT - NAMES_AT]
         self._page[NAMES_AT:NAMES_AT + len(text)] = text
         self.slots[NAMES_BYTES] = len(text)
         self.slots[TIMEOUT_NS] = int(timeout_s * 1e9)
@@ -71,6 +76,22 @@ class ModelWatch:
             return json.loads(bytes(self._page[NAMES_AT:NAMES_AT + self.slots[NAMES_BYTES]]) or b"[]")
         except ValueError:  # cut at the page's end: more subsystems than the page holds names for
             return []
+
+    def say_if_ended(self, line: str) -> None:
+        """A line the parent writes on its standard output should the child end before its command does (a verdict
+        given before a re-run goes on into a model that may end the process: ``replay --verify``)."""
+        text = line.encode()[:PAGE_BYTES - SAID_AT]
+        self._page[SAID_AT:SAID_AT + len(text)] = text
+        self.slots[SAID_BYTES] = len(text)
+
+    def said(self) -> str:
+        """The line :meth:`say_if_ended` wrote, as the other process reads it ("" when none)."""
+        return bytes(self._page[SAID_AT:SAID_AT + self.slots[SAID_BYTES]]).decode(errors="replace")
+
+    def recording(self, pid: int) -> None:
+        """The run's recorder is process ``pid``: a parent whose child ended before the run did waits for it to finish
+        the file (it gets SIGTERM and drains its pipe, ``recordings.recorder_process``)."""
+        self.slots[RECORDER] = pid
 
     def index(self, name: str) -> int:
         """The number the marks give subsystem ``name`` (its place among the names given to :meth:`start`; -1, no
@@ -181,7 +202,7 @@ def _end_with(parent: int) -> None:
 def _wait(pid: int, watch: ModelWatch, failed: Callable[[str], None]) -> int:
     """Wait for the child ``pid``: pass signals on, time the calls into models, and name how it ended."""
     interrupted, timed_out = False, None
-    calls, since = -1, 0.0
+    calls, clock, run = -1, StallClock(), {"run": pid}
     while True:
         info = signal.sigtimedwait((*PASSED_ON, signal.SIGCHLD), POLL_S)
         if info is not None and info.si_signo != signal.SIGCHLD:
@@ -193,17 +214,26 @@ def _wait(pid: int, watch: ModelWatch, failed: Callable[[str], None]) -> int:
             break
         now = time.monotonic()
         if watch.slots[SUBSYSTEM] < 0 or watch.slots[PHASE] != STEPPING or watch.slots[CALLS] != calls:
-            calls, since = watch.slots[CALLS], now
-        elif watch.slots[TIMEOUT_NS] and now - since > watch.slots[TIMEOUT_NS] * 1e-9:
+            calls = watch.slots[CALLS]
+            clock.restart(now)
+            clock.look(now, run)
+            continue
+        clock.look(now, run)
+        if watch.slots[TIMEOUT_NS] and clock.verdict(watch.slots[TIMEOUT_NS] * 1e-9, list(run)) is not None:
             timed_out = watch.where()
             if timed_out is not None:  # else it has just returned
                 os.kill(pid, signal.SIGKILL)
     code = os.waitstatus_to_exitcode(status)
+    if watch.slots[RECORDER] and not wait_while_working(watch.slots[RECORDER], watch.slots[TIMEOUT_NS] * 1e-9 or 10.0):
+        print(f"the recorder (process {watch.slots[RECORDER]}) makes no progress finishing its file; not waited for",
+              file=sys.stderr)
     if watch.slots[ENDED]:
         if code >= 0:
             return code
         failed(f"the run ended, then its process was {exit_reason(code)} as it closed (a model's clean-up)")
         return 1
+    if watch.said() and not interrupted:
+        print(watch.said(), flush=True)
     if timed_out is not None:
         name, doing = timed_out
         failed(f"subsystem {name}: did not answer within the timeout of {watch.slots[TIMEOUT_NS] * 1e-9:g} s "

@@ -10,8 +10,8 @@ it follows the replies, checks that every subsystem executed the commands the ma
 produces the run record; it takes the replies in the batches the subsystems send it (``<sub>/log``,
 see ``subsystems.process.host``), off the critical path. A recorded run taps the manager's replica,
 as in process: it holds every command, reply and status of the run. A watchdog on the main thread
-names any subsystem that dies or stops answering and ends the run within the scene's timeout; no
-child process outlives the bus.
+names any subsystem that dies or stops answering and ends the run within the scene's timeout, as the stall clock
+counts it (``manager.bus.stall``: a process starved of CPU is waited for); no child process outlives the bus.
 """
 from __future__ import annotations
 
@@ -33,7 +33,9 @@ from zencosim.manager.bus.children import cpu_time_s, process_state, start_child
 from zencosim.manager.bus.dropped import DroppedMessages, checked, describe, merge, publisher
 from zencosim.manager.bus.router import RouterError
 from zencosim.manager.bus.signals import DeferredSignals
+from zencosim.manager.bus.stall import StallClock, load1
 from zencosim.manager.bus.zenoh_session import (
+    STOP_RECEIVED,
     ZenohOptions,
     concrete_endpoint,
     coupling_publisher,
@@ -61,6 +63,8 @@ START_DELAY_NS = 50_000_000  # the first step is released this long after the st
 PROBE_TIMEOUT_S = 0.5  # when a run stalls, a subsystem that does not describe itself within this time is frozen
 SETTLE_S = 2.0  # a failure is reported after the follower has taken what was sent before it, waiting at most this
 SETTLE_QUIET_S = 0.2  # and until no batch has arrived for this long
+STALL_LOOK_S = 0.5  # while the run does not advance, the stall clock reads the processes' /proc this often
+EXTERNAL_STALL_FACTOR = 6.0  # a run with processes the manager did not start: the stall limit is this × manager.timeout
 STALLED_S = 2.0  # the manager's watch loop (every 0.05 s) not running for this long: the manager itself stalled
 
 
@@ -96,6 +100,8 @@ class ZenohBus:
         self.wait_external_s = wait_external_s
         self.announce = announce
         self.timeout_s = scene.manager.timeout
+        # processes the manager did not start may be starved of CPU on a host it cannot see: a generous limit
+        self.stall_limit_s = self.timeout_s * (EXTERNAL_STALL_FACTOR if self.external else 1.0)
         self.names = [s.name for s in plan.subsystems]
         self.children: dict[str, subprocess.Popen] = {}
         self._logs = tempfile.TemporaryDirectory(prefix="zencosim-")
@@ -107,6 +113,7 @@ class ZenohBus:
         self._lost: list[str] = []
         self._started_at = time.monotonic()  # the last time a subsystem joined or became ready (start-up progress)
         self._driving = False
+        self._stop_sent = False  # whether the manager has sent its subsystems STOP (only when it closes the bus)
         self._session: zenoh.Session | None = None
         self._entities: list = []
         self.dropped = DroppedMessages()  # what the manager took off the network and dropped (manager.bus.dropped)
@@ -219,10 +226,16 @@ class ZenohBus:
         return "\n".join(text.splitlines()[-lines:])
 
     def _exited(self, name: str) -> SubsystemFailure | None:
+        """The failure of subsystem ``name`` when the manager spawned its process and it has exited: its exit
+        status and the end of its log, or, when a STOP ended it that the manager did not send, where that came from."""
         child = self.children.get(name)
         if child is None or child.poll() is None:
             return None
         tail = self.log_tail(name)
+        if not self._stop_sent and f"subsystem {name}: {STOP_RECEIVED}" in tail:
+            return SubsystemFailure(name, f"a STOP that the manager did not send ended its process: another process "
+                                          f"that reaches the run published it on {key(self.run_id, name, 'u')} (without "
+                                          f"credentials every process on the run's hosts can: docs/security.md):\n{tail}")
         return SubsystemFailure(name, f"process exited with code {child.returncode}" + (f":\n{tail}" if tail else ""))
 
     def _handshake(self) -> None:
@@ -240,25 +253,62 @@ class ZenohBus:
         spawned subsystem, progress is another one joining or connecting, or its own process still working
         its way up (``STARTUP_CPU_S`` more CPU time: 33 processes starting on 2 cores under load take longer
         than one, but each uses CPU; one waiting for a link that never comes does not); for one started by
-        hand, the wait since it began."""
+        hand, the wait since it began. Without progress, a spawned one's wait runs on the stall clock
+        (``manager.bus.stall``: its waits for a CPU, and the manager's, are not counted)."""
         waited_from = time.monotonic()
-        working_from, cpu_mark = waited_from, cpu_time_s(self.children[name].pid) if name in self.children else 0.0
+        child = self.children.get(name)
+        pids = {"manager": os.getpid(), name: child.pid} if child is not None else {}
+        clock, mark = StallClock(), (waited_from, cpu_time_s(child.pid) if child is not None else 0.0)
+        clock.restart(waited_from)
+        clock.look(waited_from, pids)
         while not event.wait(0.05):
             failure = next(filter(None, map(self._exited, self.names)), None)
             if failure:
                 raise failure
             now = time.monotonic()
-            if name in self.children and now - working_from >= 1.0:
-                cpu = cpu_time_s(self.children[name].pid)
-                if cpu - cpu_mark >= STARTUP_CPU_S:
-                    working_from, cpu_mark = now, cpu
-            since = waited_from if name in self.external else max(waited_from, self._started_at, working_from)
-            if now > since + wait_s:
-                tail = self.log_tail(name) if name in self.children else ""
+            if child is None:
+                stalled = now > waited_from + wait_s
+            elif now - clock.last >= 1.0:
+                cpu = cpu_time_s(child.pid)
+                if cpu - mark[1] >= STARTUP_CPU_S or self._started_at > mark[0]:  # progress: the clock starts again
+                    mark = (now, cpu)
+                    clock.restart(now)
+                clock.look(now, pids)
+                stalled = clock.stalled_s > wait_s
+            else:
+                continue
+            if stalled:
+                tail = self.log_tail(name) if child is not None else ""
                 raise SubsystemFailure(name, f"{failing} within {wait_s:g} s" + (f"; its output:\n{tail}" if tail else ""))
 
+    def _patient(self, ask: Callable[[], bool], names: list[str]) -> str | None:
+        """Call ``ask`` until it returns True, or the stall clock over the processes of ``names`` that the manager
+        started (and its own) reaches ``manager.timeout`` (the limit for processes it did not start, when one
+        of ``names`` is such): then the name of the one that failed it. A process starved of CPU is waited
+        for."""
+        clock, local = StallClock(), [name for name in names if name in self.children]
+        pids = {"manager": os.getpid(), **{name: self.children[name].pid for name in local}}
+        clock.restart(time.monotonic())
+        clock.look(clock.last, pids)
+        limit_s = self.stall_limit_s if set(names) - set(local) else self.timeout_s
+        while not ask():
+            clock.look(time.monotonic(), pids)
+            verdict = clock.verdict(limit_s, local or names)
+            if verdict is not None:
+                return verdict[0]
+        return None
+
     def _check_description(self, name: str) -> None:
-        replies = [r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=self.timeout_s) if r.ok]
+        replies = []
+
+        def ask() -> bool:
+            replies.extend(r for r in self._session.get(key(self.run_id, name, "ctl"), timeout=PROBE_TIMEOUT_S)
+                           if r.ok)
+            return bool(replies) or self._exited(name) is not None
+        self._patient(ask, [name])
+        exited = self._exited(name)
+        if exited is not None:
+            raise exited
         if not replies:
             raise SubsystemFailure(name, "did not describe itself")
         info = json.loads(replies[0].ok.payload.to_bytes())
@@ -298,6 +348,10 @@ class ZenohBus:
         self._error: BaseException | None = None
         self._driving = True
         self._progress = (0, time.monotonic())
+        self._stall = StallClock()  # the time the run has not advanced, less its processes' waits for a CPU
+        self._stall_from = time.monotonic()  # when the run last advanced, as the watch loop saw it
+        self._said_waiting = 0  # how often the wait for starved processes has been said since then
+        self._stall_looked = False  # whether the stall clock has read the processes since then
         self._heard = time.monotonic()  # when the last batch of replies arrived
         self._following = False  # the follower is advancing the replica with a batch (or feeding the recorder)
         started, cpu_started = time.perf_counter(), time.process_time()
@@ -339,23 +393,26 @@ class ZenohBus:
     def _timing_reports(self) -> dict[str, dict]:
         """Every subsystem's timing of its own steps (asked together). One whose replica has not finished yet says
         so at once (on a loaded host a process may still be taking the last replies, which the manager has): it is
-        asked again, until ``manager.timeout`` passes with no subsystem's report arriving."""
+        asked again, as long as the processes asked are only starved of CPU (``_patient``); the stall clock starts
+        again whenever a report arrives."""
         reports: dict[str, dict] = {}
-        arrived = time.monotonic()  # when the last report came
         missing = list(self.names)
         while missing:
-            pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=self.timeout_s)
-                       for name in missing}
-            for name, replies in pending.items():
-                answers = [reply.ok for reply in replies if reply.ok is not None]
-                if answers:
-                    reports[name] = json.loads(answers[0].payload.to_bytes())
-                    arrived = time.monotonic()
-            missing = [name for name in missing if name not in reports]
-            if missing and time.monotonic() - arrived > self.timeout_s:
-                raise SubsystemFailure(missing[0], "did not report the timing of its steps")
-            if missing:
+            def ask() -> bool:
+                pending = {name: self._session.get(key(self.run_id, name, "timing"), timeout=PROBE_TIMEOUT_S)
+                           for name in missing}
+                for name, replies in pending.items():
+                    answers = [reply.ok for reply in replies if reply.ok is not None]
+                    if answers:
+                        reports[name] = json.loads(answers[0].payload.to_bytes())
+                if any(name in reports for name in missing):
+                    return True
                 time.sleep(0.05)
+                return False
+            silent = self._patient(ask, missing)
+            if silent is not None:
+                raise SubsystemFailure(silent, "did not report the timing of its steps")
+            missing = [name for name in missing if name not in reports]
         return {name: reports[name] for name in self.names}
 
     def _on_log(self, sample: zenoh.Sample) -> None:
@@ -434,19 +491,61 @@ class ZenohBus:
             return self._settle(SubsystemFailure(name, self._why_gone(name)))
         # read without the lock, which the idle-priority follower may hold while it waits for a core
         steps, missing = self._replica.steps_done, self._replica.waiting_for()
+        now = time.monotonic()
         if steps != self._progress[0]:
-            self._progress = (steps, time.monotonic())
+            self._progress = (steps, now)
+        advanced = max(self._progress[1], self._heard)
         # a stall is the subsystems' only when no batch arrives either and the follower has taken every batch
         # (an idle-priority follower may lag; one held up by a frozen recorder waits for it: recordings.recorder)
-        elif (missing and not self._following and self._batches.empty()
-              and time.monotonic() - max(self._progress[1], self._heard) > self.timeout_s):
-            # every replica waits when one subsystem stalls: name the ones whose process does not respond
-            frozen, dropped = self._unresponsive()
-            name = frozen[0] if frozen else missing[0]
-            return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s (manager.timeout)"
-                                          + (f"; its process {self._state(name) or 'does not respond'}" if frozen else "")
-                                          + (f"; messages dropped: {dropped}" if dropped else ""))
-        return None
+        if not missing or self._following or not self._batches.empty() or advanced > self._stall_from:
+            self._stall_from, self._said_waiting, self._stall_looked = now, 0, False
+            return None
+        look_s = min(STALL_LOOK_S, self.timeout_s / 4)  # at least 4 looks within the limit; /proc is read at most
+        if now - self._stall.last < look_s:  # this often (two files per thread of every process), advancing or not
+            return None
+        if not self._stall_looked:  # the first look without an advance: the baseline of what each used and waited
+            self._stall.restart(now)
+            self._stall.look(now, self._watched_pids())
+            self._stall_looked = True
+            return None
+        self._stall.look(now, self._watched_pids())
+        local = [name for name in self.names if name in self.children]
+        verdict = self._stall.verdict(self.timeout_s, local)
+        if verdict is not None and verdict[1] == "stalled" and self.external:  # no process here to blame
+            verdict = self._stall.verdict(self.stall_limit_s, local)
+        if verdict is None:
+            self._say_waiting(now)
+            return None
+        name, why = verdict
+        if why not in ("stopped", "stalled"):
+            return SubsystemFailure(name, f"did not answer within the timeout of {self.timeout_s:g} s "
+                                          f"(manager.timeout): {why}")
+        # every replica waits when one subsystem stalls: name the ones whose process does not respond
+        frozen, dropped = self._unresponsive()
+        name = name if why == "stopped" else frozen[0] if frozen else missing[0]
+        within = (f"the timeout of {self.timeout_s:g} s (manager.timeout)" if not self.external or why == "stopped"
+                  else f"{self.stall_limit_s:g} s ({EXTERNAL_STALL_FACTOR:g} × manager.timeout: the run has "
+                       "processes the manager did not start, whose CPU it cannot see)")
+        return SubsystemFailure(name, f"did not answer within {within}"
+                                      + (f"; its process {self._state(name) or 'does not respond'}"
+                                         if why == "stopped" or name in frozen else "")
+                                      + (f"; messages dropped: {dropped}" if dropped else ""))
+
+    def _watched_pids(self) -> dict[str, int]:
+        """The processes whose CPU the stall clock reads: the manager's own and the subsystem processes it
+        started."""
+        return {"manager": os.getpid(), **{name: child.pid for name, child in self.children.items()}}
+
+    def _say_waiting(self, now: float) -> None:
+        """Say, every ``manager.timeout`` of wall time the run has not advanced, that it waits for processes
+        starved of CPU, and how much of the wait the stall limit counts."""
+        waited_s = now - self._stall_from
+        if self.announce is None or waited_s < self.timeout_s * (self._said_waiting + 1):
+            return
+        self._said_waiting = int(waited_s // self.timeout_s)
+        self.announce(f"run {self.run_id}: no step for {waited_s:.1f} s; {self._stall.excused_s:.1f} s of it its "
+                      f"processes waited for a CPU (load {load1():.1f} on {os.cpu_count()} CPUs): waiting; "
+                      f"{self._stall.stalled_s:.1f} s of the limit of {self.stall_limit_s:g} s counted")
 
     def _state(self, name: str) -> str | None:
         """Why subsystem ``name``'s process does not answer, when the manager spawned it and its state says
@@ -518,6 +617,7 @@ class ZenohBus:
     def _stop_children(self) -> None:
         """STOP every subsystem process; terminate, then kill, those that do not exit in ``STOP_GRACE_S``."""
         if self._session is not None:
+            self._stop_sent = True
             for publisher in getattr(self, "_publishers", {}).values():
                 publisher.put(encode(Kind.STOP, 0, 0))
         deadline = time.monotonic() + STOP_GRACE_S

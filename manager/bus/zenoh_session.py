@@ -26,6 +26,9 @@ import zenoh
 from zencosim.manager.bus.security import ZenohSecurity, remove_dictionaries, zenoh_reason
 
 ROOT = "zencosim"
+# what a subsystem process says when a STOP on its ``<sub>/u`` ended it; the manager, which knows whether it sent
+# one, reads it in the process's log and names a STOP it did not send (``manager.bus.zenoh_bus``)
+STOP_RECEIVED = "stopped by a STOP on its control key"
 
 
 def new_run_id() -> str:

@@ -150,8 +150,9 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
     """Build the plan; ``ports[name] = (inputs, outputs, effects)`` of each built subsystem.
 
     Raises :class:`SceneError` when an input is unfed, a route joins ports of different units, or
-    outputs with direct feedthrough form an algebraic loop that an explicit scheme cannot initialise
-    (feedthrough is per output: a chain whose force sides feed through from states is no loop).
+    outputs with declared direct feedthrough form an algebraic loop that an explicit scheme cannot initialise
+    (feedthrough is per output: a chain whose force sides feed through from states is no loop; a loop through an
+    output whose component does not declare its dependencies is initialised as libcosim does, ``_init_rounds``).
     Inputs that a coupling's ``computed_inputs()`` lists (coupling variables of a rigid joint) are fed
     by the manager.
     """
@@ -204,7 +205,7 @@ def compile_plan(scene: Scene, ports: dict[str, tuple[tuple[Port, ...], tuple[Po
                                   tuple(f_in[n] for n in b.velocity_input), index[b.motion_side],
                                   tuple(m_out[n] for n in b.velocity), tuple(m_in[n] for n in b.force_input)))
 
-    init_rounds = _init_rounds(plans, problems)
+    init_rounds = _init_rounds(plans, problems, {i: _feedthrough_origin(scene, name) for i, name in enumerate(names)})
     if problems:
         raise SceneError(scene.path, problems)
     signals = {p.name: (s.index, j) for s in plans for j, p in enumerate(s.outputs) if p.quantity != "energy"}
@@ -234,13 +235,22 @@ def stages(scene: Scene, plans: list[SubsystemPlan], init_rounds: tuple[tuple[In
     return tuple((s.index,) for s in sorted(plans, key=lambda s: last_round.get(s.index, 0)))
 
 
-def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[InitStep, ...], ...]:
+def _init_rounds(plans: list[SubsystemPlan], problems: Problems, origins: dict[int, str | None]
+                 ) -> tuple[tuple[InitStep, ...], ...]:
     """Order the initial-output requests by output: an output is final once every input it depends on at the
     same instant (``Port.direct_inputs``) carries a final value; each round asks every subsystem with outputs
     that can now be finalised, with the inputs that are final (the others 0, which those outputs ignore).
-    Outputs without feedthrough are final in the first round. Outputs left over sit on or behind a real
-    algebraic loop, which is named. The energy, which feeds nothing, is what the last request gives (a
-    subsystem with no other output is asked once, in the first round)."""
+    Outputs without feedthrough are final in the first round. The energy, which feeds nothing, is what the last
+    request gives (a subsystem with no other output is asked once, in the first round).
+
+    Outputs left over sit on or behind a loop. A loop through an output whose feedthrough is only FMI's default
+    (``Port.undeclared``: an FMU output without ``dependencies``) is initialised as libcosim's fixed-step algorithm
+    initialises every system (``fixed_step_algorithm::initialize``): N passes, N the number of subsystems, each
+    asking every subsystem with outputs left over, with every input whose source has answered an earlier request
+    (the others 0), then one more pass, as libcosim reads the outputs again after ``exitInitializationMode``; the
+    last pass's values are the outputs at t_0 and the inputs of the first step. A loop of declared feedthrough is
+    refused, named (``origins[i]``: who declares subsystem i's feedthrough, where a scene can state it otherwise).
+    """
     sources = {(s.index, j): (f.source, o) for s in plans for f in s.feeds for o, j in zip(f.outputs, f.inputs)}
     depends = {(s.index, k): [sources[(s.index, j)] for j in port.direct_inputs(s.inputs) if (s.index, j) in sources]
                for s in plans for k, port in enumerate(s.outputs)
@@ -257,23 +267,65 @@ def _init_rounds(plans: list[SubsystemPlan], problems: Problems) -> tuple[tuple[
                 steps.append(InitStep(s.index, ready))
                 newly.update(finalisable)
         if not steps:
-            problems.add("couplings", "outputs with direct feedthrough form an algebraic loop: "
-                         + _loop_text(plans, depends, final) + "; an explicit scheme cannot initialise them")
+            declared = _declared_loops(plans, depends, final)
+            if declared:
+                problems.add("couplings", "outputs with direct feedthrough form an algebraic loop: "
+                             + _loop_text(plans, declared, origins) + "; an explicit scheme cannot initialise "
+                             "them")
+                break
+            rounds += _passes(plans, depends, final, sources, rounds)
             break
         rounds.append(tuple(steps))
         final |= newly
     return tuple(rounds)
 
 
-def _loop_text(plans: list[SubsystemPlan], depends: dict, final: set) -> str:
-    """One cycle among the outputs that could not be finalised: ``S1.fc <- S2.x2 <- S1.fc``."""
+def _declared_loops(plans: list[SubsystemPlan], depends: dict, final: set) -> dict:
+    """The outputs left over that sit on or behind a loop of declared feedthrough, each with the ones among them it
+    depends on (an undeclared output's dependence is broken by ``_passes``); empty when there is none."""
+    left = {node: [d for d in depends[node] if d not in final] for node in depends
+            if node not in final and not plans[node[0]].outputs[node[1]].undeclared}
+    while True:  # peel off the outputs that depend on none of the others left
+        free = [node for node, needs in left.items() if not any(d in left for d in needs)]
+        if not free:
+            return left
+        for node in free:
+            del left[node]
+
+
+def _passes(plans: list[SubsystemPlan], depends: dict, final: set, sources: dict,
+            rounds: list[tuple[InitStep, ...]]) -> list[tuple[InitStep, ...]]:
+    """libcosim's initialisation of the outputs left over (``_init_rounds``): N + 1 rounds, N the number of
+    subsystems, each asking every subsystem with an output left over, with the inputs whose source has answered."""
+    pending = sorted({node[0] for node in depends if node not in final})
+    answered = {step.subsystem for round_ in rounds for step in round_}
+    passes = []
+    for _ in range(len(plans) + 1):
+        passes.append(tuple(InitStep(i, tuple(j for j in range(len(plans[i].inputs))
+                                              if sources.get((i, j), (None,))[0] in answered)) for i in pending))
+        answered.update(pending)
+    return passes
+
+
+def _loop_text(plans: list[SubsystemPlan], left: dict, origins: dict[int, str | None]) -> str:
+    """One cycle among the outputs ``left`` (each depends on one of the others): ``S1.fc <- S2.x2 <- S1.fc``,
+    then who declares the feedthrough of each subsystem on it where ``origins`` says."""
     def name(node: tuple[int, int]) -> str:
         return f"{plans[node[0]].name}.{plans[node[0]].outputs[node[1]].name}"
 
-    node = next(n for n in depends if n not in final)
+    node = next(iter(left))
     path: list[tuple[int, int]] = []
-    while node not in path:  # every pending output depends on a pending one: walking back must repeat
+    while node not in path:  # every output left depends on one left: walking back must repeat
         path.append(node)
-        node = next(d for d in depends[node] if d not in final)
+        node = next(d for d in left[node] if d in left)
     cycle = path[path.index(node):] + [node]
-    return " <- ".join(name(n) for n in cycle)
+    on_it = dict.fromkeys(i for i, _ in cycle)
+    said = [f"{plans[i].name}'s {origins[i]}" for i in on_it if origins.get(i)]
+    return " <- ".join(name(n) for n in cycle) + (f" (feedthrough: {'; '.join(said)})" if said else "")
+
+
+def _feedthrough_origin(scene: Scene, name: str) -> str | None:
+    """Who declares subsystem ``name``'s feedthrough where a scene can state it otherwise (an external model's
+    ``feedthrough`` key), for the message of a loop; None for a built-in model."""
+    origin = getattr(scene.subsystems[name].spec, "feedthrough_origin", None)
+    return None if origin is None else origin(f"subsystems.{name}")

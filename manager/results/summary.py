@@ -11,7 +11,8 @@ Definitions (docs/summary.md lists every key):
   any other scene, the run did not diverge and the mechanical energy does not grow exponentially: the
   least-squares slope of ``ln`` of the windowed energy maximum (20 windows over the run) over the second
   half of the run is below ``STABLE_GROWTH_RATE`` (energy doubling time above 69 s; meant for free or
-  bounded-forcing runs). ``stable_from`` says which; the measured slope is reported in both cases.
+  bounded-forcing runs). Without energy (no subsystem reports one, no output in J) no verdict: null, unless the
+  run diverged (false). ``stable_from`` says which; the measured slope is reported where there is an energy.
 * strict JSON: every number that is not finite is null, and ``non_finite`` maps its dotted key to what it
   was (``NaN``, ``Infinity``, ``-Infinity``).
 * digest: sha256 over every subsystem's output trajectory (scene order of subsystems, declared
@@ -34,11 +35,13 @@ from zencosim.manager.results.monitor import residual_power_spikes
 from zencosim.manager.results.reference import Reference
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.base import RunRecord
+from zencosim.manager.scheme.energy_step import abs_tolerance, initial_energy, step_bounds
 from zencosim.manager.scheme.implicit import compile_joint
 from zencosim.manager.scheme.window import BLOCK_ROWS, read_rows, row_blocks
 
 STABLE_GROWTH_RATE = 0.01  # [1/s]
 ENERGY_WINDOWS = 20
+AT_LIMIT_SHARE = 0.5  # a step that sat at a bound for more than this share of the run is reported (``at_limit``)
 
 
 def nrms(x: np.ndarray, x_ref: np.ndarray) -> float:
@@ -79,15 +82,25 @@ def digest(record: RunRecord) -> str:
     return h.hexdigest()
 
 
+def energy_outputs(plan) -> list[tuple[int, int]]:
+    """``(subsystem, output)`` of each energy the balance sums: the subsystems' declared energies; where none
+    declares one, each subsystem's only output in J (a model's output the scene publishes as a signal)."""
+    declared = [(s.index, s.energy_output) for s in plan.subsystems if s.energy_output is not None]
+    if declared:
+        return declared
+    joules = [(s.index, [j for j, port in enumerate(s.outputs) if port.unit == "J"]) for s in plan.subsystems]
+    return [(index, found[0]) for index, found in joules if len(found) == 1]
+
+
 def energy_blocks(record: RunRecord) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
     """``(first sample, times [s], total mechanical energy [J])`` in blocks, at the points where every subsystem
-    has a sample: the sum over the subsystems that report their energy (nothing when none does)."""
+    has a sample: the sum of the ``energy_outputs`` (nothing when there is none)."""
     subs = record.plan.subsystems
     period = math.lcm(*(s.ratio for s in subs))
-    reporting = [s for s in subs if s.energy_output is not None]
+    reporting = energy_outputs(record.plan)
     if not reporting:
         return
-    columns = [record.trajectories[s.index][::period // s.ratio, s.energy_output] for s in reporting]
+    columns = [record.trajectories[index][::period // subs[index].ratio, output] for index, output in reporting]
     samples = record.row_count(period)
     for first in range(0, samples, BLOCK_ROWS):
         stop = min(first + BLOCK_ROWS, samples)
@@ -97,7 +110,7 @@ def energy_blocks(record: RunRecord) -> Iterator[tuple[int, np.ndarray, np.ndarr
 
 def total_energy(record: RunRecord) -> tuple[np.ndarray, np.ndarray | None]:
     """Times [s] and total mechanical energy [J] where every subsystem has a sample (``energy_blocks``, whole;
-    None when no subsystem reports its energy)."""
+    None when there is no energy to sum)."""
     blocks = list(energy_blocks(record))
     if not blocks:
         period = math.lcm(*(s.ratio for s in record.plan.subsystems))
@@ -161,8 +174,9 @@ def signal_accuracy(scene: Scene, record: RunRecord, references: dict[str, Refer
 
 
 def energy_balance(record: RunRecord, reference: Reference | None, finite: bool) -> dict | None:
-    """The ``energy`` entry of the summary; None when no subsystem reports its energy. ``subsystems`` names
-    the ones that do, when some do not (an FMU without an energy variable)."""
+    """The ``energy`` entry of the summary; None when there is no energy to sum (``energy_outputs``).
+    ``subsystems`` names the ones summed, when some are not (an FMU without an energy variable); ``outputs`` the
+    outputs in J summed, when no subsystem declares its energy."""
     period = math.lcm(*(s.ratio for s in record.plan.subsystems))
     envelope = EnergyEnvelope(record.row_count(period))
     e0 = final = None
@@ -184,9 +198,12 @@ def energy_balance(record: RunRecord, reference: Reference | None, finite: bool)
     }
     if reference is not None:
         balance["reference_final"] = float(reference.energy[-1])
-    reporting = [s.name for s in record.plan.subsystems if s.energy_output is not None]
-    if len(reporting) < len(record.plan.subsystems):
-        balance["subsystems"] = reporting
+    subs = record.plan.subsystems
+    reporting = energy_outputs(record.plan)
+    if len(reporting) < len(subs):
+        balance["subsystems"] = [subs[index].name for index, _ in reporting]
+    if all(subs[index].energy_output is None for index, _ in reporting):
+        balance["outputs"] = [f"{subs[index].name}.{subs[index].outputs[output].name}" for index, output in reporting]
     return balance
 
 
@@ -208,7 +225,6 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     reference = references.get("analytic") or references.get("solve_ivp")  # what the NRMS is measured against
     signals = signal_accuracy(scene, record, references, reference, finite)
     energy_summary = energy_balance(record, reference, finite)
-    growth = energy_summary["growth_rate_per_s"] if energy_summary is not None else (0.0 if finite else math.inf)
     timing = run_timing(record, wall_s)
     summary = {
         "scene": scene.name,
@@ -223,7 +239,7 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
                                 "integrator": scene.subsystems[s.name].settings.integrator, "extrapolation": s.order}
                        for s in plan.subsystems},
         "effects": [f"{s.name}.{e}" for s in plan.subsystems for e in s.effects],
-        "stable": bool(finite and growth < STABLE_GROWTH_RATE),
+        "stable": measured_verdict(energy_summary, finite),
         "signals": signals,
         "energy": energy_summary,
         "residual_energy": {bond.name: last_finite(record.residual_energy[:, b]) for b, bond in enumerate(plan.bonds)},
@@ -237,13 +253,18 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     summary["discrete"] = discrete
     if discrete is not None:  # a run that overflowed (initial values near 1e308) is not stable whatever ρ is
         summary["stable"] = discrete["stable"] and finite
-    summary["stable_from"] = "measured energy growth" if discrete is None else "exact discrete spectral radius"
+    summary["stable_from"] = ("exact discrete spectral radius" if discrete is not None else
+                              "measured energy growth" if energy_summary is not None else
+                              None if finite else "outputs not finite")
     summary["diverged"] = not finite
     summary["diverged_at_s"] = diverged_at_s
     spikes = residual_power_spikes(record, scene.manager.spikes)
     summary["residual_power_spikes"] = {bond: [i.as_dict() for i in found] for bond, found in spikes.items()}
-    summary["reliable"] = not summary["diverged"] and summary["stable"] and not any(spikes.values())
+    summary["reliable"] = (False if summary["diverged"] or summary["stable"] is False or any(spikes.values()) else
+                           summary["stable"])  # None: no verdict on the stability
     summary["correction"] = correction_summary(scene, record)
+    if energy_summary is None:
+        summary["energy_candidates"] = energy_candidates(scene)
     if record.implicit is not None:
         summary["implicit"] = implicit_summary(scene, record)
     if scene.replaced_units:
@@ -258,15 +279,54 @@ def summarize(scene: Scene, record: RunRecord, bus: str, wall_s: float, referenc
     return summary
 
 
+def energy_candidates(scene: Scene) -> list[str]:
+    """``subsystem.output``: each external model's only output declared in J, which its scene could name as its
+    energy (``subsystems.<name>.energy``) where no subsystem reports one."""
+    found = []
+    for name, sub in scene.subsystems.items():
+        description = getattr(sub.spec, "description", None)
+        if description is None:
+            continue
+        joules = [v.name for v in description.variables.values() if v.causality == "output" and v.unit == "J"]
+        if len(joules) == 1:
+            found.append(f"{name}.{joules[0]}")
+    return found
+
+
+def measured_verdict(energy_summary: dict | None, finite: bool) -> bool | None:
+    """``stable`` from the run alone: finite and the energy's growth rate below ``STABLE_GROWTH_RATE``; without an
+    energy (``energy_summary`` None) no verdict (None) unless the run diverged (False)."""
+    if not finite:
+        return False
+    if energy_summary is None:
+        return None
+    return bool(energy_summary["growth_rate_per_s"] < STABLE_GROWTH_RATE)
+
+
 def step_control_summary(scene: Scene, record: RunRecord) -> dict | None:
     """An energy-controlled run's macro-steps (``manager.scheme.energy_step``): how many, the shortest, longest and
-    mean [s], and the parameters of the law; None for a run at a fixed macro-step."""
+    mean [s], the parameters of the law as it ran (the scene's defaults filled in), the share of the run's time the
+    step sat at its smallest and at its largest size, and ``at_limit``, the bound it sat at for more than
+    ``AT_LIMIT_SHARE`` of the run ("min_step_size", "max_step_size" or None); None for a run at a fixed macro-step."""
     if record.point_ticks is None:
         return None
+    plan = record.plan
+    control = scene.manager.energy_control
     ticks = np.asarray(record.point_ticks)
-    steps = np.diff(ticks) * record.plan.base_step_ns * 1e-9
+    steps_ns = np.diff(ticks) * plan.base_step_ns
+    low, first, high = step_bounds(control, plan.base_step_ns)
+    energy = initial_energy(plan, [read_rows(trajectory, 0, 1)[0] for trajectory in record.trajectories])
+    parameters = {**dataclasses.asdict(control), "min_step_size": low * 1e-9, "step_size": first * 1e-9,
+                  "max_step_size": high * 1e-9, "abs_tolerance": abs_tolerance(control, energy)}
+    run_ns = float(steps_ns.sum())
+    shares = {"min_step_size": float(steps_ns[steps_ns <= low].sum()) / run_ns,
+              "max_step_size": float(steps_ns[steps_ns >= high].sum()) / run_ns}
+    at_limit = max(shares, key=shares.get)
+    steps = steps_ns * 1e-9
     return {"kind": "energy", "macro_steps": len(steps), "min_step": float(steps.min()), "max_step": float(steps.max()),
-            "mean_step": float(steps.mean()), "parameters": dataclasses.asdict(scene.manager.energy_control)}
+            "mean_step": float(steps.mean()), "time_at_min_step": shares["min_step_size"],
+            "time_at_max_step": shares["max_step_size"],
+            "at_limit": at_limit if shares[at_limit] > AT_LIMIT_SHARE else None, "parameters": parameters}
 
 
 def first_non_finite_time(record: RunRecord) -> float | None:
@@ -286,15 +346,17 @@ def first_non_finite_time(record: RunRecord) -> float | None:
 
 def discrete_verdict(scene: Scene) -> dict | None:
     """``zencosim analyze``'s verdict on the scheme this scene runs: ``spectral_radius`` ρ, ``growth_rate_per_s``
-    ``2 ln ρ / T`` and ``stable`` (ρ <= 1); None when the scene is not linear or corrects energy."""
+    ``2 ln ρ / T``, ``stable`` (ρ <= 1) and the predicted growth's time scale, ``energy_doubling_time_s``
+    ``ln 2 / growth_rate_per_s`` (None where stable: ρ <= 1 up to round-off); None when the scene is not linear or corrects energy."""
     try:
         scheme = run_scheme(scene)
     except (ValueError, ArithmeticError):  # a transition matrix that cannot be built or decomposed (singular)
         return None
     if scheme is None:
         return None
-    return {"spectral_radius": scheme.spectral_radius, "growth_rate_per_s": scheme.growth_rate,
-            "stable": scheme.stable}
+    growth = scheme.growth_rate
+    return {"spectral_radius": scheme.spectral_radius, "growth_rate_per_s": growth, "stable": scheme.stable,
+            "energy_doubling_time_s": None if scheme.stable else math.log(2.0) / growth}
 
 
 def finite_or_null(value, key: str, non_finite: dict[str, str]):
@@ -311,17 +373,23 @@ def finite_or_null(value, key: str, non_finite: dict[str, str]):
 
 
 def correction_summary(scene, record: RunRecord) -> dict | None:
-    """The energy correction's settings and, per corrected point, the work it injected (None: no correction)."""
+    """The energy correction's settings and, per corrected point, the work W it injected, the energy error Σ ζ it
+    was meant to cancel (paper 002 Eq. 13, summed) and ``adds_energy_error``: W went past −Σ ζ so far, or the
+    wrong way, that the net |Σ ζ + W| is larger than |Σ ζ|, the error without the correction (None: no
+    correction)."""
     if not record.corrections:
         return None
     settings = scene.manager.correction
     groups = {}
     for log in record.corrections:
         max_force = max(float(np.linalg.norm(force, axis=1).max()) for _, force in row_blocks(log.force))
+        work = last_finite(log.work)
         groups[log.name] = {"subsystem": log.subsystem, "mu": dict(zip(log.bonds, log.mu)),
-                            "work_injected": last_finite(log.work),
+                            "work_injected": work, "energy_error": log.energy_error,
+                            "adds_energy_error": bool(abs(log.energy_error + work) > abs(log.energy_error)),
                             "uncorrected_energy": last_finite(log.uncorrected_energy),
-                            "max_force": max_force, "capped_steps": log.capped_steps, "steps": log.steps}
+                            "max_force": max_force, "capped_steps": log.capped_steps,
+                            "withheld_steps": log.withheld_steps, "steps": log.steps}
     return {"mu": settings.mu, "nu": settings.nu, "cap_fraction": settings.cap_fraction, "cap_force": settings.cap_force,
             "work_injected": sum(g["work_injected"] for g in groups.values()), "points": groups}
 

@@ -13,6 +13,7 @@ from zencosim.compensation.implicit.coupling_laws import check_supported
 from zencosim.compensation.implicit.decompositions import DECOMPOSITIONS
 from zencosim.manager.scene.couplings import RigidJoint, SignalConnection
 from zencosim.manager.scene.settings import ManagerSettings, OutputSettings, SubsystemScene, extrapolation_order
+from zencosim.manager.scene.times import NotATime, nanoseconds
 from zencosim.subsystems.params import Problems
 
 
@@ -115,16 +116,18 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
     control = manager.energy_control
     if control is None:
         return
-    base = manager.macro_step_ns
+    try:
+        base = manager.macro_step_ns
+    except NotATime:  # check_timing says why
+        return
     sizes = {}
     for name in ("step_size", "min_step_size", "max_step_size"):
         seconds = getattr(control, name)
         if seconds is None:
             continue
         key = f"manager.energy_control.{name}"
-        before = len(problems)
-        _whole_ns(seconds, key, problems)
-        if len(problems) == before and round(seconds * 1e9) % base:
+        count = _whole_ns(seconds, key, problems)
+        if count is not None and count % base:
             problems.add(key, f"expected a whole multiple of manager.macro_step ({manager.macro_step!r} s): every "
                          f"macro-step is one, got {seconds!r} s")
         sizes[name] = seconds
@@ -139,14 +142,11 @@ def check_step_control(manager: ManagerSettings, couplings: dict, subsystems: di
                      f"{control.min_change_rate!r} > {control.max_change_rate!r}")
 
 
-# times travel as signed 64-bit nanoseconds (docs/protocol.md): the longest time a scene can state [s]
-LONGEST_TIME_S = (2**63 - 1) * 1e-9
-
-
 def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, SubsystemScene],
                   problems: Problems) -> None:
     """Every time a whole number of nanoseconds, at least one macro-step period, communication steps that
     micro-steps divide."""
+    _whole_ns(manager.timeout, "manager.timeout", problems, whole=False)  # the watchdog counts it in nanoseconds
     before = len(problems)
     times = [(manager.macro_step, "manager.macro_step"), (manager.duration, "manager.duration")]
     times += [(s.settings.micro_step, f"subsystems.{s.name}.micro_step") for s in subsystems.values()]
@@ -173,15 +173,14 @@ def check_timing(manager: ManagerSettings, tables: dict, subsystems: dict[str, S
                          f"got {sub.settings.micro_step!r} s")
 
 
-def _whole_ns(seconds: float, key: str, problems: Problems) -> None:
-    """A time of at least 1 ns and at most ``LONGEST_TIME_S``, a whole number of nanoseconds."""
-    if seconds > LONGEST_TIME_S:
-        problems.add(key, f"expected at most {LONGEST_TIME_S:.4g} s (times are counted in signed 64-bit "
-                     f"nanoseconds), got {seconds!r} s")
-    elif round(seconds * 1e9) < 1:
-        problems.add(key, f"expected at least 1 ns (times are counted in whole nanoseconds), got {seconds!r} s")
-    elif abs(seconds * 1e9 - round(seconds * 1e9)) > 1e-3:
-        problems.add(key, f"expected a whole number of nanoseconds, got {seconds!r} s")
+def _whole_ns(seconds: float, key: str, problems: Problems, whole: bool = True) -> int | None:
+    """A time as whole nanoseconds (``manager.scene.times``; ``whole`` False: rounded), or None with a problem at
+    ``key``."""
+    try:
+        return nanoseconds(seconds, whole)
+    except NotATime as error:
+        problems.add(key, str(error))
+        return None
 
 
 # a subsystem's and a coupling's name is one segment of a Zenoh key (zencosim/<run>/<subsystem>/y) and of a dotted

@@ -126,11 +126,20 @@ def load_scene(name_or_path: str, overrides: Sequence[str] = ()) -> Scene:
             (name,) = document["subsystems"]
             applied = [f"subsystems.{name}.{o}" if o.startswith("start.") else o for o in applied]
         return scene_from_document(document, str(path), applied, tuple(notes), given=overrides)
+    refuse_irregular(path, "scene")
     try:
         text = path.read_text()
     except OSError as error:
         raise SceneError(str(path), [_problem("scene", f"cannot read: {error.strerror}")]) from None
     return scene_from_text(text, str(path), overrides)
+
+
+def refuse_irregular(path: Path, key: str) -> None:
+    """Raise a :class:`SceneError` at ``key`` when ``path`` is there but no regular file: reading a device
+    (``/dev/zero``) or a pipe would not end, a folder cannot be read."""
+    if path.exists() and not path.is_file():
+        raise SceneError(str(path), [_problem(key, "not a regular file; expected a TOML scene, an OSP system "
+                                                   "structure (.xml), an SSP system (.ssp, .ssd) or an FMU")])
 
 
 IMPORT_OPTIONS = {"manager.algorithm": "algorithm", "input": "input_table"}  # override key -> import_system's

@@ -39,7 +39,8 @@ def parse_override(text: str) -> tuple[list[str], Any]:
 
 
 def apply_overrides(document: dict, overrides: Sequence[str], problems: Problems) -> dict:
-    """Return a copy of ``document`` with each ``key=value`` set; tables cannot be overwritten by scalars."""
+    """Return a copy of ``document`` with each ``key=value`` set; tables cannot be overwritten by scalars, and a
+    table given inline (``key={ a = 1 }``) replaces the key's whole table."""
     result = copy.deepcopy(document)
     for text in overrides:
         try:
@@ -55,8 +56,9 @@ def apply_overrides(document: dict, overrides: Sequence[str], problems: Problems
                 break
             node = child
         else:
-            if isinstance(node.get(path[-1]), dict) or isinstance(value, dict):
-                problems.add(".".join(path), f"--set {text}: only scalars can be overridden")
+            if isinstance(node.get(path[-1]), dict) and not isinstance(value, dict):
+                problems.add(".".join(path), f"--set {text}: is a table; only scalars can be overridden, or the "
+                                             "whole table given inline ({ key = value, … })")
             else:
                 node[path[-1]] = value
     return result

@@ -11,6 +11,7 @@ from zencosim.compensation.implicit.coupling_laws import Baumgarte, CouplingMeth
 from zencosim.subsystems.integrators import INTEGRATORS
 from zencosim.subsystems.integrators.own_solver import OwnSolver
 from zencosim.subsystems.models import ModelTraits, model_class, model_traits
+from zencosim.manager.scene.times import nanoseconds
 from zencosim.subsystems.params import quantity
 
 
@@ -64,6 +65,12 @@ class ImplicitSettings:
         return Projection()
 
 
+# the most p_gain + i_gain: a sum of 1/k is the deadbeat gain for an error of order k in the step (k >= 1), more
+# over-corrects (libcosimpy's sum is 0.35); the law raises the error ε, the root of a positive float and so at least
+# 2.2e-162, to minus the sum: at most 4.5e161 at 1, where a gain of 1e308 overflowed
+MOST_GAIN = 1.0
+
+
 @dataclass(frozen=True)
 class EnergyControlSettings:
     """The ``[manager.energy_control]`` table, with ``manager.step_control = "energy"``: the macro-step adapted
@@ -71,21 +78,38 @@ class EnergyControlSettings:
     ECCO method), its parameters under its names (``manager.scheme.energy_step`` gives the law).
 
     Every macro-step is a whole multiple of ``manager.macro_step`` (the subsystems' micro-steps divide it), so
-    are ``step_size`` (the first step), ``min_step_size`` and ``max_step_size``. Defaults: libcosimpy's
-    ``EccoParams`` where they make a working controller, its README's change rates (libcosimpy's 0.01 … 0.2
-    would only ever shrink the step).
+    are ``step_size`` (the first step), ``min_step_size`` and ``max_step_size``. Defaults: the step sizes and
+    ``abs_tolerance`` from the scene (None: ``manager.scheme.energy_step.step_bounds`` and ``abs_tolerance``: the
+    macro-step as the first and smallest step, some tens of it as the largest, a tolerance relative to the energy at
+    t_0), the rest libcosimpy's ``EccoParams`` where they make a working controller, its README's change rates
+    (libcosimpy's 0.01 … 0.2 would only ever shrink the step).
+
+    The law's other parameters are bounded (docs/step-control.md gives the reasons): a safety factor of 0.1 to 1
+    (a fraction of the step the tolerance allows), change rates of 1e-3 to 1e3 (a step changes at most a
+    thousandfold per step), an absolute tolerance above 0 (the law divides by the tolerance, which is the absolute
+    one alone when every residual is 0), a relative one of 0 to 1, and PI gains of at least 0 summing to more than
+    0 (else the step ignores the error) and at most ``MOST_GAIN`` (the deadbeat gain of an error of the first
+    order; the law raises the error to minus their sum, which stays finite).
     """
 
-    max_step_size: float = field(metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]
+    max_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: 20 min_step_size
     step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # the first [s]; None: min_step_size
     min_step_size: float | None = field(default=None, metadata=quantity("s", minimum=0.0, exclusive_minimum=True))  # [s]; None: manager.macro_step
-    safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.0, exclusive_minimum=True))
-    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=0.0, exclusive_minimum=True))  # of the step, per step
-    max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=0.0, exclusive_minimum=True))
-    abs_tolerance: float = field(default=1e-4, metadata=quantity("J", minimum=0.0))  # residual energy per step [J]
-    rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0))
-    p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0))
-    i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0))
+    safety_factor: float = field(default=0.8, metadata=quantity("", minimum=0.1, maximum=1.0))
+    min_change_rate: float = field(default=0.2, metadata=quantity("", minimum=1e-3, maximum=1e3))  # per step
+    max_change_rate: float = field(default=1.5, metadata=quantity("", minimum=1e-3, maximum=1e3))
+    # residual energy per step [J]; None: 1e-3 of the energy at t_0
+    abs_tolerance: float | None = field(default=None, metadata=quantity("J", minimum=0.0, exclusive_minimum=True))
+    rel_tolerance: float = field(default=1e-4, metadata=quantity("", minimum=0.0, maximum=1.0))
+    p_gain: float = field(default=0.2, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))
+    i_gain: float = field(default=0.15, metadata=quantity("", minimum=0.0, maximum=MOST_GAIN))
+
+    def problems(self) -> list[tuple[str, str]]:
+        gains = self.p_gain + self.i_gain
+        if not 0.0 < gains <= MOST_GAIN:
+            return [("p_gain", f"expected 0 < p_gain + i_gain <= {MOST_GAIN} (no gain: the step ignores the error), "
+                               f"got {self.p_gain!r} + {self.i_gain!r}")]
+        return []
 
 
 @dataclass(frozen=True)
@@ -121,11 +145,11 @@ class ManagerSettings:
 
     @property
     def macro_step_ns(self) -> int:
-        return round(self.macro_step * 1e9)
+        return nanoseconds(self.macro_step, whole=False)  # whole and in range when loaded (manager.scene.checks)
 
     @property
     def duration_ns(self) -> int:
-        return round(self.duration * 1e9)
+        return nanoseconds(self.duration, whole=False)  # whole and in range when loaded (manager.scene.checks)
 
 
 @dataclass(frozen=True)
@@ -133,7 +157,7 @@ class OutputSettings:
     """The ``[outputs]`` table: which signals the summary reports and against which reference."""
 
     signals: tuple[str, ...] = ()
-    reference: Literal["analytic", "solve_ivp", "none"] = "analytic"
+    reference: Literal["analytic", "solve_ivp", "extrapolated", "none"] = "analytic"  # extrapolated: a study's
 
 
 @dataclass(frozen=True)
@@ -166,7 +190,7 @@ class SubsystemSettings:
 
     @property
     def micro_step_ns(self) -> int:
-        return round(self.micro_step * 1e9)
+        return nanoseconds(self.micro_step, whole=False)  # whole and in range when loaded (manager.scene.checks)
 
 
 @dataclass(frozen=True)

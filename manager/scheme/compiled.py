@@ -105,10 +105,12 @@ class CompiledSteps:
             registers.set(self._initial(), [z for values in state for z in values]
                           + [y for values in newest for y in values] + energies)
         first = 0
+        handover_at = taken.handed_over(time.perf_counter_ns(), TAP_BLOCK_STEPS) if taken is not None else 0
         while first < n_ticks:
             last = min(n_ticks, _next(first, PROGRESS_EVERY), _next(first, TAP_BLOCK_STEPS) if taken else n_ticks)
-            if taken is not None and taken.requests >= TAP_BLOCK_STEPS:  # where a period starts, as the scheme does
-                taken.flush()
+            # where a period starts, as the scheme does: a full block, or what a slow loop holds
+            if taken is not None and taken.requests >= handover_at:
+                handover_at = taken.handed_over(time.perf_counter_ns(), TAP_BLOCK_STEPS)
             if registers is not None:
                 try:
                     block, released, failed = registers.steps(first, last - first)

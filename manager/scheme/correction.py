@@ -42,7 +42,9 @@ class CorrectionLog:
     uncorrected_energy: np.ndarray  # (n_ticks + 1,) [J] 𝒰 at the group's correction points, NaN elsewhere
     work: np.ndarray  # (n_ticks + 1,) [J] cumulative work of f_corr on the receiving point, NaN between its points
     capped_steps: int  # corrections a cap limited
+    withheld_steps: int  # corrections withheld: the flow left rest (compensation.energy_correction)
     steps: int  # corrections computed
+    energy_error: float  # [J] Σ ζ: the energy error the correction was meant to cancel (Eq. 13, summed)
 
 
 def bond_mu(plan: Plan, bond_index: int, settings: CorrectionSettings) -> float:
@@ -85,13 +87,16 @@ class _Group:
         self.uncorrected_energy.array[0] = 0.0
         self.work_done.array[0] = 0.0
         self.capped_steps = 0
+        self.withheld_steps = 0
         self.steps = 0
+        self.energy_error = 0.0
         self.last_tick = 0
         self.work = 0.0
 
     def log(self) -> CorrectionLog:
         return CorrectionLog(self.name, self.subsystem, self.bond_names, self.mu, self.force.finish(),
-                             self.uncorrected_energy.finish(), self.work_done.finish(), self.capped_steps, self.steps)
+                             self.uncorrected_energy.finish(), self.work_done.finish(), self.capped_steps,
+                             self.withheld_steps, self.steps, self.energy_error)
 
 
 class EnergyCorrector:
@@ -122,8 +127,10 @@ class EnergyCorrector:
                                  (group.uncorrected_energy, tick), (group.work_done, tick)):
                 if last >= window.end:
                     window.advance(last)
+            path = trajectories[group.motion]
+            if group.law.previous_velocity is None:  # the flow at t_0, from which the first correction's is judged
+                group.law.previous_velocity = path.row(0)[group.velocity].astype(np.float64)
             if tick % ratio == 0:  # work of the correction over the receiving subsystem's last step (trapezoid)
-                path = trajectories[group.motion]
                 v0, v1 = path.row(tick // ratio - 1)[group.velocity], path.row(tick // ratio)[group.velocity]
                 group.work += float(group.force.row(tick - ratio).dot(v0 + v1)) * 0.5 * group.motion_step
                 group.work_done.array[tick - group.work_done.offset] = group.work
@@ -139,6 +146,8 @@ class EnergyCorrector:
             group.force.array[start:start + group.interval] = force
             group.uncorrected_energy.array[tick - group.uncorrected_energy.offset] = group.law.uncorrected
             group.capped_steps += group.law.capped
+            group.withheld_steps += group.law.withheld
+            group.energy_error += float(zeta)
             group.steps += 1
             group.last_tick = tick
 

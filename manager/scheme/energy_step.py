@@ -31,6 +31,10 @@ residuals at its end, where every bond is evaluated; the period's points are eve
 ``ratio`` of them at a time, as in ``manager.scheme.jacobi`` (whose run it is, bit for bit, at a constant step).
 ``min_step_size``, ``step_size`` and ``max_step_size`` bound the points' spacing.
 
+Defaults drawn from the scene (:func:`step_bounds`, :func:`abs_tolerance`): the macro-step is the smallest and the
+first step, ``DEFAULT_MAX_STEPS`` of the smallest the largest, and ``abs_tolerance`` is ``DEFAULT_ENERGY_FRACTION`` of
+the energy the subsystems report at t_0 (libcosimpy's 1e-4 J where they report none).
+
 The record holds one row per point (``RunRecord.point_ticks``: the base step of each; a subsystem's trajectory, one
 per ``ratio`` points).
 """
@@ -60,20 +64,56 @@ from zencosim.manager.wire.protocol import Kind, encode
 from zencosim.manager.wire.status import StatusReport
 
 
+DEFAULT_MAX_STEPS = 20  # max_step_size when the scene gives none: this many of the smallest step
+DEFAULT_ENERGY_FRACTION = 1e-3  # abs_tolerance when the scene gives none: this fraction of its energy at t_0, per step
+FALLBACK_ABS_TOLERANCE = 1e-4  # [J] abs_tolerance of a scene that reports no energy at t_0 (libcosimpy's)
+
+
+def step_bounds(control: EnergyControlSettings, macro_step_ns: int) -> tuple[int, int, int]:
+    """``(min_step_size, step_size, max_step_size)`` [ns] of ``control``, the scene's defaults in place of those it
+    leaves out: the macro-step ``macro_step_ns`` as the smallest step, the smallest as the first, and
+    ``DEFAULT_MAX_STEPS`` smallest steps (at least the first) as the largest."""
+    low = macro_step_ns if control.min_step_size is None else round(control.min_step_size * 1e9)
+    first = low if control.step_size is None else round(control.step_size * 1e9)
+    high = max(DEFAULT_MAX_STEPS * low, first) if control.max_step_size is None else round(control.max_step_size * 1e9)
+    return low, first, high
+
+
+def abs_tolerance(control: EnergyControlSettings, initial_energy: float | None) -> float:
+    """``abs_tolerance`` [J] of ``control``: the scene's, else ``DEFAULT_ENERGY_FRACTION`` of ``initial_energy``
+    [J] (the total the subsystems report at t_0; None: none reports one), else ``FALLBACK_ABS_TOLERANCE``."""
+    if control.abs_tolerance is not None:
+        return control.abs_tolerance
+    if initial_energy is not None and math.isfinite(initial_energy) and abs(initial_energy) > 0.0:
+        return DEFAULT_ENERGY_FRACTION * abs(initial_energy)
+    return FALLBACK_ABS_TOLERANCE
+
+
+def initial_energy(plan: Plan, first_rows: list[np.ndarray]) -> float | None:
+    """The subsystems' total energy [J] at t_0 from each one's first row of outputs ``first_rows`` (None: no
+    subsystem reports its energy); summed in subsystem order, as the run summary sums it."""
+    reporting = [s for s in plan.subsystems if s.energy_output is not None]
+    return sum(float(first_rows[s.index][s.energy_output]) for s in reporting) if reporting else None
+
+
 class StepLaw:
     """The PI law of the module text: the step it sets, ``step_ns`` (libcosim's, whole nanoseconds), and the
     macro-step taken, ``ticks`` (that step truncated to whole base steps of ``base_step_ns``: the law itself goes on
-    from the step it set, so that a rate below 2 can lengthen a step of one base step)."""
+    from the step it set, so that a rate below 2 can lengthen a step of one base step). Its ``abs_tolerance`` is the
+    scene's, or is set from the run's energy at t_0 (:meth:`scale_to`) before the first step."""
 
     def __init__(self, control: EnergyControlSettings, base_step_ns: int, period: int = 1) -> None:
         self.control = control
         self.base_step_ns = base_step_ns
         self.period = period
-        low = base_step_ns if control.min_step_size is None else round(control.min_step_size * 1e9)
-        self.min_ns = period * low
-        self.max_ns = period * round(control.max_step_size * 1e9)
-        self.step_ns = period * (low if control.step_size is None else round(control.step_size * 1e9))
+        low, first, high = step_bounds(control, base_step_ns)
+        self.min_ns, self.step_ns, self.max_ns = period * low, period * first, period * high
+        self.abs_tolerance = abs_tolerance(control, None)
         self.previous_error = 1.0
+
+    def scale_to(self, energy: float | None) -> None:
+        """Take the tolerance relative to the run's total energy at t_0, ``energy`` [J] (``abs_tolerance``)."""
+        self.abs_tolerance = abs_tolerance(self.control, energy)
 
     def most_points(self, n_ticks: int) -> int:
         """The most points a run of ``n_ticks`` base steps can have: every period the shortest, the last one cut,
@@ -94,11 +134,12 @@ class StepLaw:
         energy_level = max(magnitudes) * dt
         mean_square = 0.0
         for magnitude in magnitudes:
-            ratio = magnitude * dt / (c.abs_tolerance + c.rel_tolerance * energy_level)
+            ratio = magnitude * dt / (self.abs_tolerance + c.rel_tolerance * energy_level)
             mean_square += ratio * ratio
         error = math.sqrt(mean_square / len(magnitudes))
-        if error == 0 or self.previous_error == 0 or math.isnan(error) or math.isnan(self.previous_error):
-            self.previous_error = error  # NaN: the run diverged (its summary says so); the step stays
+        diverged = not (math.isfinite(error) and math.isfinite(self.previous_error))  # its summary says so
+        if error == 0 or self.previous_error == 0 or diverged:
+            self.previous_error = error  # the step stays
             return
         gain = c.safety_factor * error ** (-c.i_gain - c.p_gain) * self.previous_error ** c.p_gain
         gain = min(max(gain, c.min_change_rate), c.max_change_rate)
@@ -162,6 +203,7 @@ def energy_controlled(plan: Plan, law: StepLaw, progress: Callable[[int], None] 
 
     point = 0
     yield from initial_outputs(plan, readers, input_polynomial, everyone, everyone, direct, None)
+    law.scale_to(initial_energy(plan, [reader.window.row(0) for reader in readers]))
 
     tick, step_status, periods = 0, None, 0
     step_s = base * 1e-9

@@ -146,6 +146,8 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
     yield from initial_outputs(plan, readers, input_polynomial, local, tracked, direct, taken)
     if isinstance(taken, TakenSteps | TakenRows):
         taken.start()
+    if block is not None:
+        handover_at = block.handed_over(time.perf_counter_ns(), BLOCK_STEPS)  # the loop starts
     n_stages = len(plan.stages)
     some_bonds_idle = [len(bonds) < n_bonds for _, bonds in stages]  # their status fields are NaN (multi-rate)
     step_s = base * 1e-9
@@ -225,8 +227,9 @@ def jacobi(plan: Plan, pacer=None, progress: Callable[[int], None] | None = None
                         readers[s.index].commit(replies[s.name], due_step)
                     continue
                 if block is not None:  # its commands, then the request (TakenSteps: nothing called per step)
-                    if shape == 0 and len(block_ticks) >= BLOCK_STEPS:  # a period starts: every command answered
-                        block.flush()
+                    # a period starts (every command answered): a full block, or what a slow loop holds
+                    if shape == 0 and len(block_ticks) >= handover_at:
+                        handover_at = block.handed_over(released_ns, BLOCK_STEPS)
                     for s, coefficients in stepping:
                         block_commands[s.index].extend(coefficients if type(coefficients) is list
                                                        else coefficients.ravel().tolist())

@@ -18,7 +18,9 @@ the recorder's processes build the same messages (``recordings.rows_frame``).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,6 +32,21 @@ from zencosim.manager.wire.protocol import Kind, command_ref, encode
 
 BLOCK_STEPS = 256  # requests of the stepping loop handed over at once (TakenSteps)
 LONGEST_PERIOD = 16 * BLOCK_STEPS  # base steps: a longer schedule period is tapped exchange by exchange
+# what a direct run's loop holds and has not handed over is handed over, the block full or not, once it holds
+# HANDOVER_STEPS requests, or a HANDOVER_SHARE-th of those of the loop so far, whichever is more, and the loop has
+# run HANDOVER_COSTS times as long as the last such hand-over took of its CPU, or FIRST_HANDOVER_NS, whichever is
+# less (_InBlocks.handed_over): on a faster host the loop waits as many steps
+HANDOVER_STEPS = 16
+HANDOVER_SHARE = 32
+HANDOVER_COSTS = 20
+FIRST_HANDOVER_NS = 1_000_000
+
+
+def handover_size(done: int, full: int) -> int:
+    """How much a loop that has done ``done`` requests (steps, replies) hands over at a time, at the most: a block
+    (``full``), or less early in a run, so that what a process that ends takes with it stays a small part of what it
+    did (``HANDOVER_STEPS``, or a ``HANDOVER_SHARE``-th of ``done``)."""
+    return min(full, max(HANDOVER_STEPS, done // HANDOVER_SHARE))
 
 
 def takes_blocks(tap, plan: Plan, paced: bool) -> bool:
@@ -137,6 +154,8 @@ class _InBlocks:
     def __init__(self, tap, plan: Plan) -> None:
         self.tap = tap
         self.initial_replies = Taken(tap, plan)  # the initialisation, exchange by exchange
+        self.handed_ns: int | None = None  # when the stepping loop last handed something over (``handed_over``)
+        self.soonest_ns = FIRST_HANDOVER_NS  # [ns] of the loop after it, what a block not full holds is handed over
 
     def initial(self, request: Exchange, outputs: dict[SubsystemPlan, np.ndarray]) -> None:
         """As :meth:`Taken.initial`."""
@@ -146,6 +165,36 @@ class _InBlocks:
         """The stepping loop starts: the initialisation's last replies, with a request that sends nothing."""
         if self.initial_replies.last:
             self.tap.exchange(self.initial_replies.last, Exchange({}, ()))
+
+    def handed_over(self, now_ns: int, full: int) -> int:
+        """The stepping loop, at ``now_ns`` (perf_counter_ns) where a period starts, holds what a block of ``full``
+        requests does: hand the block over when it is full, else what it holds once the loop has run ``soonest_ns``
+        since the last hand-over (``hand_over``): ``HANDOVER_COSTS`` times the CPU time the last that was not full
+        took, at most ``FIRST_HANDOVER_NS``. Returns the requests the loop is to hold when it calls again:
+        ``handover_size`` more than it holds after this call, at most ``full``.
+
+        So a model that ends the run's process (``os._exit``, a segmentation fault) takes with it at most the
+        larger of ``HANDOVER_STEPS``, ``1 / HANDOVER_SHARE`` of the steps computed and the steps the loop computes
+        in ``soonest_ns`` (a few tens of a slow model's, no more on a faster host), and a loop whose steps fill a
+        block sooner hands over what it did before (one call more per ``handover_size`` requests). Its first call
+        (the loop starts) hands over nothing."""
+        requests = self.requests
+        if self.handed_ns is None:
+            self.handed_ns = now_ns
+        elif requests >= full:
+            self.hand_over(True)
+            self.handed_ns = now_ns
+        elif now_ns - self.handed_ns >= self.soonest_ns:
+            cpu_ns = time.thread_time_ns()
+            self.hand_over(False)
+            self.soonest_ns = min(FIRST_HANDOVER_NS, HANDOVER_COSTS * (time.thread_time_ns() - cpu_ns))
+            self.handed_ns = time.perf_counter_ns()
+        held = self.requests
+        return min(full, held + handover_size(self.handed + held, full))
+
+    def hand_over(self, full: bool) -> None:
+        """Hand the block over (``flush``), ``full`` or not."""
+        self.flush()
 
     def end(self, status: int | None) -> None:
         """The run has ended: the replies of the last request, with the last status."""
@@ -176,15 +225,32 @@ class TakenSteps(_InBlocks):
 
     def __init__(self, tap, plan: Plan, status: bool, stages: list[tuple]) -> None:
         super().__init__(tap, plan)
-        self.plan = plan
-        n = len(plan.subsystems)
-        self.names = tuple(s.name for s in plan.subsystems)
-        self.status = status  # the run reports its status (each stage-0 request but the first carries it)
-        self.n_stages = len(plan.stages)
-        # per request shape: the subsystems it commands and those whose replies it awaits (plan indices; and as masks)
         shaped = [stage for phase_stages, _ in stages for stage in phase_stages]
-        self.commanded = [tuple(s.index for s in stage[0]) for stage in shaped]
-        self.awaited = [tuple(s.index for s in stage[2]) for stage in shaped]
+        self._follow(StepsSchedule(
+            tuple(s.name for s in plan.subsystems), plan.base_step_ns, len(plan.stages), status,
+            tuple(tuple(s.index for s in stage[0]) for stage in shaped),
+            tuple(tuple(s.index for s in stage[2]) for stage in shaped),
+            tuple((s.order + 1, len(s.inputs), len(s.outputs), s.ratio) for s in plan.subsystems)))
+
+    @classmethod
+    def following(cls, schedule: StepsSchedule, tap) -> TakenSteps:
+        """Blocks of a run of ``schedule`` for ``tap`` (a recorder's process: :func:`pending_block`), without its
+        initialisation."""
+        taken = cls.__new__(cls)
+        taken.tap = tap
+        taken._follow(StepsSchedule(*schedule))
+        return taken
+
+    def _follow(self, schedule: StepsSchedule) -> None:
+        """Take a run of ``schedule``'s requests."""
+        self.schedule = schedule
+        n = len(schedule.names)
+        self.names = schedule.names
+        self.status = schedule.status  # the run reports its status (each stage-0 request but the first carries it)
+        self.n_stages = schedule.n_stages
+        # per request shape: the subsystems it commands and those whose replies it awaits (plan indices; and as masks)
+        self.commanded = list(schedule.commanded)
+        self.awaited = list(schedule.awaited)
         self.commands_mask = np.array([[i in c for i in range(n)] for c in self.commanded], dtype=bool).reshape(-1, n)
         self.awaits_mask = np.array([[i in a for i in range(n)] for a in self.awaited], dtype=bool).reshape(-1, n)
         self.layout_of: dict[tuple, int] = {}  # layout → its number in every block
@@ -192,6 +258,8 @@ class TakenSteps(_InBlocks):
         self.shapes: list[int | None] = []  # and their shapes
         self.commands: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its polynomials' values, flat
         self.outputs: list[list[float]] = [[] for _ in range(n)]  # per subsystem: its replies' outputs, flat
+        self.pending_from = (0, [0] * n, [0] * n)  # the requests, values and outputs handed over as pending
+        self.handed = 0  # the requests of the blocks handed over
 
     def flush(self, last: bool = False, answered: bool = True, status: bool = False) -> None:
         """Hand the block over (nothing when it holds no request), ended by the replies of its last request
@@ -231,23 +299,86 @@ class TakenSteps(_InBlocks):
             handed[list(due)] += 1
         layouts = list(self.layout_of)
         subsystems = []
-        for s in self.plan.subsystems:
-            i, width, k = s.index, (s.order + 1) * len(s.inputs), int(handed[s.index])
-            sent, n_outputs = ticks[self.commands_mask[:, i][shapes]], len(s.outputs)
-            subsystems.append(SubsystemSteps(
-                sent, _rows(self.commands[i], width, len(sent)), s.order + 1, sent[:k] + s.ratio,
-                _rows(self.outputs[i], n_outputs, k)))
-        block = StepsBlock(self.names, self.plan.base_step_ns, layouts, order, subsystems, statuses, last)
+        for i, (rows, n_inputs, n_outputs, ratio) in enumerate(self.schedule.subsystems):
+            sent, k = ticks[self.commands_mask[:, i][shapes]], int(handed[i])
+            subsystems.append(SubsystemSteps(sent, _rows(self.commands[i], rows * n_inputs, len(sent)), rows,
+                                             sent[:k] + ratio, _rows(self.outputs[i], n_outputs, k)))
+        block = StepsBlock(self.names, self.schedule.base_step_ns, layouts, order, subsystems, statuses, last)
         for kept in (self.commands, self.outputs):
             for each in kept:
                 each.clear()
         self.ticks.clear()
         self.shapes.clear()
+        self.pending_from = (0, [0] * len(self.names), [0] * len(self.names))
+        self.handed += count
         self.tap.take_steps(block)
+
+    @property
+    def requests(self) -> int:
+        """Requests taken since the last block was handed over."""
+        return len(self.ticks)
+
+    def hand_over(self, full: bool) -> None:
+        """Hand the block over when it is ``full`` (``flush``), else what it took since it last handed something
+        over, as a :class:`PendingSteps` to ``tap.take_pending``: slices of its lists, no block. The recorder's process
+        keeps them and builds their block (:meth:`pending_block`) only when the run's process ended before it handed
+        the block over (a model that ended it)."""
+        if full:
+            self.flush()
+            return
+        requests, commands, outputs = self.pending_from
+        self.tap.take_pending(PendingSteps(self.schedule, self.ticks[requests:], self.shapes[requests:],
+                                           [c[at:] for c, at in zip(self.commands, commands)],
+                                           [o[at:] for o, at in zip(self.outputs, outputs)]))
+        self.pending_from = (len(self.ticks), [len(c) for c in self.commands], [len(o) for o in self.outputs])
+
+    @classmethod
+    def pending_block(cls, pending: list[PendingSteps]) -> StepsBlock | None:
+        """The block the loop would have handed over where it took the last of ``pending``, those it took since its
+        last block (:meth:`hand_over`), as ``flush`` builds it there, every command answered; None without requests."""
+        blocks: list[StepsBlock] = []
+        taken = cls.following(pending[0].schedule, _Blocks(blocks))
+        for part in pending:
+            taken.ticks += part.ticks
+            taken.shapes += part.shapes
+            for kept, values in zip(taken.commands + taken.outputs, [*part.commands, *part.outputs]):
+                kept += values
+        taken.flush()
+        return blocks[0] if blocks else None
 
     def _layout(self, replying: tuple[int, ...], status: bool, commanded: tuple[int, ...]) -> int:
         """The number of the layout (subsystems replying, status, subsystems commanded: plan indices)."""
         return self.layout_of.setdefault((replying, status, commanded), len(self.layout_of))
+
+
+class StepsSchedule(NamedTuple):
+    """What :class:`TakenSteps` knows of a run (plain values: a recorder's process rebuilds it from them)."""
+
+    names: tuple[str, ...]  # the subsystems, by plan index
+    base_step_ns: int
+    n_stages: int
+    status: bool  # the run reports its status
+    commanded: tuple[tuple[int, ...], ...]  # per request shape: the subsystems it commands
+    awaited: tuple[tuple[int, ...], ...]  # and those whose replies it awaits
+    subsystems: tuple[tuple[int, int, int, int], ...]  # per subsystem: rows of its polynomials, inputs, outputs, ratio
+
+
+class PendingSteps(NamedTuple):
+    """Requests a :class:`TakenSteps` took since it last handed something over, not yet handed over as a block
+    (:meth:`TakenSteps.hand_over`): its lists' new values."""
+
+    schedule: StepsSchedule
+    ticks: list[int]
+    shapes: list[int | None]
+    commands: list[list[float]]
+    outputs: list[list[float]]
+
+
+class _Blocks:
+    """A tap that keeps the blocks it takes in ``blocks``."""
+
+    def __init__(self, blocks: list[StepsBlock]) -> None:
+        self.take_steps = blocks.append
 
 
 def _rows(values: list[float], width: int, count: int) -> np.ndarray:
@@ -333,6 +464,11 @@ class TakenRows(_InBlocks):
     def unanswered(self) -> None:
         """The loop made one more request after its rows (its commands: the last row's outputs), which failed."""
         self.pending = True
+
+    @property
+    def handed(self) -> int:
+        """The requests of the blocks handed over."""
+        return self.first
 
     @property
     def requests(self) -> int:

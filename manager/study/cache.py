@@ -3,7 +3,8 @@ more value runs only the new points.
 
 A point's file is named by the digest of the scene it runs (``Scene.digest``: the scene after every
 override, the derived ones included) and the number of repeats, in a folder named by the digest of the
-study's scene; a file is written whole (to a temporary name, then renamed) as soon as its point is done.
+study's scene (beside it, where the study extrapolates its reference, the point's output signals:
+``signals_path``); a file is written whole (to a temporary name, then renamed) as soon as its point is done.
 """
 from __future__ import annotations
 
@@ -21,6 +22,10 @@ class StudyCache:
 
     def _path(self, key: str) -> Path:
         return self.folder / f"{key}-r{self.repeats}.json"
+
+    def signals_path(self, key: str) -> Path:
+        """Where point ``key``'s output signals are kept (``measure.save_signals``: the same for any repeats)."""
+        return self.folder / f"{key}-signals.npz"
 
     def read(self, key: str) -> dict | None:
         """The cached entry of point ``key`` (None: not measured yet, or a file that does not read)."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 from zencosim.manager.scene.checks import check_compensation
 from zencosim.manager.scene.load import Scene, SceneError, load_scene
 from zencosim.manager.scene.overrides import parse_override, toml_value
+from zencosim.manager.scene.times import NotATime, nanoseconds
 from zencosim.subsystems.params import Problems
 
 MACRO_STEP = "manager.macro_step"
@@ -136,8 +137,13 @@ def as_overrides(values: dict) -> tuple[str, ...]:
 
 
 def derived_overrides(scene: Scene, values: dict) -> tuple[str, ...]:
-    """The micro-steps and the duration that follow the point's macro-step (module docstring)."""
-    h_ns = round(values[MACRO_STEP] * 1e9)
+    """The micro-steps and the duration that follow the point's macro-step (module docstring); none when the
+    macro-step or the duration is no time (the point's scene is refused for it, by key)."""
+    try:
+        h_ns = nanoseconds(values[MACRO_STEP])
+        duration_ns = nanoseconds(values.get("manager.duration", scene.manager.duration), whole=False)
+    except NotATime:
+        return ()
     derived = []
     ratios = []
     for name, sub in scene.subsystems.items():
@@ -147,7 +153,6 @@ def derived_overrides(scene: Scene, values: dict) -> tuple[str, ...]:
         if key not in values and sub.settings.micro_step_ns == scene.comm_step_ns(name) and h_ns * ratio != sub.settings.micro_step_ns:
             derived.append(f"{key}={toml_value(h_ns * ratio * 1e-9)}")
     period = h_ns * math.lcm(*ratios)
-    duration_ns = round(values.get("manager.duration", scene.manager.duration) * 1e9)
     if "manager.duration" not in values and duration_ns % period:
         derived.append(f"manager.duration={toml_value(duration_ns // period * period * 1e-9)}")
     return tuple(derived)

@@ -17,6 +17,7 @@
 """
 from __future__ import annotations
 
+import os
 import resource
 import statistics
 import time
@@ -30,7 +31,8 @@ from zencosim.manager.bus.zenoh_session import ZenohOptions
 from zencosim.manager.results.summary import digest
 from zencosim.manager.run import execute, summarize_run
 from zencosim.manager.scene.load import Scene, SceneError, load_scene
-from zencosim.manager.scheme.base import Exchange, SubsystemFailure
+from zencosim.manager.scheme.base import Exchange, RunRecord, SubsystemFailure
+from zencosim.manager.study.extrapolation import Samples
 
 
 def predicted_stability(scene: Scene) -> tuple[bool | None, float | None]:
@@ -58,8 +60,9 @@ def _energy_error(summary: dict) -> float | None:
     return (final - reference) / abs(initial)
 
 
-def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> dict:
-    """Accuracy, stability and in-process cost of one point (module docstring)."""
+def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int, signals_file: str | None = None) -> dict:
+    """Accuracy, stability and in-process cost of one point (module docstring); ``signals_file``: where to keep
+    every output signal of the run (``save_signals``), for a reference extrapolated from the grid's points."""
     scene = load_scene(scene_ref, list(overrides))
     predicted, radius = predicted_stability(scene)
     row = {"steps": scene.manager.duration_ns // scene.manager.macro_step_ns, "duration": scene.manager.duration,
@@ -78,14 +81,17 @@ def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> d
                 loop_walls.append(time.perf_counter() - loop_wall)
                 walls.append(time.perf_counter() - wall)
             summary = summarize_run(scene, record, "inproc", loop_walls[-1])
+            if signals_file is not None:
+                save_signals(scene, record, signals_file)
     except (SceneError, SubsystemFailure) as error:  # the compensator cannot be designed at this step, a model fails
         reason = str(error.problems[0]) if isinstance(error, SceneError) else str(error)
         return {**row, "stable": False, "stable_run": None, "failed": reason, "reference": None,
                 "nrms": {}, "energy_error": None, "digest": None, "inproc": None}
     if summary["step_control"] is not None:  # energy-controlled: the macro-steps it took
         row["steps"] = summary["steps"]
+    run_verdict = summary["stable"] if summary["stable"] is not None else not summary["diverged"]  # no energy: finite
     return {**row,
-            "stable": summary["stable"] if predicted is None else predicted,
+            "stable": run_verdict if predicted is None else predicted,
             "stable_run": summary["stable"],
             "failed": None,
             "reference": summary["reference"],
@@ -93,6 +99,29 @@ def measure_point(scene_ref: str, overrides: tuple[str, ...], repeats: int) -> d
             "energy_error": _energy_error(summary),
             "digest": summary["digest"],
             "inproc": {**_per_simulated_second(scene, walls, cpus, loop_walls, loop_cpus), "repeats": repeats}}
+
+
+def save_signals(scene: Scene, record: RunRecord, path: str) -> None:
+    """Every signal of ``outputs.signals`` at its communication points, as ``.npz``: ``names``, and per signal ``i``
+    its sample times ``t<i>`` [ns] and values ``y<i>`` (``load_signals``)."""
+    arrays = {"names": np.array(scene.outputs.signals, dtype=str)}
+    for i, name in enumerate(scene.outputs.signals):
+        ratio = record.plan.subsystems[record.plan.signals[name][0]].ratio
+        arrays[f"t{i}"] = record.row_ticks(0, record.row_count(ratio), ratio) * record.plan.base_step_ns
+        arrays[f"y{i}"] = np.asarray(record.signal(name), dtype=float)
+    temporary = f"{path}.{os.getpid()}.tmp.npz"
+    np.savez(temporary, **arrays)
+    os.replace(temporary, path)
+
+
+def load_signals(path: str) -> dict[str, Samples] | None:
+    """The signals ``save_signals`` kept (None: no such file, or one that does not read)."""
+    try:
+        with np.load(path) as arrays:
+            return {str(name): Samples(arrays[f"t{i}"].astype(np.int64), arrays[f"y{i}"])
+                    for i, name in enumerate(arrays["names"])}
+    except (OSError, ValueError, KeyError):
+        return None
 
 
 def _per_simulated_second(scene: Scene, walls: list, cpus: list, loop_walls: list, loop_cpus: list) -> dict:

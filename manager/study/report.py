@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 
 from zencosim.manager.results.output_files import OutputFileError
-from zencosim.manager.study.grid import method_label
+from zencosim.manager.study.grid import MACRO_STEP, method_label
 
 FILES = ("study.json", "study.csv", "study.md", "error_cost.png", "error_step.png", "stability.png")
 
@@ -114,10 +114,11 @@ def _figure(height: float = 4.2):
 
 def _save(pyplot, figure, axes, path: Path, legend_outside: bool = True) -> None:
     axes.grid(True, which="both", linewidth=0.3)
-    if legend_outside:  # right of the axes: it covers no point
-        axes.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
-    else:
-        axes.legend(fontsize=8)
+    if axes.get_legend_handles_labels()[0]:
+        if legend_outside:  # right of the axes: it covers no point
+            axes.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        else:
+            axes.legend(fontsize=8)
     figure.savefig(path, dpi=90, bbox_inches="tight")
     pyplot.close(figure)
 
@@ -139,24 +140,49 @@ def _cost_ms(row: dict) -> float | None:
     return None if row["inproc"] is None else row["inproc"]["loop_cpu_per_s"] * 1e3
 
 
+def _positive(*values: float | None) -> bool:
+    """Every value a point of a log–log plot: a finite number above zero."""
+    return all(v is not None and math.isfinite(v) and v > 0.0 for v in values)
+
+
+def _error_bars(rows: list[dict]) -> list[list[float]] | None:
+    """The rows' error bars as ``errorbar``'s ``yerr`` (below, above); None where no row has one. Below is at most
+    99.9 % of the error, so that a bar wider than the error still shows on a log axis (it says: consistent with
+    nearly zero)."""
+    if not any(r.get("error_bar") is not None for r in rows):
+        return None
+    bars = [r.get("error_bar") or 0.0 for r in rows]
+    return [[min(b, 0.999 * r["error"]) for b, r in zip(bars, rows)], bars]
+
+
 def _plot_error_cost(study: dict, path: Path) -> None:
     pyplot, figure, axes = _figure()
     labels = _labels(study)
+    plotted = False
     for i, (method, rows) in enumerate(_by_method(study).items()):
-        shown = [r for r in rows if r["error"] is not None and _cost_ms(r)]
+        shown = [r for r in rows if _positive(r["error"], _cost_ms(r))]
         if not shown:
             continue
+        plotted = True
         style = {"color": f"C{i % 10}", "marker": MARKERS[i % len(MARKERS)]}
         axes.scatter([_cost_ms(r) for r in shown], [r["error"] for r in shown], s=22, **style)
+        bars = _error_bars(shown)
+        if bars is not None:
+            axes.errorbar([_cost_ms(r) for r in shown], [r["error"] for r in shown], yerr=bars, fmt="none",
+                          ecolor=style["color"], elinewidth=0.8, capsize=2)
         front = sorted((r for r in shown if r["pareto_in_method"]), key=_cost_ms)
         axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], markersize=4.5, label=labels[method],
                   **style)
-    front = sorted((r for r in study["points"] if r["pareto"]), key=_cost_ms)
-    axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], "k--", linewidth=0.9, label="Pareto front of all")
-    axes.axhline(study["target"], color="grey", linewidth=0.8, label=f"target NRMS {study['target'] * 100:g} %")
-    _log_log(axes, study, "CPU time of the in-process stepping loop per simulated second [ms]",
+    front = sorted((r for r in study["points"] if r["pareto"] and _positive(r["error"], _cost_ms(r))), key=_cost_ms)
+    if front:
+        axes.plot([_cost_ms(r) for r in front], [r["error"] for r in front], "k--", linewidth=0.9,
+                  label="Pareto front of all")
+    if plotted:
+        axes.axhline(study["target"], color="grey", linewidth=0.8, label=f"target NRMS {study['target'] * 100:g} %")
+    _log_log(axes, study, plotted, "CPU time of the in-process stepping loop per simulated second [ms]",
              "error against cost (stable points; lines: each method's Pareto front)")
-    _plain_ticks(axes.xaxis)
+    if plotted:
+        _plain_ticks(axes.xaxis)
     _save(pyplot, figure, axes, path)
 
 
@@ -164,26 +190,50 @@ def _plot_error_step(study: dict, path: Path) -> None:
     pyplot, figure, axes = _figure()
     orders = {m["method"]: m["order"] for m in study["methods"]}
     labels = _labels(study)
+    plotted = False
     for i, (method, rows) in enumerate(_by_method(study).items()):
-        shown = sorted((r for r in rows if r["error"] is not None), key=lambda r: r["macro_step"])
+        shown = sorted((r for r in rows if _positive(r["error"], r["macro_step"])), key=lambda r: r["macro_step"])
         if not shown:
             continue
+        plotted = True
         order = orders[method]
         label = f"{labels[method]} (order {order:.2f})" if order is not None else labels[method]
-        axes.plot([r["macro_step"] * 1e3 for r in shown], [r["error"] for r in shown], markersize=4.5,
-                  color=f"C{i % 10}", marker=MARKERS[i % len(MARKERS)], label=label)
-    _log_log(axes, study, "macro-step [ms]", "error against macro-step (stable points), fitted order")
-    _plain_ticks(axes.xaxis, sorted({r["macro_step"] * 1e3 for r in study["points"]}))
+        axes.errorbar([r["macro_step"] * 1e3 for r in shown], [r["error"] for r in shown], yerr=_error_bars(shown),
+                      markersize=4.5, color=f"C{i % 10}", marker=MARKERS[i % len(MARKERS)], label=label,
+                      elinewidth=0.8, capsize=2)
+    _log_log(axes, study, plotted, "macro-step [ms]", "error against macro-step (stable points), fitted order")
+    if plotted:
+        _plain_ticks(axes.xaxis, sorted({r["macro_step"] * 1e3 for r in study["points"]}))
     _save(pyplot, figure, axes, path)
 
 
-def _log_log(axes, study: dict, xlabel: str, title: str) -> None:
-    """Logarithmic axes with the study's error on y."""
-    axes.set_xscale("log")
-    axes.set_yscale("log")
+def reference_statement(study: dict) -> str:
+    """What the NRMS is measured against, in words: the scene's reference, or the extrapolated one with the points
+    it comes from, its observed order and its error bar."""
+    described = (study.get("extrapolation") or {}).get(study["signal"])
+    if described is None:
+        return f"the scene's reference, {study['reference'] or 'none'}"
+    if described["reason"] is not None:
+        return f"none: the reference could not be extrapolated ({described['reason']})"
+    steps = ", ".join(f"{h * 1e3:g}" for h in described["macro_steps"])
+    order = "–" if described["order"] is None else f"{described['order']:.2f}"
+    method = _labels(study).get(described["method"], described["method"])
+    return (f"extrapolated to a zero macro-step from {method} at {steps} ms (Richardson; observed "
+            f"order {order}); its own error, ±{described['error_bar']:.2g} as an NRMS, is in each point's error bar")
+
+
+def _log_log(axes, study: dict, plotted: bool, xlabel: str, title: str) -> None:
+    """Logarithmic axes with the study's error on y and its reference in the title; where nothing could be
+    plotted (no stable point with an error and a cost), linear axes that say so."""
     axes.set_xlabel(xlabel)
     axes.set_ylabel(f"NRMS of {study['signal']}")
-    axes.set_title(f"{study['scene']}: {title}")
+    axes.set_title(f"{study['scene']}: {title}\nreference: {reference_statement(study)}", fontsize=9)
+    if plotted:
+        axes.set_xscale("log")
+        axes.set_yscale("log")
+    else:
+        axes.text(0.5, 0.5, "no stable point with an error (NRMS) and a cost to plot", ha="center", va="center",
+                  transform=axes.transAxes, color="C3")
 
 
 def _plot_stability(study: dict, path: Path) -> None:
@@ -201,7 +251,7 @@ def _plot_stability(study: dict, path: Path) -> None:
     labels = _labels(study)
     axes.set_yticks(range(len(methods)), [labels[m["method"]] for m in methods], fontsize=8)
     steps = [r["macro_step"] * 1e3 for r in study["points"]]
-    axes.set_xlabel(f"macro-step [ms] (the grid: {min(steps):g} to {max(steps):g} ms)")
+    axes.set_xlabel(f"macro-step [ms] (the grid: {min(steps):g} to {max(steps):g} ms)" if steps else "macro-step [ms]")
     axes.set_title(f"{study['scene']}: largest stable macro-step per method")
     _save(pyplot, figure, axes, path)
 
@@ -219,6 +269,39 @@ def _cost_cell(inproc: dict) -> str:
 
 def _number(value: float | None, digits: int = 3) -> str:
     return "–" if value is None else f"{value:.{digits}g}"
+
+
+def answer_table(study: dict) -> list[str]:
+    """The study's answers as Markdown table lines, padded to be read as they are: per NRMS target the setting to
+    take, its macro-step, its costs and its NRMS (± its error bar against an extrapolated reference), then a row
+    per setting tied with it on cost; a line under the table states the tie rule when there is a tie."""
+    by_key = {r["key"]: r for r in study["points"]}
+    head = ["NRMS target", "cheapest setting", "macro-step [ms]", "CPU in process [ms/s] (fastest–slowest)",
+            "wall over Zenoh [ms/s]", f"NRMS of {study['signal']}"]
+    rows, tie_rule = [], None
+    for answer in study["answers"]:
+        target = f"≤ {answer['target'] * 100:g} %"
+        if answer["point"] is None:
+            rows.append([target, "none: no stable point of the grid meets it", "–", "–", "–", "–"])
+            continue
+        tied = len(answer["tied"]) > 1
+        tie_rule = answer["tie_rule"] if tied else tie_rule
+        for key in [answer["point"], *(k for k in answer["tied"] if k != answer["point"])]:
+            row = by_key[key]
+            setting = plot_label({k: v for k, v in row["values"].items() if k != MACRO_STEP})
+            if tied:
+                setting += (f" ({'chosen' if key == answer['point'] else 'tied on cost'}, "
+                            f"{row['exchanges_per_s']:.4g} exchanges/s)")
+            nrms = _number(row["error"]) + ("" if row.get("error_bar") is None else f" ± {row['error_bar']:.2g}")
+            zenoh = "not measured" if row["zenoh"] is None else _ms(row["zenoh"]["loop_wall_per_s"])
+            rows.append([target if key == answer["point"] else "", setting, f"{row['macro_step'] * 1e3:g}",
+                         _cost_cell(row["inproc"]), zenoh, nrms])
+    widths = [max(len(cells[i]) for cells in [head, *rows]) for i in range(len(head))]
+    lines = ["| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths)) + " |" for cells in [head, *rows]]
+    lines.insert(1, "| " + " | ".join("-" * w for w in widths) + " |")
+    if tie_rule is not None:
+        lines += ["", f"Tied: {tie_rule}."]
+    return lines
 
 
 def methods_table(study: dict) -> list[str]:
@@ -245,8 +328,9 @@ def points_table(study: dict) -> list[str]:
     verdict = {True: "yes", False: "no", None: "–"}
     for r in sorted(study["points"], key=lambda r: (r["method"], r["macro_step"])):
         inproc, zenoh = r["inproc"] or {}, r["zenoh"] or {}
-        nrms = r["nrms"].get(study["signal"])
-        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms), _number(r["energy_error"]),
+        nrms, bar = r["nrms"].get(study["signal"]), (r.get("nrms_error_bar") or {}).get(study["signal"])
+        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms) + ("" if bar is None else f" ± {bar:.2g}"),
+                 _number(r["energy_error"]),
                  f"{verdict[r['stable_predicted']]} / {verdict[r['stable_run']]}" + (" (failed)" if r["failed"] else ""),
                  _cost_cell(inproc), _ms(inproc.get("loop_wall_per_s")), _ms(zenoh.get("loop_wall_per_s")),
                  str(zenoh.get("exchanges", "–")), "yes" if r["pareto"] else ""]
@@ -260,14 +344,13 @@ def markdown(study: dict, images: str = "") -> str:
     machine, run = study["machine"], study["run"]
     load = ", ".join(f"{x:.2f}" for x in machine["load_average"])
     lines = [f"# Study of {study['scene']}", "",
-             f"**Answer:** {study['answer']['text']}.", "",
-             f"Reference of the NRMS: {study['reference']}. Grid: "
+             "## Answer", "", *answer_table(study), "",
+             f"Reference of the NRMS: {reference_statement(study)}. Grid: "
              + "; ".join(f"`{a['key']}` = {', '.join(map(str, a['values']))}" for a in study["grid"]["axes"])
              + f" ({run['points']} points, {len(study['grid']['skipped'])} combinations that do not run skipped). "
              f"In process: {run['repeats']} runs per point (medians), {machine['workers']} workers on "
              f"{machine['cpus']} cores; over Zenoh: {run['zenoh_points']} points, {run['zenoh_repeats']} run(s) each. "
-             f"Load average at the end: {load}. Cost: CPU time of the stepping loop per simulated second; "
-             f"{study['answer']['tie_rule']}.", "",
+             f"Load average at the end: {load}. Cost: CPU time of the stepping loop per simulated second.", "",
              f"![error against cost]({images}error_cost.png)", "",
              f"![error against macro-step]({images}error_step.png)", "",
              f"![largest stable macro-step]({images}stability.png)", "",

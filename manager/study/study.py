@@ -13,13 +13,17 @@ from dataclasses import dataclass
 from importlib.metadata import version
 from typing import Callable
 
-from zencosim.manager.scene.load import Scene, load_scene
+import numpy as np
+
+from zencosim.manager.analysis.monolithic import monolithic_unavailable
+from zencosim.manager.scene.load import Scene, SceneError, load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
-from zencosim.manager.study import tradeoffs
+from zencosim.manager.study import extrapolation, tradeoffs
 from zencosim.manager.study.cache import StudyCache
-from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand, method_label
-from zencosim.manager.study.measure import count_exchanges, measure_zenoh, predicted_stability
+from zencosim.manager.study.grid import MACRO_STEP, Axis, Point, as_overrides, derived_overrides, expand
+from zencosim.manager.study.measure import count_exchanges, load_signals, measure_zenoh, predicted_stability
 from zencosim.manager.study.workers import measure_tasks
+from zencosim.subsystems.params import Problem
 
 ZENOH_CHOICES = ("pareto", "answers", "all", "none")  # answers: the cheapest point meeting each of TARGETS
 BISECTION_TOLERANCE = 1e-3  # relative width at which the stability limit's bisection stops
@@ -44,14 +48,22 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     started = time.perf_counter()
     signal_name = options.signal or scene.outputs.signals[0]
     points, skipped = expand(scene, axes)
+    if not points:  # every point refused (a macro-step of 1e308 s, say): the first reason, as a scene error
+        raise SceneError(scene.path, [Problem("--vary", f"no point of the grid loads; the first: {skipped[0][1]}")])
     cache = StudyCache(cache_root, scene.digest, options.repeats)
     entries = {p.key: cache.read(p.key) for p in points}
-    todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats}
-            for p in points if entries[p.key] is None]
+    extrapolating = extrapolates(scene)
+    todo = [{"key": p.key, "scene": scene.path, "overrides": list(p.overrides), "repeats": options.repeats,
+             "signals_file": str(cache.signals_path(p.key)) if extrapolating else None}
+            for p in points
+            if entries[p.key] is None or (extrapolating and _lacks_signals(entries[p.key], cache, p.key))]
+    if todo:
+        cache.folder.mkdir(parents=True, exist_ok=True)
     workers = options.workers or os.cpu_count() or 1
     _measure_in_process(todo, workers, cache, entries, progress, len(points))
 
     rows = [_row(p, entries[p.key], signal_name) for p in points]
+    extrapolated = _extrapolate(scene, rows, cache, signal_name) if extrapolating else None
     _mark_pareto(rows)
     exchanges = _exchange_counter(scene, entries, cache)
     answers = {_cheapest(rows, target, exchanges)[0] for target in TARGETS} if options.zenoh == "answers" else set()
@@ -77,6 +89,7 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
     return {
         "scene": scene.name, "scene_path": scene.path, "scene_digest": scene.digest, "overrides": list(scene.overrides),
         "reference": next((r["reference"] for r in rows if r["reference"] is not None), None),
+        "extrapolation": extrapolated,
         "signal": signal_name, "signals": list(scene.outputs.signals), "target": options.target,
         "grid": {"axes": [{"key": a.key, "values": list(a.values)} for a in axes],
                  "skipped": [{"values": v, "reason": reason} for v, reason in skipped]},
@@ -84,7 +97,7 @@ def run_study(scene: Scene, axes: list[Axis], options: StudyOptions = StudyOptio
                     "zencosim": version("zencosim")},
         "points": rows,
         "methods": methods,
-        "answer": _answer(rows, signal_name, options.target, exchanges),
+        "answers": [_answer(rows, target, exchanges) for target in dict.fromkeys((options.target, *TARGETS))],
         "run": {"points": len(points), "ran": len(todo), "cached": len(points) - len(todo),
                 "zenoh_points": len(chosen), "repeats": options.repeats, "zenoh_repeats": options.zenoh_repeats,
                 "wall_s": time.perf_counter() - started},
@@ -111,8 +124,61 @@ def _row(point: Point, entry: dict, signal_name: str) -> dict:
                   "loop_cpu_max_per_s": inproc["loop_cpu_per_s"]}
     return {"key": point.key, "method": point.method, "macro_step": point.macro_step, "values": point.values,
             "overrides": list(point.overrides), "derived": list(point.derived), **measured, "inproc": inproc,
-            "error": measured["nrms"].get(signal_name) if measured["stable"] else None,
+            "nrms": dict(measured["nrms"]),  # a copy: an extrapolated reference's estimates are not the cache's
+            "error": measured["nrms"].get(signal_name) if measured["stable"] else None, "error_bar": None,
+            "nrms_error_bar": dict.fromkeys(measured["nrms"]),
             "exchanges_per_s": entry.get("exchanges_per_s"), "zenoh": None, "pareto": False}
+
+
+def extrapolates(scene: Scene) -> bool:
+    """Whether a study of ``scene`` extrapolates its reference from its own points: the scene asks for it
+    (``outputs.reference = "extrapolated"``) or gives none (``"none"``, or an analytic reference that its
+    subsystems do not admit), so that a study always has an error to weigh against the cost."""
+    reference = scene.outputs.reference
+    return (reference in ("none", "extrapolated")
+            or (reference == "analytic" and monolithic_unavailable(scene) is not None))
+
+
+def _lacks_signals(entry: dict, cache: StudyCache, key: str) -> bool:
+    """A cached point that ran but whose output signals were not kept (measured for a scene reference)."""
+    return entry["inproc_point"]["inproc"] is not None and not cache.signals_path(key).exists()
+
+
+def _extrapolate(scene: Scene, rows: list[dict], cache: StudyCache, signal_name: str) -> dict:
+    """Per output signal, the reference extrapolated from the stable points (``extrapolation.best_reference``): what
+    it was extrapolated from, its observed order and its error bar as an NRMS; every row's NRMS against it with
+    their error bars, and its ``error`` and ``error_bar`` (of ``signal_name``, stable rows)."""
+    runs = {r["key"]: load_signals(str(cache.signals_path(r["key"]))) for r in rows if r["inproc"] is not None}
+    described = {}
+    for name in scene.outputs.signals:
+        stable = {}
+        for r in rows:
+            if r["stable"] and runs.get(r["key"]) is not None:
+                stable.setdefault(r["method"], []).append((r["macro_step"], runs[r["key"]][name]))
+        found = extrapolation.best_reference(stable)
+        if isinstance(found, str):
+            described[name] = {"method": None, "macro_steps": None, "order": None, "error_bar": None, "reason": found}
+            continue
+        method, reference = found
+        values = reference.reference.values
+        described[name] = {"method": method, "macro_steps": list(reference.macro_steps), "order": reference.order,
+                           "error_bar": reference.bar_rms / float(np.max(values) - np.min(values)), "reason": None}
+        for r in rows:
+            if runs.get(r["key"]) is not None:
+                r["nrms"][name], r["nrms_error_bar"][name] = extrapolation.nrms_against(reference, runs[r["key"]][name])
+    for r in rows:
+        r["reference"] = "extrapolated"
+        r["error"] = r["nrms"].get(signal_name) if r["stable"] else None
+        r["error_bar"] = r["nrms_error_bar"].get(signal_name) if r["error"] is not None else None
+    return described
+
+
+def _error_at_most(row: dict) -> float | None:
+    """The largest NRMS the point's error can be: against an extrapolated reference its estimate plus its error bar,
+    so that a point meets a target only when its bar does too; else the error itself."""
+    if row["error"] is None or row["error_bar"] is None:
+        return row["error"]
+    return row["error"] + row["error_bar"]
 
 
 def _cost(row: dict) -> float | None:
@@ -150,7 +216,7 @@ def _methods(scene: Scene, rows: list[dict]) -> list[dict]:
                    "stability_limit": _stability_limit(scene, members, steps, stable),
                    "targets": {}}
         for target in TARGETS:
-            h = tradeoffs.step_for_target(steps, [r["error"] for r in members], stable, target)
+            h = tradeoffs.step_for_target(steps, [_error_at_most(r) for r in members], stable, target)
             at = next((r for r in members if r["macro_step"] == h), None)
             summary["targets"][f"{target:g}"] = {"macro_step": h, "cost_per_s": None if at is None else _cost(at)}
         summaries.append(summary)
@@ -198,48 +264,27 @@ def _cost_range(row: dict) -> tuple[float, float]:
 
 
 def _cheapest(rows: list[dict], target: float, exchanges: Callable[[dict], float]) -> tuple[str | None, list[str]]:
-    """The key of the stable point with an error at most ``target`` to recommend, and the keys of the points tied
-    with the cheapest on cost (``tradeoffs.answer``; None and [] when no point meets it)."""
+    """The key of the stable point with an error at most ``target`` (with its error bar: ``_error_at_most``) to
+    recommend, and the keys of the points tied with the cheapest on cost (``tradeoffs.answer``; None and [] when
+    no point meets it)."""
     candidates = [r for r in rows if _cost(r) is not None]
     best, tied = tradeoffs.answer([_cost(r) for r in candidates], [_cost_range(r) for r in candidates],
-                                  [r["error"] for r in candidates], [r["stable"] for r in candidates], target,
+                                  [_error_at_most(r) for r in candidates], [r["stable"] for r in candidates], target,
                                   lambda i: exchanges(candidates[i]))
     return None if best is None else candidates[best]["key"], [candidates[i]["key"] for i in tied]
 
 
-def _ms(seconds: float) -> str:
-    return f"{seconds * 1e3:.3g} ms"
-
-
-def _answer(rows: list[dict], signal_name: str, target: float, exchanges: Callable[[dict], float]) -> dict:
-    """The cheapest stable setting with the signal's NRMS at most ``target``, in words and numbers; a tie on cost
-    within the measured spread is said and broken by ``tradeoffs.TIE_RULE``."""
+def _answer(rows: list[dict], target: float, exchanges: Callable[[dict], float]) -> dict:
+    """The cheapest stable setting with the signal's NRMS at most ``target``, and the points tied with it on cost
+    (within the measured spread; the tie broken by ``tradeoffs.TIE_RULE``); the keys but ``target``, ``tied`` and
+    ``tie_rule`` are null when no point meets the target. ``report.answer_table`` shows it."""
     best, tied = _cheapest(rows, target, exchanges)
-    if best is None:
-        return {**dict.fromkeys(("point", "method", "macro_step", "error", "inproc_loop_cpu_per_s",
-                                 "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s")), "tied": [],
-                "tie_rule": tradeoffs.TIE_RULE,
-                "text": f"no point of the grid reaches {signal_name} NRMS ≤ {target * 100:g} % with a stable run"}
-    row = next(r for r in rows if r["key"] == best)
-    zenoh = row["zenoh"]
-    over_zenoh = ("not measured over Zenoh" if zenoh is None
-                  else f"{zenoh['loop_wall_per_s'] * 1e3:.3g} ms of wall time over Zenoh")
-    costing = (f"costing {_cost(row) * 1e3:.3g} ms of CPU time ({row['inproc']['loop_wall_per_s'] * 1e3:.3g} ms of "
-               f"wall time) per simulated second in process and {over_zenoh}")
-    if len(tied) == 1:
-        text = (f"for {signal_name} NRMS ≤ {target * 100:g} % the cheapest setting is {method_label(row['values'])} "
-                f"(NRMS {row['error']:.3g}), {costing}")
-    else:
-        by_key = {r["key"]: r for r in rows}
-        costs = "; ".join(
-            f"{method_label(by_key[k]['values'])}: {_ms(_cost(by_key[k]))} ({_ms(_cost_range(by_key[k])[0])} to "
-            f"{_ms(_cost_range(by_key[k])[1])}), {exchanges(by_key[k]):.6g} exchanges/s, NRMS "
-            f"{by_key[k]['error']:.3g}" for k in tied)
-        text = (f"for {signal_name} NRMS ≤ {target * 100:g} % {len(tied)} settings cost the same within the measured "
-                f"spread of CPU time per simulated second in process (median, fastest to slowest of the repeats: "
-                f"{costs}); the tie is broken by fewer exchanges, then lower NRMS: {method_label(row['values'])} "
-                f"(NRMS {row['error']:.3g}), {costing}")
-    return {"point": row["key"], "method": row["method"], "macro_step": row["macro_step"], "error": row["error"],
-            "inproc_loop_cpu_per_s": _cost(row), "inproc_loop_wall_per_s": row["inproc"]["loop_wall_per_s"],
+    row = next((r for r in rows if r["key"] == best), None)
+    zenoh = None if row is None else row["zenoh"]
+    return {"target": target, "point": best, "method": None if row is None else row["method"],
+            "macro_step": None if row is None else row["macro_step"], "error": None if row is None else row["error"],
+            "error_bar": None if row is None else row["error_bar"],
+            "inproc_loop_cpu_per_s": None if row is None else _cost(row),
+            "inproc_loop_wall_per_s": None if row is None else row["inproc"]["loop_wall_per_s"],
             "zenoh_loop_wall_per_s": None if zenoh is None else zenoh["loop_wall_per_s"], "tied": tied,
-            "tie_rule": tradeoffs.TIE_RULE, "text": text}
+            "tie_rule": tradeoffs.TIE_RULE}

@@ -1,8 +1,8 @@
 """The study's workers: processes that measure points in process, one point at a time each.
 
 A worker is ``python -m zencosim.manager.study.workers``: it reads one task per line on its standard input
-(JSON: ``key``, ``scene``, ``overrides``, ``repeats``) and writes one line per task on its standard output
-(``key`` and ``measured``, or ``key`` and ``error``); it ends at the end of its input. Plain processes
+(JSON: ``key``, ``scene``, ``overrides``, ``repeats``, ``signals_file``) and writes one line per task on its
+standard output (``key`` and ``measured``, or ``key`` and ``error``); it ends at the end of its input. Plain processes
 rather than a ``multiprocessing`` pool: nothing of the caller's main module is imported again, and the
 study ends its workers by their process ids whatever happens.
 """
@@ -69,13 +69,14 @@ def _give(process: subprocess.Popen, pending: list[dict]) -> bool:
     return False
 
 
-def serve(measure: Callable[[str, tuple[str, ...], int], dict]) -> None:
+def serve(measure: Callable[[str, tuple[str, ...], int, str | None], dict]) -> None:
     """A worker's loop (module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the study ends its workers itself
     for line in sys.stdin:
         task = json.loads(line)
         try:
-            answer = {"key": task["key"], "measured": measure(task["scene"], tuple(task["overrides"]), task["repeats"])}
+            answer = {"key": task["key"], "measured": measure(task["scene"], tuple(task["overrides"]), task["repeats"],
+                                                           task.get("signals_file"))}
         except Exception:
             answer = {"key": task["key"], "error": traceback.format_exc(limit=4)}
         sys.stdout.write(json.dumps(answer) + "\n")

@@ -19,8 +19,8 @@ from typing import NamedTuple
 import numpy as np
 
 from zencosim.manager.wire.text import printable
+from zencosim.versions import WIRE_PROTOCOL as VERSION
 
-VERSION = 2
 HEADER = struct.Struct("<BBHIqqI4x")
 HEADER_DTYPE = np.dtype([("version", "u1"), ("kind", "u1"), ("rows", "<u2"), ("count", "<u4"), ("step", "<i8"),
                          ("time_ns", "<i8"), ("ref", "<u4"), ("pad", "V4")])  # HEADER as a numpy record

@@ -68,6 +68,21 @@ class StatusReport:
         self._start_ns: int | None = None  # the release of step 0: the first step logged was released then
         self.size = message_dtype(len(self.fields)).itemsize  # [bytes] of a message
 
+    def log(self) -> tuple[int | None, list[float], list[int]]:
+        """The log as it stands, nothing taken: the release of step 0 once a take found it, and the residuals and times
+        not taken — a recorder's process takes their messages from a copy (:meth:`from_log`)."""
+        return self._start_ns, self._residuals, self._times
+
+    @classmethod
+    def from_log(cls, n_residuals: int, base_step_ns: int, log: tuple[int | None, list[float], list[int]]
+                 ) -> StatusReport:
+        """A report of a run that is not paced whose :meth:`log` was ``log``, with ``n_residuals`` residuals per step:
+        its :meth:`take` gives the messages the run's own would have given."""
+        report = cls.__new__(cls)
+        report.realtime, report.base_step_ns, report.n_residuals = False, base_step_ns, n_residuals
+        report._start_ns, report._residuals, report._times = log[0], list(log[1]), list(log[2])
+        return report
+
     @property
     def logged(self) -> int:
         """Steps logged and not yet taken."""

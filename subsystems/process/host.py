@@ -31,6 +31,7 @@ from zencosim.manager.bus.inproc import endpoints
 from zencosim.manager.bus.signals import SignalNote
 from zencosim.manager.bus.timing import step_timing
 from zencosim.manager.bus.zenoh_session import (
+    STOP_RECEIVED,
     ZenohOptions,
     concrete_endpoint,
     coupling_publisher,
@@ -44,6 +45,7 @@ from zencosim.manager.bus.zenoh_session import (
 from zencosim.manager.scene.load import Scene
 from zencosim.manager.scheme.pacing import SPIN_SHARED_NS
 from zencosim.manager.scheme.replica import Replica
+from zencosim.manager.scheme.tapped import handover_size
 from zencosim.manager.wire.protocol import Kind, ProtocolError, decode_header
 from zencosim.manager.wire.text import printable
 
@@ -105,6 +107,9 @@ def _exit_now(name: str, reason: str) -> None:
 # 256 or 50 ms, 8.4 with 1,024 or 0.1 s, the processes' no lower)
 LOG_REPLIES = 256
 LOG_INTERVAL_S = 0.05
+# and a batch goes once it holds handover_size(replies sent) and the last is this old [s]: a model that ends its
+# process takes with it only the replies of its last batch, a small part of those it computed
+LOG_SOONEST_S = 0.01
 
 
 class _Host:
@@ -127,6 +132,8 @@ class _Host:
         self.replies = coupling_publisher(session, key(run_id, name, "y"))
         self.log = coupling_publisher(session, key(run_id, name, "log"))
         self.unsent: list[bytes] = []  # replies not yet sent to the manager
+        self.sent = 0  # replies sent to the manager
+        self.log_due = handover_size(0, LOG_REPLIES)  # replies that make a batch once LOG_SOONEST_S has passed
         self.received = 0  # replies taken from the network (its sources')
         self.cpu_s = [0.0, 0.0]  # this process's CPU time when the run started and when its replica finished
         self.last_sent = time.monotonic()
@@ -147,8 +154,9 @@ class _Host:
         """A reply of this subsystem: to the other subsystems now, to the manager in the next batch."""
         self.replies.put(reply)
         self.unsent.append(reply)
-        if (len(self.unsent) >= LOG_REPLIES or reply[1] == Kind.ERROR
-                or time.monotonic() - self.last_sent >= LOG_INTERVAL_S):
+        waited = time.monotonic() - self.last_sent
+        if (len(self.unsent) >= self.log_due and waited >= LOG_SOONEST_S) or waited >= LOG_INTERVAL_S \
+                or len(self.unsent) >= LOG_REPLIES or reply[1] == Kind.ERROR:
             self.send_log()
 
     def send_idle_log(self) -> None:
@@ -166,6 +174,8 @@ class _Host:
     def send_log(self) -> None:
         if self.unsent:
             self.log.put(b"".join(self.unsent))
+            self.sent += len(self.unsent)
+            self.log_due = handover_size(self.sent, LOG_REPLIES)
             self.unsent.clear()
         self.last_sent = time.monotonic()
 
@@ -240,7 +250,8 @@ class _Host:
         self.dropped.add(key(self.run_id, sender, "y"), reason)
 
     def on_control(self, sample: zenoh.Sample) -> None:
-        """STOP from the manager; anything else on ``<sub>/u`` is dropped and counted."""
+        """STOP (the manager's, or one another process that reaches the run published: the manager tells them
+        apart); anything else on ``<sub>/u`` is dropped and counted."""
         data = sample.payload.to_bytes()
         try:
             kind = decode_header(data, "manager")[0]
@@ -250,7 +261,8 @@ class _Host:
         if kind != Kind.STOP:
             self.dropped.add(str(sample.key_expr), f"a {kind.name} message; only STOP is sent here", publisher(sample))
             return
-        self.stop("stopped by the manager")
+        source = publisher(sample)
+        self.stop(STOP_RECEIVED + (f" (from {source})" if source else ""))
 
     def on_liveliness(self, sample: zenoh.Sample) -> None:
         who = str(sample.key_expr).split("/")[-2]
@@ -330,4 +342,4 @@ def serve(scene: Scene, name: str, connect: list[str], run_id: str | None, optio
         host.log.undeclare()
     deadline_timer.cancel()
     print(printable(f"subsystem {name}: {host.reasons[0]}"), file=sys.stderr)
-    return 0 if host.reasons[0] == "stopped by the manager" else 1
+    return 0 if host.reasons[0].startswith(STOP_RECEIVED) else 1

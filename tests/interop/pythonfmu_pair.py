@@ -2,10 +2,11 @@
 
 :func:`build_controller` writes :data:`CONTROLLER_SOURCE` (a PI position controller written as pythonfmu's
 authors show: an ``Fmi2Slave`` with registered variables, its parameters FMU parameters) and exports it with
-pythonfmu's builder. :func:`write_scene` writes the zencosim TOML scene and :func:`write_osp` the OSP system
-structure of one system: the plant (``zencosim.examples``' oscillator FMU: m, k, c, force input ``f_in``) and
-the controller, coupled by two plain connections, plant ``x`` -> controller ``position`` and controller
-``force`` -> plant ``f_in`` (zencosim: ``type = "signal"``; OSP: ``VariableConnection`` with no power bond).
+pythonfmu's builder (:func:`build_fmu`, any such source). :func:`write_scene` writes the zencosim TOML scene and
+:func:`write_osp` the OSP system structure (:func:`write_plain_osp`, any system of plain connections) of one
+system: the plant (``zencosim.examples``' oscillator FMU: m, k, c, force input ``f_in``) and the controller,
+coupled by two plain connections, plant ``x`` -> controller ``position`` and controller ``force`` -> plant
+``f_in`` (zencosim: ``type = "signal"``; OSP: ``VariableConnection`` with no power bond).
 
 pythonfmu's FMUs declare no units (its ``Real`` has no unit attribute); the scene gives them
 (``units = { position = "m", force = "N" }``), libcosim needs none. Their binary does not link libpython:
@@ -60,14 +61,20 @@ class PIController(Fmi2Slave):
 '''
 
 
-def build_controller(directory: Path) -> Path:
-    """Export the controller with pythonfmu's builder into ``directory``; return ``PIController.fmu``."""
+def build_fmu(directory: Path, module: str, text: str) -> Path:
+    """Export the ``Fmi2Slave`` of the source ``text``, written as ``module``.py, with pythonfmu's builder into
+    ``directory``; return the FMU (named after the class)."""
     from pythonfmu.builder import FmuBuilder
 
-    source = directory / "source" / "zencosim_pi_controller.py"
+    source = directory / "source" / f"{module}.py"
     source.parent.mkdir(parents=True, exist_ok=True)
-    source.write_text(CONTROLLER_SOURCE)
+    source.write_text(text)
     return Path(FmuBuilder.build_FMU(source, dest=directory))
+
+
+def build_controller(directory: Path) -> Path:
+    """Export the controller with pythonfmu's builder into ``directory``; return ``PIController.fmu``."""
+    return build_fmu(directory, "zencosim_pi_controller", CONTROLLER_SOURCE)
 
 
 def write_scene(directory: Path, plant: Path, controller: Path) -> Path:
@@ -115,30 +122,38 @@ input = "plant.f_in"
 def write_osp(directory: Path, plant: Path, controller: Path) -> Path:
     """The same system as an OSP system structure, ``directory/OspSystemStructure.xml``: plain
     ``VariableConnection``s, the start values as ``InitialValues``."""
-    for fmu in (plant, controller):
-        if fmu.parent != directory:
-            shutil.copy(fmu, directory / fmu.name)
+    return write_plain_osp(directory, STEP, {"plant": (plant, STEP, PLANT_START),
+                                             "controller": (controller, STEP, CONTROLLER_START)},
+                           (("plant", "x", "controller", "position"), ("controller", "force", "plant", "f_in")))
 
-    def simulator(name: str, fmu: Path, start: dict) -> str:
+
+def write_plain_osp(directory: Path, base_step: float, simulators: dict[str, tuple[Path, float, dict]],
+                    connections: tuple[tuple[str, str, str, str], ...]) -> Path:
+    """``directory/OspSystemStructure.xml``: ``simulators`` (name -> (FMU, stepSize [s], start values as
+    ``InitialValues``), the FMUs copied beside it) joined by one plain ``VariableConnection`` per connection
+    (source simulator, output, target simulator, input)."""
+    def simulator(name: str, fmu: Path, step: float, start: dict) -> str:
         values = "".join(f'\n        <InitialValue variable="{k}"><Real value="{float(v)!r}"/></InitialValue>'
                          for k, v in start.items())
-        return (f'\n    <Simulator name="{name}" source="{fmu.name}" stepSize="{STEP!r}">'
+        return (f'\n    <Simulator name="{name}" source="{fmu.name}" stepSize="{step!r}">'
                 f"\n      <InitialValues>{values}\n      </InitialValues>\n    </Simulator>")
 
-    def connection(source: tuple[str, str], target: tuple[str, str]) -> str:
-        return (f'\n    <VariableConnection>\n      <Variable simulator="{source[0]}" name="{source[1]}"/>'
-                f'\n      <Variable simulator="{target[0]}" name="{target[1]}"/>\n    </VariableConnection>')
-
+    for fmu, _, _ in simulators.values():
+        if fmu.parent != directory:
+            shutil.copy(fmu, directory / fmu.name)
+    elements = "".join(simulator(name, *description) for name, description in simulators.items())
+    links = "".join(f'\n    <VariableConnection>\n      <Variable simulator="{s}" name="{o}"/>'
+                    f'\n      <Variable simulator="{t}" name="{i}"/>\n    </VariableConnection>'
+                    for s, o, t, i in connections)
     path = directory / "OspSystemStructure.xml"
     path.write_text(f"""<?xml version="1.0" encoding="utf-8"?>
 <OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
   <StartTime>0.0</StartTime>
-  <BaseStepSize>{STEP!r}</BaseStepSize>
+  <BaseStepSize>{base_step!r}</BaseStepSize>
   <Algorithm>fixedStep</Algorithm>
-  <Simulators>{simulator("plant", plant, PLANT_START)}{simulator("controller", controller, CONTROLLER_START)}
+  <Simulators>{elements}
   </Simulators>
-  <Connections>{connection(("plant", "x"), ("controller", "position"))}{
-        connection(("controller", "force"), ("plant", "f_in"))}
+  <Connections>{links}
   </Connections>
 </OspSystemStructure>
 """)

@@ -125,6 +125,20 @@ def test_version_names_zencosim_its_protocol_and_what_a_run_depends_on():
                                             f"zenoh {version('eclipse-zenoh')}, numpy {version('numpy')}, python ")
 
 
+def test_version_is_answered_without_importing_the_runtime():
+    """As the ``zencosim`` script runs it: the versions from the package metadata, and nothing of zencosim.manager,
+    numpy or zenoh imported (the whole runtime once: seconds of CPU for one line)."""
+    script = ("import sys\nsys.argv = ['zencosim', '--version']\nfrom zencosim.cli.main import main\nstatus = main()\n"
+              "print([m for m in sys.modules\n"
+              "       if m.split('.')[0] in ('numpy', 'zenoh') or m.startswith('zencosim.manager')])\n"
+              "sys.exit(status)")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert result.returncode == 0, result.stderr
+    answer, imported = result.stdout.strip().splitlines()
+    assert answer == zencosim("--version").stdout.strip() and answer.startswith("zencosim ")
+    assert imported == "[]"
+
+
 def test_help_shows_examples_for_the_tool_and_each_command():
     assert "examples:" in zencosim("--help").stdout
     for command in ("run", "check", "analyze", "stability", "subsystem", "replay", "inspect", "export"):
@@ -155,3 +169,27 @@ def test_integers_too_large_for_a_float_are_one_line_errors(tmp_path):
         result = zencosim("check", str(scene))
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
         assert f"{scene}: {message}" in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize("kind", ["device", "pipe", "pipe.xml", "folder"])
+def test_a_scene_that_is_no_regular_file_is_one_line_and_exit_2(tmp_path, kind):
+    """``zencosim check /dev/zero`` (or a named pipe, as a TOML scene or an OSP file) read forever once."""
+    import contextlib
+    import io
+    import os
+
+    from zencosim.cli.main import main
+    if kind == "device":
+        path = Path("/dev/zero")
+        if not path.exists():
+            pytest.skip("no /dev/zero here")
+    elif kind == "folder":
+        path = tmp_path
+    else:
+        path = tmp_path / ("scene.toml" if kind == "pipe" else "OspSystemStructure.xml")
+        os.mkfifo(path)
+    key = "file" if path.suffix == ".xml" else "scene"
+    for command in (["check", str(path)], ["run", str(path), "--quiet"]):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+            assert main(command) == 2, errors.getvalue()
+        assert f"{path}: {key}: not a regular file; expected a TOML scene" in " ".join(errors.getvalue().split())

@@ -21,13 +21,14 @@ from zencosim.manager.scene.load import load_scene
 from zencosim.manager.scheme.base import SubsystemFailure
 from zencosim.manager.scheme.jacobi import schedule
 from zencosim.manager.scheme.replica import PerMessage
+from zencosim.manager.scheme import tapped
 from zencosim.manager.scheme.tapped import Taken, TakenSteps, taken_for
 from zencosim.manager.wire.protocol import HEADER
 from zencosim.manager.wire.status import StatusReport
 from zencosim.recordings.recorder_process import BATCH, ROWS, frame_messages
 from zencosim.recordings.recorder_process import STEPS as STEPS_FRAME
 from zencosim.recordings.rows_frame import END_STATUS, ROWS_HEAD, STATUS
-from zencosim.recordings.steps_frame import STEPS_HEAD
+from zencosim.recordings.steps_frame import STEPS_HEAD, pending_steps
 from zencosim.scenes import __path__ as bundled
 
 EXAMPLES = Path(zencosim.examples.__file__).parent / "scenes"
@@ -178,6 +179,39 @@ def test_the_recorder_takes_the_messages_of_the_message_path_from_blocks_of_arra
             assert recorder.published == {topic: sum(1 for i, _ in seen[1] if recorder._topics[i] == topic)
                                           for topic in recorder._topics}
     assert len(seen[1]) > 500 and seen[0] == seen[1]
+
+
+@pytest.mark.parametrize("name, overrides, duration", [(*VARIANTS["python_model"], 0.6),
+                                                       (*VARIANTS["double_oscillator_multi_rate_foh"], 0.12),
+                                                       (*VARIANTS["double_oscillator_multi_rate_gauss_seidel"], 0.12)],
+                         ids=["python_model", "multi-rate", "multi-rate-gauss-seidel"])
+def test_a_run_that_ends_after_any_pending_frame_leaves_every_message_up_to_it(name, overrides, duration,
+                                                                                 monkeypatch):
+    """The scheme's loop hands the recorder process what it holds as PENDING frames between its blocks (every
+    handover_size requests here: no time to wait, FIRST_HANDOVER_NS = HANDOVER_COSTS = 0), and a recorder process
+    whose run's process ended records the block it builds from those since the last block
+    (recordings.steps_frame.pending_steps). Whichever
+    PENDING frame is the last, what it then holds is the run's messages up to there: a prefix of every message the
+    run hands over, byte for byte (a status's wall times aside), that grows with each PENDING frame."""
+    monkeypatch.setattr(tapped, "FIRST_HANDOVER_NS", 0)
+    monkeypatch.setattr(tapped, "HANDOVER_COSTS", 0)
+    scene = load_scene(name, [*overrides, f"manager.duration={duration}"])
+    plan, subsystems = plan_scene(scene)
+    status = StatusReport(plan, False)
+    recorder = FramesRecorder(plan, status)
+    run_in_process(make_scheme(scene, plan, status=status, direct=DirectCalls(plan, subsystems), tap=recorder), plan,
+                   subsystems, recorder)
+    recorder.flush(last=True)
+    residuals_end = HEADER.size + 8 * 2 * len(plan.bonds)
+    whole = recorder.messages(residuals_end)
+    assert len(recorder.pending) > 2 * len([kind for kind, _ in recorder.frames if kind == STEPS_FRAME])
+    kept = 0
+    for k, (before, _) in enumerate(recorder.pending):
+        since = [payload for frames, payload in recorder.pending[:k + 1] if frames == before]
+        held = (recorder.frames_messages(recorder.frames[:before], residuals_end)
+                + recorder.frames_messages([(STEPS_FRAME, pending_steps(since))], residuals_end))
+        assert held == whole[:len(held)] and len(held) > kept, k
+        kept = len(held)
 
 
 def test_a_long_schedule_period_or_a_paced_run_is_tapped_exchange_by_exchange():

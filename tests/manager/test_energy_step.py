@@ -7,6 +7,8 @@ grid in the summary and the tables, the same digest over Zenoh, the wire's step 
 from __future__ import annotations
 
 import csv
+import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -207,10 +209,10 @@ def test_a_recorded_run_verifies_and_reads_back_as_it_ran(tmp_path):
 @pytest.mark.multiprocess
 def test_over_zenoh_the_run_is_the_in_process_one():
     """Every process follows every bond, so the steps — and the digest — are the same (FOH inputs: polynomials
-    through points at varying spacing on the wire; and the multi-rate crane)."""
+    through points at varying spacing on the wire, the default abs_tolerance from the energy at t_0 that every
+    process reads from its own replica; and the multi-rate crane)."""
     scene = zencosim.load_scene(energy_scene(0.3, abs_tolerance=1.0).path, {
-        **FINE, "manager.duration": 0.3, "manager.extrapolation": 1, "manager.energy_control.max_step_size": 0.01,
-        "manager.energy_control.abs_tolerance": 1.0})
+        **FINE, "manager.duration": 0.3, "manager.extrapolation": 1, "manager.energy_control.max_step_size": 0.01})
     crane = zencosim.load_scene("hydraulic_crane", {"manager.duration": 0.2, "manager.step_control": "energy",
                                                     "manager.energy_control.max_step_size": 0.001,
                                                     "manager.energy_control.abs_tolerance": 10.0})  # multi-rate
@@ -261,12 +263,47 @@ def test_what_the_energy_controlled_step_does_not_run_is_refused_by_name(overrid
     assert key in found and reason in found[key], found
 
 
-def test_the_energy_control_table_needs_its_maximum_and_waits_unused_at_a_fixed_step():
+def test_the_energy_control_table_waits_unused_at_a_fixed_step():
     fixed = zencosim.load_scene("two_mass_damped", {"manager.energy_control.max_step_size": 0.01})
     assert fixed.manager.step_control == "fixed" and zencosim.run(fixed).summary["step_control"] is None
-    with pytest.raises(zencosim.SceneError) as caught:
-        zencosim.load_scene("two_mass_damped", FINE)
-    assert "manager.energy_control.max_step_size" in {p.key for p in caught.value.problems}
+
+
+def test_the_readme_example_adapts_its_step_at_the_defaults(tmp_path):
+    """The README's ``zencosim run two_mass_damped --set manager.step_control=energy`` (issue 42): defaults drawn
+    from the scene — the macro-step (1 ms) as the first and smallest step, 20 of it as the largest, abs_tolerance
+    1e-3 of the energy at t_0 (10,000 J: 10 J) — and the step varies, at no bound for most of the run. Measured:
+    6,799 steps of 1 … 10 ms, 43 % of the run at 1 ms, NRMS of x2 0.110 against 0.045 at the fixed 1 ms (ZOH's
+    error grows with the step; the bound 3x is that ratio with margin)."""
+    summary_path = tmp_path / "summary.json"
+    done = subprocess.run([sys.executable, "-m", "zencosim", "run", "two_mass_damped", "--set",
+                           "manager.step_control=energy", "--summary", str(summary_path)],
+                          capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "1000"})
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(summary_path.read_text())
+    control = summary["step_control"]
+    parameters = control["parameters"]
+    assert (parameters["min_step_size"], parameters["step_size"], parameters["max_step_size"]) == (0.001, 0.001, 0.02)
+    assert parameters["abs_tolerance"] == pytest.approx(1e-3 * summary["energy"]["initial"]) == pytest.approx(10.0)
+    assert control["min_step"] == 0.001 and control["max_step"] >= 0.005  # it varies
+    assert control["macro_steps"] < 0.8 * 10_000 and control["at_limit"] is None and "macro-step at a bound" not in done.stdout
+    fixed = zencosim.run(zencosim.load_scene("two_mass_damped")).summary
+    assert summary["signals"]["x2"]["nrms"] < 3.0 * fixed["signals"]["x2"]["nrms"]
+
+
+@pytest.mark.parametrize("control, bound, share_key", [
+    ({"abs_tolerance": 0.1}, "min_step_size", "time_at_min_step"),  # tighter than any step's residual energy
+    ({"abs_tolerance": 1e12, "max_step_size": 0.002}, "max_step_size", "time_at_max_step"),  # looser than any
+])
+def test_a_step_that_sat_at_a_bound_most_of_the_run_is_reported(control, bound, share_key):
+    scene = zencosim.load_scene("two_mass_damped", {"manager.step_control": "energy", "manager.duration": 1.0,
+                                                    **{f"manager.energy_control.{k}": v for k, v in control.items()}})
+    result = zencosim.run(scene)
+    steps = steps_of(result) * result.record.plan.base_step_ns * 1e-9  # [s]
+    summary = result.summary["step_control"]
+    limit = summary["parameters"][bound]
+    at = steps[np.isclose(steps, limit)] if bound == "max_step_size" else steps[steps <= limit * (1 + 1e-12)]
+    assert summary["at_limit"] == bound and summary[share_key] == pytest.approx(at.sum() / steps.sum())
+    assert summary[share_key] > 0.5
 
 
 def test_a_study_varies_the_step_control_like_any_other_key(tmp_path):
@@ -323,3 +360,88 @@ def test_check_says_which_steps_the_scene_takes(control, said):
     result = zencosim_command("check", control=control)
     assert result.returncode == 0, result.stderr
     assert said in result.stdout
+
+
+# The controller's parameters: bounded at load, so that the law never overflows at run time (issue 42) -----------
+
+CONTROL_PARAMETERS = ("safety_factor", "min_change_rate", "max_change_rate", "abs_tolerance", "rel_tolerance",
+                      "p_gain", "i_gain")
+any_float = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from(
+    [0.0, 5e-324, 1e-300, 1e-3, 0.1, 0.5, 0.9, 1.0, 1e3, 1e30, 2.0**63, 1e308])
+residual = st.sampled_from([0.0, 5e-324, 1e-300, 1e-12, 1.0, 1e12, 1e300, np.inf, np.nan]) | st.floats()
+
+
+@settings(max_examples=60, deadline=None)
+@given(changed=st.dictionaries(st.sampled_from(CONTROL_PARAMETERS), any_float, min_size=1, max_size=3),
+       powers=st.lists(st.lists(residual, min_size=2, max_size=2), min_size=3, max_size=6))
+def test_a_controller_accepted_at_load_never_fails_in_its_law(changed, powers):
+    """Any value of any parameter is refused by key or gives a law that sets a step within its limits whatever the
+    bonds' residual powers (0, the smallest float, 1e300, inf, NaN): p_gain = 1e308 raised an OverflowError at run
+    time, tolerances both 0 a ZeroDivisionError."""
+    from zencosim.manager.scene.settings import EnergyControlSettings
+    from zencosim.manager.scheme.energy_step import StepLaw
+    from zencosim.subsystems.params import Problems, read_table
+
+    problems = Problems()
+    control = read_table(EnergyControlSettings, {"max_step_size": 0.01, **changed}, "manager.energy_control", problems)
+    if control is None:
+        assert problems and all(p.key.startswith("manager.energy_control.") for p in problems)
+        gains = {"p_gain"} if {"p_gain", "i_gain"} & set(changed) else set()  # their sum is named by p_gain
+        assert {p.key.rsplit(".", 1)[1] for p in problems} <= set(changed) | gains
+        return
+    law = StepLaw(control, base_step_ns=100_000)
+    start_ns = 0
+    for power in powers:
+        taken = law.step_ns
+        law.adjust(power, start_ns, taken)
+        start_ns += taken
+        assert law.min_ns <= law.step_ns <= law.max_ns
+
+
+@pytest.mark.parametrize("parameter, value, reason", [
+    ("p_gain", "1e308", "expected a number >= 0.0 and <= 1.0, got 1e+308"),
+    ("p_gain", str(2**63), f"expected a number >= 0.0 and <= 1.0, got {2**63}"),
+    ("i_gain", "1e30", "expected a number >= 0.0 and <= 1.0, got 1e+30"),
+    ("safety_factor", "5e-324", "expected a number >= 0.1 and <= 1.0, got 5e-324"),
+    ("abs_tolerance", "0.0", "expected a number > 0.0 [J], got 0.0"),
+    ("max_change_rate", "1e308", "expected a number >= 0.001 and <= 1000.0, got 1e+308"),
+])
+def test_an_energy_control_parameter_out_of_its_range_is_one_line_and_exit_2(parameter, value, reason):
+    """What ``check`` accepted and a run then failed on (an OverflowError in the law): refused at load, by key."""
+    import contextlib
+    import io
+
+    from zencosim.cli.main import main
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["check", "two_mass_damped", "--set", "manager.step_control=energy",
+                       "--set", "manager.energy_control.max_step_size=0.01",
+                       "--set", f"manager.energy_control.{parameter}={value}"])
+    assert status == 2 and "Traceback" not in errors.getvalue()
+    assert f"manager.energy_control.{parameter}: {reason}" in " ".join(errors.getvalue().split())
+
+
+def test_the_corners_of_the_accepted_ranges_never_fail_in_the_law():
+    """Every corner of the bounds (gains summing to 1, safety 0.1 and 1, change rates 1e-3 and 1e3, tolerances
+    5e-324 and 1e300 J, 0 and 1) against residual powers from the smallest float to 1e300, inf, and the one that
+    makes the error ε its smallest positive value (2.3e142 W over 0.1 ms against 1e300 J: ε = 2.3e-162, which a
+    gain sum of 2 would raise to 1.9e323, beyond a float): the step stays within its limits."""
+    import itertools
+
+    from zencosim.manager.scene.settings import EnergyControlSettings
+    from zencosim.manager.scheme.energy_step import StepLaw
+
+    sequences = ([5e-324, 5e-324, 1e300], [1e300, 5e-324, 0.0], [2.3e142, 2.3e142, 5e-324], [np.inf, np.inf, 1.0],
+                 [1e-300, 1e300, np.inf])
+    rates = [(1e-3, 1e-3), (1e-3, 1e3), (1e3, 1e3)]
+    for (p, i), safety, (low, high), absolute, relative in itertools.product(
+            [(1.0, 0.0), (0.0, 1.0), (0.5, 0.5)], [0.1, 1.0], rates, [5e-324, 1e300], [0.0, 1.0]):
+        control = EnergyControlSettings(max_step_size=0.01, p_gain=p, i_gain=i, safety_factor=safety,
+                                        min_change_rate=low, max_change_rate=high, abs_tolerance=absolute,
+                                        rel_tolerance=relative)
+        for powers in sequences:
+            law, start_ns = StepLaw(control, base_step_ns=100_000), 0  # its first step: 0.1 ms
+            for power in powers:
+                taken = law.step_ns
+                law.adjust([power, power], start_ns, taken)
+                start_ns += taken
+                assert law.min_ns <= law.step_ns <= law.max_ns

@@ -114,6 +114,20 @@ def test_a_forged_error_fails_the_run_with_its_text_escaped(processes, tmp_path)
     assert "\x1b" not in stderr and "\x07" not in stderr and "\\x1b]0;owned\\x07\\x1b[2Jgone" in stderr
 
 
+@pytest.mark.timeout(240)
+def test_a_stop_the_manager_did_not_send_is_named_as_coming_from_elsewhere(processes, tmp_path):
+    """A peer of the test's own (no credentials, as any local process on a default loopback run) publishes a
+    STOP on S1's control key: the run fails naming where it came from, never as stopped by the manager."""
+    def inject(session: zenoh.Session, run_id: str) -> None:
+        session.put(key(run_id, "S1", "u"), encode(Kind.STOP, 0, 0))
+
+    manager, stderr, _ = _run_with_stray_traffic(processes, tmp_path, inject)
+    assert manager.returncode == 1 and "Traceback" not in stderr
+    assert stderr.startswith("run failed: subsystem S1: a STOP that the manager did not send ended its process: "
+                             "another process that reaches the run published it on zencosim/"), stderr
+    assert "stopped by the manager" not in stderr
+
+
 @pytest.mark.timeout(60)
 def test_an_occupied_listen_port_is_one_line(processes):
     with socket.socket() as taken:
@@ -197,10 +211,12 @@ def test_a_frozen_recorder_holds_the_run_back_and_is_named_not_a_subsystem(proce
     assert recording.truncated is None and recording.end["outcome"] == "completed" and recording.end["lost"] == 0
 
 
-# The example model with a fault, chosen by the environment variable FAULT, once its time reaches 10 ms
+# The example model with a fault, chosen by the environment variable FAULT, once its time reaches FAULT_T [s] (10 ms)
 FAULTY_MODEL = """
 import ctypes, os, sys, time
 from zencosim.examples.oscillator import Oscillator
+
+FAULT_T = float(os.environ.get("FAULT_T", "0.01"))
 
 
 class Faulty(Oscillator):
@@ -213,13 +229,15 @@ class Faulty(Oscillator):
 
     def acceleration(self, t, z, u):
         fault = os.environ["FAULT"]
-        if t >= 0.01:
+        if t >= FAULT_T:
             if fault == "exit":
                 sys.exit(0)
             if fault == "interrupt":
                 raise KeyboardInterrupt
             if fault == "hang":
                 time.sleep(600)
+            while fault == "spin":
+                pass
             if fault == "os-exit":
                 os._exit(0)
             if fault == "segfault":
@@ -230,20 +248,100 @@ class Faulty(Oscillator):
 """
 
 
-def _faulty_run(processes, tmp_path, fault: str, bus: str, *options: str):
-    """The example two_mass_damped_python scene with S2's model failing by ``fault``: the finished manager's exit status
-    and standard error."""
+def _faulty_env(tmp_path, fault: str, fault_t: float = 0.01) -> dict[str, str]:
+    """The environment of a command that runs the faulty model of ``tmp_path``: failing by ``fault`` from ``fault_t``."""
+    path = os.pathsep.join(filter(None, [str(tmp_path), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": path, "FAULT": fault, "FAULT_T": repr(fault_t)}
+
+
+def _faulty_run(processes, tmp_path, fault: str, bus: str, *options: str, duration: float = 0.5,
+                fault_t: float = 0.01):
+    """The example two_mass_damped_python scene (1 ms steps) with S2's model failing by ``fault`` from ``fault_t`` [s],
+    run for ``duration`` [s]: the finished manager's exit status and standard error."""
     (tmp_path / "faulty_model.py").write_text(FAULTY_MODEL)
     scene = (Path(zencosim.examples.__file__).parent / "scenes" / "two_mass_damped_python.toml").read_text()
     head, _, tail = scene.partition("[subsystems.S2]")
     scene_file = tmp_path / "faulty.toml"
     scene_file.write_text(head + "[subsystems.S2]" + tail.replace("zencosim.examples.oscillator:Oscillator",
                                                                   "faulty_model:Faulty", 1))
-    path = os.pathsep.join(filter(None, [str(tmp_path), os.environ.get("PYTHONPATH")]))
-    manager = processes("run", str(scene_file), "--bus", bus, "--quiet", "--set", "manager.duration=0.5", *options,
-                        env={**os.environ, "PYTHONPATH": path, "FAULT": fault})
+    manager = processes("run", str(scene_file), "--bus", bus, "--quiet", "--set", f"manager.duration={duration}",
+                        *options, env=_faulty_env(tmp_path, fault, fault_t))
     _, stderr = manager.communicate(timeout=120)
     return manager.returncode, stderr
+
+
+def _zencosim(env: dict[str, str], *args: str) -> subprocess.CompletedProcess:
+    """``zencosim ARGS``, finished."""
+    return subprocess.run([sys.executable, "-m", "zencosim", *args], capture_output=True, text=True, env=env,
+                          timeout=120)
+
+
+CRASH_T_S = 1.5  # [s] the recorded model ends its process in its first step that reaches this (issue 42)
+COMPUTED_STEPS = 1499  # the macro-steps of 1 ms the run completes before: its step from t = 1.499 s never ends
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("bus, fault", [("inproc", "os-exit"), ("inproc", "segfault"),
+                                        pytest.param("zenoh", "segfault", marks=pytest.mark.slow)])
+def test_a_recorded_run_whose_model_ends_its_process_keeps_what_it_computed(processes, tmp_path, bus, fault):
+    """The model ends its process in the step from t = 1.499 s: the recording keeps at least 95 % of the 1,499 steps
+    the run completed (in process the loop hands over what it holds every max(16, a 32nd of its steps), and the
+    recorder records what was in its pipe; over Zenoh each subsystem's batches for the manager are as small early in a
+    run), the command returns once the file is finished (inspect, run at once, reads it whole), and inspect and
+    replay --verify agree on its last step. Before (issue 42): 0–511 steps in process, and inspect said "steps 0 …
+    the recorder did not finish" while verify passed up to step 511."""
+    mcap = tmp_path / "crash.mcap"
+    status, stderr = _faulty_run(processes, tmp_path, fault, bus, "--record", str(mcap), duration=2 * CRASH_T_S,
+                                 fault_t=CRASH_T_S)
+    assert status == 1 and "Traceback" not in stderr, stderr
+    if bus == "inproc":  # the step it ended the process in, as the watching parent names it
+        assert "the model ended the run's process in its step from t = 1.499 s" in stderr, stderr
+    env = _faulty_env(tmp_path, fault, CRASH_T_S)
+    inspect = _zencosim(env, "inspect", str(mcap))
+    assert inspect.returncode == 0, inspect.stdout + inspect.stderr  # read to its end, intact
+    kept = int(re.search(r"steps (\d+) of 3000", inspect.stdout)[1])
+    assert 0.95 * COMPUTED_STEPS <= kept <= COMPUTED_STEPS, inspect.stdout
+    recording = read_recording(mcap)
+    assert recording.last_step() == kept and recording.end is not None
+    replay = _zencosim(env, "replay", str(mcap), "--verify")
+    messages = sum(len(channel.messages) for channel in recording.channels.values())
+    assert f"verify passed: {messages} messages bit-identical to a re-run, up to step {kept}" in replay.stdout, \
+        replay.stdout + replay.stderr
+    # over Zenoh the manager may have recorded the commands of the step that ended the process (a batch sent just
+    # before): then the re-run ends its own process there, after its verdict, and says how (exit status 1)
+    assert replay.returncode == 0 or replay.stderr.startswith(
+        "the re-run failed: subsystem S2: the model ended the run's process in its step from t = 1.499 s"), replay.stderr
+
+
+@pytest.mark.timeout(120)
+def test_the_replay_of_a_run_that_failed_in_its_model_gives_a_verdict_then_the_reproduced_failure(processes, tmp_path):
+    """A model that fails (sys.exit) at t = 0.3 s: replay --verify compares every message the file holds, then says
+    that the re-run failed as the run did (exit status 0: the recording verified). The same model ending the process
+    there instead (os._exit) ends the re-run's too: the verdict is said before, then how the process ended (1). One
+    that fails sooner than the recorded run did fails the verification (1). Before (issue 42): only the failure."""
+    mcap, fault_t = tmp_path / "failed.mcap", 0.3
+    status, stderr = _faulty_run(processes, tmp_path, "exit", "inproc", "--record", str(mcap), duration=0.6,
+                                 fault_t=fault_t)
+    failure = "subsystem S2: failed at step 300: the model exited (SystemExit 0)"
+    assert status == 1 and stderr.strip().splitlines()[-1] == f"run failed: {failure}", stderr
+    recording = read_recording(mcap)
+    assert recording.end["outcome"] == f"failed: {failure}" and recording.last_step() == 299
+    verdict = (f"verify passed: {sum(len(c.messages) for c in recording.channels.values())} messages bit-identical "
+               "to a re-run, up to step 299")
+
+    replay = _zencosim(_faulty_env(tmp_path, "exit", fault_t), "replay", str(mcap), "--verify")
+    assert (replay.returncode, replay.stdout.splitlines()) == (0, [verdict, f"the re-run then failed as the run did: "
+                                                                           f"{failure}"]), replay.stderr
+
+    replay = _zencosim(_faulty_env(tmp_path, "os-exit", fault_t), "replay", str(mcap), "--verify")
+    assert (replay.returncode, replay.stdout.splitlines()) == (1, [verdict]), replay.stderr
+    assert re.fullmatch(r"the re-run failed: subsystem S2: the model ended the run's process in its step from t = "
+                        r"0\.299 s \(exited with code 0; .*\)", replay.stderr.strip()), replay.stderr
+
+    replay = _zencosim(_faulty_env(tmp_path, "exit", 0.2), "replay", str(mcap), "--verify")
+    assert replay.returncode == 1 and replay.stdout.startswith(
+        "verify FAILED: the re-run failed before the recording's end (subsystem S2: failed at step 200: the model "
+        "exited (SystemExit 0)); the "), replay.stdout + replay.stderr
 
 
 @pytest.mark.timeout(120)
@@ -275,6 +373,18 @@ def test_a_subsystem_that_hangs_in_its_step_is_the_one_named(processes, tmp_path
     assert status == 1 and "Traceback" not in stderr, stderr
     assert stderr.startswith("run failed: subsystem S2: did not answer within the timeout of 2 s (manager.timeout)"), \
         stderr
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_a_subsystem_that_has_cpu_and_answers_nothing_is_named(processes, tmp_path):
+    """S2 loops in its step, on the CPU: however busy the machine, it is named once it has used manager.timeout of
+    CPU time without the run advancing, or the stall clock (which counts its CPU share) reaches the timeout."""
+    status, stderr = _faulty_run(processes, tmp_path, "spin", "zenoh", "--set", "manager.timeout=1")
+    assert status == 1 and "Traceback" not in stderr, stderr
+    assert re.match(r"run failed: subsystem S2: did not answer within the timeout of 1 s \(manager\.timeout\)"
+                    r"(: its process used \d+\.\d s of CPU time since the run last advanced, and answered nothing)?",
+                    stderr), stderr
 
 
 @pytest.mark.timeout(120)

@@ -3,14 +3,19 @@ the oracle is the tool the FMU was made for, not zencosim's own arithmetic. Also
 values, and what is refused."""
 from __future__ import annotations
 
+import contextlib
+import io
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import zencosim
+from zencosim.cli.main import main
 from zencosim.examples.write import write_examples
 
 fmpy = pytest.importorskip("fmpy")
@@ -112,18 +117,72 @@ def test_the_command_line_runs_a_lone_fmu_with_inputs_and_writes_its_outputs(fmu
 
 
 @pytest.mark.parametrize("text, reason", [
-    ("time,f_in\n0.0,1.0\n0.5,nan\n", "expected finite numbers only"),
-    ("time,f_in\n0.5,1.0\n0.0,1.0\n", "expected times that do not decrease (column 'time')"),
-    ("time,x\n0.0,1.0\n", "column 'x' is not a real input of the FMI 2.0 Co-Simulation; expected one of "),
-    ("time,f_in\n0.0,one\n", "expected a header line, then rows of numbers"),
+    ("time,f_in\n0.0,1.0\n0.5,nan\n", "line 3, column 'f_in': expected a finite number, got 'nan'"),
+    ("time,f_in\n0.5,1.0\n0.0,1.0\n", "line 3: time 0.0 s is before the 0.5 s of line 2; expected times that do "
+                                        "not decrease (column 'time')"),
+    ("time,x\n0.0,1.0\n1.0,1.0\n", "column 'x' is not a real input of the FMI 2.0 Co-Simulation; expected one of "),
+    ("time,f_in\n0.0,one\n1.0,2.0\n", "line 2, column 'f_in': expected a number, got 'one'"),
+    ("time,f_in\n0.0,1.0\n", "1 row(s) of values; expected at least two"),  # numpy's text at run time, exit 1, once
+    ("time,f_in\n", "0 row(s) of values; expected at least two"),
+    ("time,f_in\n0.0,1.0\n1.0\n", "line 3: 1 value(s), expected 2 (one per column: time, f_in)"),  # IndexError once
+    ("time,f_in\n0.0,1.0,2.0\n1.0,1.0\n", "line 2: 3 value(s), expected 2"),
+    ("f_in,time\n1.0,0.0\n1.0,1.0\n", "line 1: the time must come first, got column 'f_in' first"),
+    ("f_in,x\n1.0,0.0\n1.0,1.0\n", "line 1: the time must come first, got column 'f_in' first"),
+    ("time\n0.0\n1.0\n", "line 1: expected the names of the time column and of at least one input variable"),
+    ("time,f_in,f_in\n0,1,1\n1,1,1\n", "line 1: expected the names of the time column and of at least one input"),
+    ("", "empty; expected a header line"),
+    ("\xff\xfe\x00", "not text (UTF-8)"),
 ])
 def test_a_bad_input_table_is_refused_naming_the_file_and_why(fmu, tmp_path, text, reason):
     table = tmp_path / "inputs.csv"
-    table.write_text(text)
+    table.write_bytes(text.encode("latin-1"))
     with pytest.raises(zencosim.SceneError) as caught:
         zencosim.load_scene(str(fmu), {"input": str(table)})
     ((key, found),) = [(p.key, p.reason) for p in caught.value.problems]
-    assert key == f"subsystems.{NAME}.input_table" and str(table) in found and reason in found
+    assert key == f"subsystems.{NAME}.input_table" and found.startswith(f"{table}: ") and reason in found, found
+
+
+@pytest.mark.parametrize("source, said", [
+    ("/dev/zero", "not a regular file; expected a CSV file"),  # read forever once
+    ("folder", "not a regular file; expected a CSV file"),
+    ("missing.csv", "no such file"),
+    ("time,f_in\n0.0,1.0\n", "1 row(s) of values; expected at least two"),  # numpy's text at run time, exit 1, once
+    ("time,f_in\n0.0,1.0\n1.0\n", "line 3: 1 value(s), expected 2"),  # "list index out of range" once
+])
+def test_an_input_that_is_no_table_is_one_line_and_exit_2(fmu, tmp_path, source, said):
+    """``zencosim run model.fmu --input …``: exit 2 naming the file and why, before anything runs."""
+    (tmp_path / "folder").mkdir()
+    if source == "/dev/zero" and not Path(source).exists():
+        pytest.skip("no /dev/zero here")
+    path = source if source.startswith("/") else str(tmp_path / source)
+    if "\n" in source:
+        path = str(tmp_path / "inputs.csv")
+        Path(path).write_text(source)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["run", str(fmu), "--input", path, "--quiet"])
+    assert status == 2 and "Traceback" not in errors.getvalue(), errors.getvalue()
+    assert f"subsystems.{NAME}.input_table: {path}: {said}" in " ".join(errors.getvalue().split())
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=st.text(alphabet="0123456789.,-e \ntimef_nax\"", max_size=60)
+       | st.sampled_from(["time,f_in\n0,1\n2,3\n", "\"time\",\"f_in\"\n0,1e-3\n0,-2\n5.5,7\n"]))
+def test_any_text_is_an_input_table_or_one_problem_naming_the_file(fmu, tmp_path, text):
+    table = tmp_path / "inputs.csv"
+    table.write_text(text)
+    try:
+        scene = zencosim.load_scene(str(fmu), {"input": str(table)})
+    except zencosim.SceneError as error:
+        ((key, found),) = [(p.key, p.reason) for p in error.problems]
+        assert key == f"subsystems.{NAME}.input_table" and found.startswith(f"{table}: ")
+    else:
+        spec = scene.subsystems[NAME].spec.input_table
+        assert spec.time.size >= 2 and np.all(np.diff(spec.time) >= 0) and np.all(np.isfinite(spec.values))
+        assert spec.at(0.5).shape == (len(spec.variables),)
+        if " " not in text and all(text.splitlines()):  # fmpy reads no blank line, and a space as a vector
+            reference = fmpy.util.read_csv(table)  # the oracle: the columns fmpy.simulate_fmu would be given
+            assert np.array_equal(reference[reference.dtype.names[0]], spec.time)
+            assert all(np.array_equal(reference[n], v) for n, v in zip(spec.variables, spec.values))
 
 
 def test_an_input_table_for_a_system_is_refused(tmp_path):
@@ -132,3 +191,26 @@ def test_an_input_table_for_a_system_is_refused(tmp_path):
     with pytest.raises(zencosim.SceneError) as caught:
         zencosim.load_scene(str(system), {"input": "inputs.csv"})
     assert [p.key for p in caught.value.problems] == ["input"]
+
+
+@pytest.mark.parametrize("tool, hint", [("zencosim.examples.fmus.build", False), ("pythonfmu 0.6.5", True)])
+def test_an_fmu_that_cannot_be_instantiated_is_told_about_pythonfmu_only_when_pythonfmu_made_it(fmu, tmp_path,
+                                                                                                 tool, hint):
+    """A C FMU whose GUID does not match its binary's: fmpy's own reason; only an FMU whose generationTool is
+    pythonfmu hears about the packages a Python FMU needs."""
+    import re
+    import zipfile
+    broken = tmp_path / "broken.fmu"
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(broken, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                text = re.sub(r'guid="[^"]*"', 'guid="{00000000-0000-0000-0000-000000000000}"', data.decode())
+                data = re.sub(r'generationTool="[^"]*"', f'generationTool="{tool}"', text).encode()
+            target.writestr(item, data)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["check", str(broken)])
+    said = " ".join(errors.getvalue().split())
+    assert status == 2 and "Traceback" not in said, said
+    assert "FMU broken.fmu: cannot be instantiated (Exception: Failed to instantiate model); " in said
+    assert ("a Python FMU (pythonfmu) needs its packages in this interpreter" in said) is hint

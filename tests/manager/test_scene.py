@@ -46,6 +46,15 @@ def test_override_changes_a_scalar_and_the_digest():
     assert load_scene("two_mass_damped").digest == base.digest
 
 
+def test_an_inline_table_replaces_a_whole_table():
+    """``--set key={…}`` (the only way to give an empty table, ``feedthrough = {}``) replaces the table: the body's
+    keys it does not give take their defaults, x0 = v0 = 0."""
+    scene = load_scene("two_mass_damped", ["subsystems.S1.bodies.m1={ mass = 2.0 }"])
+    assert scene.resolved["subsystems"]["S1"]["bodies"]["m1"] == {"mass": 2.0}
+    body = scene.subsystems["S1"].spec.bodies["m1"]
+    assert (body.mass, body.x0, body.v0) == (2.0, 0.0, 0.0)
+
+
 def test_zero_coefficient_builds_no_effect():
     undamped = build_subsystems(load_scene("two_mass_undamped"))
     assert undamped["S1"].effects == ("k1", "c.kc")

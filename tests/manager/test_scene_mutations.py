@@ -75,6 +75,7 @@ def test_a_mutated_scene_is_refused_with_its_key_or_runs(tmp_path_factory, rng):
     ("manager.duration=1e-4", "manager.duration", "at least one macro-step period"),
     ("manager.duration=1e7", "manager.duration", "shorten manager.duration or lengthen manager.macro_step"),
     ("subsystems.S1.micro_step=nan", "subsystems.S1.micro_step", "finite"),
+    ("manager.timeout=1e308", "manager.timeout", "at most 9.223e+09 s"),  # an OverflowError in the watchdog once
 ])
 def test_the_issues_overrides_are_refused_naming_the_key(override, key, reason):
     """The findings of issue 14 (a traceback or an accepted scene that cannot run), now scene errors."""
@@ -111,3 +112,37 @@ def test_deep_nesting_is_a_scene_error_not_a_recursion_error():
 def load_scene_text(name: str) -> str:
     from importlib import resources
     return (resources.files("zencosim.scenes") / f"{name}.toml").read_text()
+
+
+@pytest.mark.parametrize("point, role", [("S2.points.m2", "position"), ("S1.points.m1", "position_input"),
+                                         ("S1.points.m1", "force"), ("S2.points.m2", "velocity")])
+def test_an_empty_list_of_a_points_variables_is_one_line_and_exit_2(point, role):
+    """``position = []`` on a Python model's point (scene fuzz, seed 41004): a KeyError from ``check`` once."""
+    from tests.conftest import REPO
+    scene = str(REPO / "zencosim" / "examples" / "scenes" / "two_mass_damped_python.toml")
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        status = main(["check", scene, "--set", f"subsystems.{point}.{role}=[]"])
+    assert status == 2 and "Traceback" not in errors.getvalue(), errors.getvalue()
+    assert (f"subsystems.{point}.{role}: expected a variable name, or a list of one per component, got an empty list"
+            in " ".join(errors.getvalue().split()))
+
+
+TIME_KEYS = ("manager.macro_step", "manager.duration", "subsystems.S1.micro_step",
+             "manager.energy_control.max_step_size", "manager.energy_control.step_size")
+
+
+@settings(max_examples=30, deadline=None)
+@given(key=st.sampled_from(TIME_KEYS), seconds=st.floats() | st.sampled_from([1e300, 1e308, 5e-324, 9.3e9, 2.0**63]))
+def test_any_float_as_a_time_loads_or_is_refused_by_its_key(key, seconds):
+    """Every time of a TOML scene goes through one conversion to nanoseconds (manager.scene.times): any float gives
+    a scene, or problems that each name a key, among them this one when the float is no time (not finite, under
+    1 ns, beyond 2**63 - 1 ns)."""
+    overrides = {"manager.step_control": "energy", "manager.energy_control.max_step_size": 0.01, key: seconds}
+    try:
+        scene = zencosim.load_scene("two_mass_undamped", overrides)
+    except SceneError as error:
+        assert all(p.key and p.reason for p in error.problems)
+        if not (math.isfinite(seconds) and 1e-9 <= seconds <= (2**63 - 1) * 1e-9):
+            assert key in {p.key for p in error.problems}, error
+    else:
+        assert scene.manager.macro_step_ns >= 1 and scene.manager.duration_ns <= 2**63 - 1

@@ -6,6 +6,8 @@ SceneError naming the file and the element, never a traceback.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import shutil
 import tomllib
 import zipfile
@@ -17,6 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tests.interop.peer_pair import ecco_configuration
+from zencosim.cli.main import main
 from zencosim.manager.scene.imports import import_system
 from zencosim.manager.scene.load import SceneError, load_scene, scene_from_text
 
@@ -284,11 +287,37 @@ def test_osp_without_end_time_takes_the_duration_asked_for(osp_dir):
     assert any("rounded up" in n for n in notes)
 
 
-def test_osp_end_time_beyond_64_bit_nanoseconds_is_refused_in_one_line(osp_dir):
-    """EndTime 1e300 s: more nanoseconds than times travel as (an OverflowError once); a scene error naming it."""
-    problems = osp_refusal(osp_dir, osp_system(end="<EndTime>1e300</EndTime>"))
-    assert problems == {"duration": "1e+300 s from EndTime - StartTime: expected a positive number of seconds of at "
-                                    "most 9.22337e+09 s (times are 64-bit nanoseconds)"}, problems
+BEYOND_64_BIT = "expected at most 9.223e+09 s (times are counted in signed 64-bit nanoseconds)"
+
+
+@pytest.mark.parametrize("options, key, reason", [
+    ({"end": "<EndTime>1e300</EndTime>"}, "duration", f"1e+300 s from EndTime - StartTime: {BEYOND_64_BIT}"),
+    ({"base": "1e300"}, "BaseStepSize", f"base step 1e+300 s: {BEYOND_64_BIT}"),
+    ({"step_1": "1e308"}, "Simulator 'S1' (line 8)", f"step size 1e+308 s: {BEYOND_64_BIT}"),
+    ({"base": "5e-324"}, "BaseStepSize", "base step 5e-324 s: expected at least 1 ns (times are counted in whole "
+                                         "nanoseconds)"),
+])
+def test_osp_times_beyond_64_bit_nanoseconds_are_refused_in_one_line(osp_dir, options, key, reason):
+    """More nanoseconds than times travel as (an OverflowError once, from check and convert): a scene error
+    naming the element, and exit status 2 from the command line."""
+    assert osp_refusal(osp_dir, osp_system(**options)) == {key: reason}
+    assert_one_line_error(["check", str(osp_dir / "OspSystemStructure.xml")], f"{key}: {reason}")
+    assert_one_line_error(["convert", str(osp_dir / "OspSystemStructure.xml"), "--to", str(osp_dir / "scene.toml")],
+                          f"{key}: {reason}")
+
+
+def test_ssp_a_base_step_beyond_64_bit_nanoseconds_is_refused_in_one_line(ssp_dir):
+    key, reason = "DefaultExperiment: osp:FixedStepAlgorithm baseStepSize", f"base step 1e+308 s: {BEYOND_64_BIT}"
+    assert ssd_refusal(ssp_dir, ssd_system(base="1e308")) == {key: reason}
+    for command in ("check", "run"):
+        assert_one_line_error([command, str(ssp_dir / "SystemStructure.ssd")], f"{key}: {reason}")
+
+
+def assert_one_line_error(argv: list[str], problem: str) -> None:
+    """The command line, in process, exits 2 with the problem and no traceback."""
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:
+        assert main(argv) == 2, errors.getvalue()
+    assert problem in " ".join(errors.getvalue().split()) and "Traceback" not in errors.getvalue()
 
 
 def test_osp_multi_rate_gives_communication_ratios(osp_dir):
@@ -1053,3 +1082,68 @@ def test_a_mutated_ssd_file_is_imported_or_a_scene_error(ssp_dir, data):
         assert error.path == str(ssp_dir / "SystemStructure.ssd") and error.problems
     else:
         assert tomllib.loads(tomli_w.dumps(document)) == document
+
+
+# what an import does not read: a note in check, never silence -------------------------------------------------
+
+OSP_UNIT = ('<InitialValue variable="k"><Real value="10.0"/>',
+            '<InitialValue variable="k" unit="degC"><Real value="10.0" unit="degC"/>')
+SSV_FOREIGN = ("<ssv:Parameters>", '<ssv:Parameters xmlns:foo="urn:foo"><foo:Extra name="k"/>')
+
+
+def test_osp_attributes_the_import_does_not_read_are_noted(osp_dir):
+    """``unit="degC"`` on an InitialValue (libcosim's schema has none) or on its value is not converted: said."""
+    text = osp_system().replace(*OSP_UNIT)
+    _, notes = osp_import(osp_dir, text)
+    at = f"InitialValue (line {line(text, 'unit=')})"
+    assert [n for n in notes if "not read" in n] == [
+        f"{at}: InitialValue unit='degC' not read (zencosim reads variable): ignored, the value is used as written",
+        f"{at}: Real unit='degC' not read (zencosim reads value): ignored, the value is used as written"]
+    _, plain = osp_import(osp_dir, osp_system())
+    assert not [n for n in plain if "not read" in n]
+
+
+def test_ssd_elements_of_parameters_the_import_does_not_read_are_noted(ssp_dir):
+    text = ssd_system().replace(*SSV_FOREIGN, 1)
+    _, notes = ssd_import(ssp_dir, text)
+    assert [n for n in notes if "not read" in n] == [
+        f"Extra 'k' (line {line(text, '<foo:Extra')}): an element of Parameters that is no ssv:Parameter is not read "
+        "(as fmpy reads a parameter set): ignored"]
+
+
+def test_check_shows_what_an_import_did_not_read(tmp_path):
+    from zencosim.examples.fmus.build import build_fmu
+
+    build_fmu(tmp_path / "oscillator.fmu", 2, ("cs",))
+    (tmp_path / "zencosim oscillator_OspModelDescription.xml").write_text(OSP_MODEL_DESCRIPTION)  # its modelName
+    for name, text, said in (("OspSystemStructure.xml", osp_system().replace(*OSP_UNIT), "InitialValue unit='degC'"),
+                             ("SystemStructure.ssd", ssd_system().replace(*SSV_FOREIGN, 1), "no ssv:Parameter is")):
+        (tmp_path / name).write_text(text)
+        with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as errors:
+            assert main(["check", str(tmp_path / name)]) == 0, errors.getvalue()
+        assert "mapped: " in out.getvalue() and said in " ".join(out.getvalue().split())
+
+
+step_sizes = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from(
+    [1e300, 1e308, 5e-324, 1e-9, 1e-10, 9.2e9, 9.3e9, 2.0**63, -1.0, 0.0, 0.001])
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(base=step_sizes, step=step_sizes, which=st.sampled_from(["osp base", "osp step", "ssp base"]))
+def test_any_float_as_a_step_size_is_imported_or_one_clear_problem(osp_dir, ssp_dir, base, step, which):
+    """Every float (NaN, inf, 1e308, subnormal, beyond 64-bit nanoseconds) as a base step or a simulator's step: a
+    document whose steps are whole nanoseconds, or a scene error naming the element, never an OverflowError."""
+    if which == "ssp base":
+        path, text = ssp_dir / "SystemStructure.ssd", ssd_system(base=repr(base))
+    else:
+        path = osp_dir / "OspSystemStructure.xml"
+        text = osp_system(base=repr(base)) if which == "osp base" else osp_system(step_1=repr(step))
+    path.write_text(text)
+    try:
+        document, _ = import_system(path)
+    except SceneError as error:
+        assert error.path == str(path) and error.problems
+        assert all(p.key != "file" and p.reason for p in error.problems)
+    else:
+        assert 1 <= round(document["manager"]["macro_step"] * 1e9) <= 2**63 - 1
+        assert all(1 <= round(s["micro_step"] * 1e9) <= 2**63 - 1 for s in document["subsystems"].values())

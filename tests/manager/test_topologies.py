@@ -1,12 +1,18 @@
 """Topology by output: a chain runs (each force output feeds through only from the next mass's motion, a
-state), a star runs, and a real algebraic loop is refused naming the outputs on it."""
+state), a star runs, a real algebraic loop is refused naming the outputs on it, and a loop through feedthrough
+no component declares is initialised by libcosim's passes."""
 from __future__ import annotations
+
+import dataclasses
 
 import pytest
 
 import zencosim
 from tests.conftest import REPO
+from zencosim.manager.plan.run_plan import Feed, SubsystemPlan, _init_rounds
 from zencosim.scenes.topologies import mass_chain, mass_star
+from zencosim.subsystems.params import Problems
+from zencosim.subsystems.ports import Port
 
 LOOPING_MODEL = '''
 import numpy as np
@@ -106,3 +112,33 @@ effects.kc = { type = "spring", stiffness = 100.0 }
     with pytest.raises(zencosim.SceneError, match=r"couplings: outputs with direct feedthrough form an algebraic loop: "
                                                   r"S1\.fc <- S2\.x2 <- S1\.fc; an explicit scheme cannot initialise"):
         zencosim.run(scene)
+
+
+def _ring(names: str, undeclared: str) -> list:
+    """Subsystems ``names`` in a ring of signals (each output feeds the next one's input), each output feeding
+    through from its input: declared, or only by FMI's default where the name is in ``undeclared``."""
+    n = len(names)
+    return [SubsystemPlan(i, name, 1, (Port(f"{name}_in", "signal", signal_unit="1"),),
+                          (Port(f"{name}_out", "signal", True, "1", None, undeclared=name in undeclared),),
+                          (Feed((i - 1) % n, (0,), (0,), 0),), (), 0) for i, name in enumerate(names)]
+
+
+@pytest.mark.parametrize("undeclared", ["A", "ABC"])
+def test_a_loop_through_undeclared_feedthrough_takes_libcosims_n_plus_1_passes(undeclared):
+    """One undeclared output breaks the ring as all of them do: every subsystem asked N + 1 = 4 times, the first
+    time with no input (no source has answered), then with every input."""
+    problems = Problems()
+    rounds = _init_rounds(_ring("ABC", undeclared), problems, {})
+    assert not problems
+    assert [[(step.subsystem, step.ready) for step in round_] for round_ in rounds] == (
+        [[(0, ()), (1, ()), (2, ())]] + 3 * [[(0, (0,)), (1, (0,)), (2, (0,))]])
+
+
+def test_a_loop_of_declared_feedthrough_is_refused_beside_an_undeclared_one():
+    declared, undeclared = _ring("AB", ""), _ring("CD", "CD")
+    problems = Problems()
+    _init_rounds(declared + [dataclasses.replace(s, index=s.index + 2, feeds=(dataclasses.replace(
+        s.feeds[0], source=s.feeds[0].source + 2),)) for s in undeclared], problems, {0: "as subsystems.A.feedthrough states it"})
+    assert [(p.key, p.reason) for p in problems] == [
+        ("couplings", "outputs with direct feedthrough form an algebraic loop: A.A_out <- B.B_out <- A.A_out "
+                      "(feedthrough: A's as subsystems.A.feedthrough states it); an explicit scheme cannot initialise them")]

@@ -3,8 +3,11 @@ discrete verdict of ``zencosim analyze`` for a linear scene, and the compensator
 from __future__ import annotations
 
 import json
+import math
+import os
 import subprocess
 import sys
+from importlib import resources
 
 import pytest
 
@@ -25,7 +28,9 @@ def _strict_json(text: str):
 
 
 def _zencosim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "zencosim", *args], capture_output=True, text=True, timeout=600)
+    """``zencosim`` with ``args``, its summary table as wide as its rows (COLUMNS: no cell wraps)."""
+    return subprocess.run([sys.executable, "-m", "zencosim", *args], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "COLUMNS": "1000"})
 
 
 def test_a_diverged_run_exits_3_with_a_strict_json_summary_that_says_why(tmp_path):
@@ -99,15 +104,40 @@ def test_run_reports_the_verdict_of_analyze(scene_name, overrides):
 
 
 def test_the_issues_two_mass_damped_case_is_unstable_in_both_commands(tmp_path):
+    """Unstable (ρ > 1) while the run's energy falls (the damping wins for the 2.3 s run; issue 42): the verdict
+    comes with the predicted growth's time scale, ln 2 / (2 ln ρ / T), in the JSON and in the text."""
     overrides = ("--set", "manager.macro_step=0.0023", "--set", "subsystems.S1.micro_step=0.0023",
                  "--set", "subsystems.S2.micro_step=0.0023", "--set", "manager.duration=2.3")
-    run = _zencosim("run", "two_mass_damped", *overrides, "--quiet", "--summary", str(tmp_path / "run.json"))
+    run = _zencosim("run", "two_mass_damped", *overrides, "--summary", str(tmp_path / "run.json"))
     analyze = _zencosim("analyze", "two_mass_damped", *overrides, "--json", str(tmp_path / "analyze.json"))
     assert run.returncode == 0 and analyze.returncode == 0, run.stderr + analyze.stderr
     summary = _strict_json((tmp_path / "run.json").read_text())
     report = _strict_json((tmp_path / "analyze.json").read_text())
     assert summary["stable"] is False and report["stable"]["uncompensated"] is False
     assert summary["discrete"]["spectral_radius"] == report["spectral_radius"]["uncompensated"] > 1.0
+    doubling = math.log(2.0) * 0.0023 / (2.0 * math.log(summary["discrete"]["spectral_radius"]))
+    assert summary["discrete"]["energy_doubling_time_s"] == pytest.approx(doubling, rel=1e-9)  # 82 s
+    assert summary["energy"]["growth_rate_per_s"] < 0.0  # measured: the energy falls over the run
+    assert f"doubles every {doubling:.3g} s (the run lasts 2.3 s)" in run.stdout and "measured energy falls" in run.stdout
+
+
+def test_no_verdict_without_energy(tmp_path):
+    """The DC motor drive without its ``energy`` keys: no subsystem reports an energy. At a fixed step its
+    Python models are identified exactly, so the exact discrete verdict stands; with the energy-controlled step
+    (no fixed step to analyse) there is neither a measured verdict nor a reliable run; the summary names the
+    outputs in J that could be declared (issue 42)."""
+    source = (resources.files("zencosim.examples") / "scenes" / "dc_motor_drive.toml").read_text()
+    scene = tmp_path / "drive.toml"
+    scene.write_text(source.replace('energy = "E"\n', ""))
+    assert 'energy = "E"' not in scene.read_text()
+    fixed = zencosim.run(load_scene(str(scene), ["manager.duration=0.01"])).summary
+    assert fixed["energy"] is None and fixed["discrete"]["stable"] is True
+    assert fixed["stable"] is True and fixed["stable_from"] == "exact discrete spectral radius"
+    assert fixed["discrete"]["energy_doubling_time_s"] is None  # stable: the energy does not double
+    summary = zencosim.run(load_scene(str(scene), ["manager.duration=0.01", "manager.step_control=energy"])).summary
+    assert summary["energy"] is None and summary["discrete"] is None
+    assert summary["stable"] is None and summary["stable_from"] is None and summary["reliable"] is None
+    assert summary["energy_candidates"] == ["supply.E", "motor.E", "load.E"]
 
 
 def test_the_compensators_refusal_states_why_the_discrete_correction_failed():
@@ -121,3 +151,20 @@ def test_the_compensators_refusal_states_why_the_discrete_correction_failed():
     assert "assigns the monolithic poles" in problem.reason
     assert "no longer complex-conjugate pairs" in problem.reason
     assert "a shorter macro-step" in problem.reason
+
+
+def test_an_output_in_joules_stands_in_for_an_energy_no_subsystem_declares(tmp_path):
+    """The drive with no ``energy`` keys but the motor's E published as a signal (``outputs = ["E"]``): its only
+    recorded output in J is the energy the summary measures — the same numbers as when the scene declares it."""
+    source = (resources.files("zencosim.examples") / "scenes" / "dc_motor_drive.toml").read_text()
+    bare = source.replace('energy = "E"\n', "")
+    motor = "[subsystems.motor]\n"
+    published, declared = tmp_path / "published.toml", tmp_path / "declared.toml"
+    published.write_text(bare.replace(motor, motor + 'outputs = ["E"]\n'))
+    declared.write_text(bare.replace(motor, motor + 'energy = "E"\n'))
+    summaries = [zencosim.run(load_scene(str(path), ["manager.duration=0.05"])).summary for path in (published, declared)]
+    assert summaries[0]["energy"].pop("outputs") == ["motor.E"] and "outputs" not in summaries[1]["energy"]
+    assert summaries[0]["energy"] == summaries[1]["energy"] and summaries[0]["energy"]["final"] > 1.0  # [J]
+    # the Python models are identified exactly, so the verdict is the exact one in both; the energy is the same
+    assert summaries[0]["stable_from"] == summaries[1]["stable_from"] == "exact discrete spectral radius"
+    assert summaries[0]["stable"] is summaries[1]["stable"] is True

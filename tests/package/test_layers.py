@@ -16,7 +16,7 @@ from tests.package.conftest import layer_folders
 
 # lowest first; a module belongs to the layer of its longest matching prefix
 LAYERS = (
-    ("optional parts", ("zencosim.extras", "zencosim.scenes")),
+    ("optional parts", ("zencosim.extras", "zencosim.scenes", "zencosim.versions")),
     ("design-time maths", ("zencosim.compensation",)),
     ("models", ("zencosim.subsystems.params", "zencosim.subsystems.ports", "zencosim.subsystems.inputs",
                 "zencosim.subsystems.units", "zencosim.subsystems.sketch",

@@ -186,3 +186,28 @@ def test_an_energy_controlled_run_shows_the_length_of_each_macro_step(tmp_path):
     steps, times, lengths = _scalars(data["/macro_step"])
     assert steps == ticks[1:].tolist() and times == (ticks[1:] * 100_000).tolist()
     assert np.array_equal(lengths, np.diff(ticks * 100_000) * 1e-6) and len(set(lengths.tolist())) > 3
+
+
+def test_each_dimensionless_signal_has_a_panel_of_its_own_and_units_still_share_one():
+    """Signals without a unit (``1``: an FMU's variables with none) each get a panel, so that a ±1 force does not
+    flatten a ±0.17 position; signals with a unit keep one panel per quantity. The blueprint is built from these."""
+    import rerun as rr
+
+    from zencosim.recordings.layout import ChannelSpec
+    from zencosim.recordings.rerun_view import RunView, blueprint
+    specs = [ChannelSpec("A/y", "A", "outputs", ("force", "position", "x"), ("1", "1", "m")),
+             ChannelSpec("B/y", "B", "outputs", ("position", "x"), ("1", "m")),
+             ChannelSpec("B/commands", "B", "inputs", ("force",), ("1",))]
+    view = RunView(rr.RecordingStream("zencosim-test"), specs, None)
+    series = [s for group in view.series.values() for s in group]
+    by_panel = {origin: [s for s in series if s.origin == origin] for origin in view.panels()}
+    dimensionless = {s.entity for s in series if s.unit == "1"}
+    assert len(dimensionless) == 4
+    for origin, inside in by_panel.items():
+        assert len({s.unit for s in inside}) == 1, origin  # never two units in one panel
+        if inside[0].unit == "1":
+            assert [s.entity for s in inside] == [origin], origin  # the signal alone, its panel titled with its name
+            assert view.panels()[origin] == inside[0].label
+    assert [len(inside) for origin, inside in by_panel.items() if inside[0].unit == "m"] == [2]
+    assert len(by_panel) == 5
+    blueprint(view)  # builds with a panel per origin

@@ -178,3 +178,20 @@ def test_where_the_compiled_step_cannot_be_written_or_loaded_there_is_none(where
     finally:
         monkeypatch.undo()
         native.library.cache_clear()  # the next caller compiles it again
+
+
+@pytest.mark.multiprocess
+def test_an_fmu_run_without_a_compiler_says_once_at_its_start_that_its_steps_are_slower(examples):
+    """Where the compiled step cannot be had, ``zencosim run`` says so in its first line, once (the command says it
+    before it starts the run's processes, which say nothing), names the FMUs, and the run goes on; with the
+    compiler, nothing is said."""
+    def run(environment: dict) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "zencosim", "run", str(examples / "two_mass_damped_fmu.toml"),
+                               "--set", "manager.duration=0.05"], env=environment, capture_output=True,
+                              text=True, timeout=120)
+    without, compiled = run({**os.environ, "CC": "/nonexistent/cc", "PATH": "/nonexistent"}), run(dict(os.environ))
+    assert without.returncode == 0 and compiled.returncode == 0, without.stderr + compiled.stderr
+    assert without.stderr.startswith("no working C compiler ($CC, else cc or gcc): each step of FMUs S1, S2 is a "
+                                     "ctypes call per FMI call from Python, several times slower"), without.stderr
+    assert without.stderr.count("C compiler") == 2  # the note's own two mentions, in one line
+    assert "C compiler" not in compiled.stderr

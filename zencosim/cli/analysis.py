@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 from rich.markup import escape
 from rich.table import Table
@@ -13,6 +14,7 @@ from zencosim.extras import require
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scheme.energy_step import step_bounds
 
 ANALYSIS_COLUMNS = {"monolithic": "monolithic", "cosim_pade": "co-sim. Padé", "cosim": "co-sim. D(s)",
                     "cosim_discrete": "co-sim. discrete", "compensated_model": "compensated D(s)",
@@ -21,6 +23,55 @@ ANALYSIS_COLUMNS = {"monolithic": "monolithic", "cosim_pade": "co-sim. Padé", "
 
 def _complex(value: complex, digits: int = 4) -> str:
     return f"{value.real:.{digits}f} {'+' if value.imag >= 0 else '-'} {abs(value.imag):.{digits}f}j"
+
+
+def _print_verdicts(report: dict) -> None:
+    """The spectral radius of each exact discrete scheme and the largest stable macro-step (uncompensated)."""
+    verdicts = Table(title="stability of the exact discrete scheme")
+    verdicts.add_column("")
+    verdicts.add_column("spectral radius ρ", justify="right")
+    verdicts.add_column("energy growth 2 ln ρ / T [1/s]", justify="right")
+    verdicts.add_column("verdict")
+    for key in ("uncompensated", "compensated"):
+        if report["spectral_radius"][key] is not None:
+            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{report['growth_rate_per_s'][key] or -math.inf:.4g}",
+                             "stable" if report["stable"][key] else "[bold red]UNSTABLE[/]")
+    out.print(verdicts)
+    step = report["largest_stable_step"]
+    low, high = step["largest_stable"], step["smallest_unstable"]
+    if low is None:
+        bracket = "unstable at every step tried"
+    elif high is None:
+        bracket = f"stable at every step tried, up to {low:.9g} s"
+    else:
+        bracket = (f"{low:.9g} s (unstable at {high:.9g} s; bisection to {step['relative_tolerance']:g} relative, "
+                   "micro-steps per step kept)")
+    out.print(f"largest stable macro-step, uncompensated: {bracket}"
+              + (f"; {step['unanalysable']} steps not analysable, counted unstable" if step["unanalysable"] else ""))
+
+
+def _print_identified(result) -> None:
+    """How each subsystem was identified, the verdicts and the largest stable step (no monolithic model)."""
+    report = result.to_dict()
+    interface = report["interface"]
+    out.print(f"[bold]{escape(result.scene.name)}[/]: {interface['extrapolation']}, "
+              f"T_s = {interface['macro_step']:g} s, exact discrete scheme of identified subsystems")
+    table = Table(title="identified subsystems (discrete-time, at the communication step, about the initial point)")
+    for column in ("subsystem", "method", "role", "order", "fit residual", "nonlinearity", "linearisation",
+                   "probes × steps"):
+        table.add_column(column, justify="right" if column in ("order", "fit residual", "nonlinearity") else "left")
+    for name, entry in report["identification"].items():
+        table.add_row(escape(name), entry["method"], entry["role"], str(entry["order"]), f"{entry['fit_residual']:.2g}",
+                      f"{entry['nonlinearity']:.2g}", entry["linearisation"], f"{entry['probes']} × {entry['steps']}")
+    out.print(table)
+    poles = Table(title="poles of the exact discrete scheme, ln(μ) / T [1/s]")
+    poles.add_column("λ [1/s]", justify="right")
+    poles.add_column("|μ|", justify="right")
+    for re, im in sorted(report["poles"]["cosim_discrete"], key=lambda pair: -pair[0]):
+        poles.add_row(_complex(complex(re, im)), f"{math.exp(re * interface['period']):.12f}")
+    out.print(poles)
+    _print_verdicts(report)
+    out.print(escape(report["not_compensated"]))
 
 
 def _print_analysis(result) -> None:
@@ -49,16 +100,7 @@ def _print_analysis(result) -> None:
         for m, name in enumerate(report["dof_names"]):
             table.add_row(escape(f"w[{name}]"), *(_complex(pairs.shapes[m, i]) for pairs in systems.values()))
         out.print(table)
-    verdicts = Table(title="stability of the exact discrete scheme")
-    verdicts.add_column("")
-    verdicts.add_column("spectral radius ρ", justify="right")
-    verdicts.add_column("energy growth 2 ln ρ / T [1/s]", justify="right")
-    verdicts.add_column("verdict")
-    for key in ("uncompensated", "compensated"):
-        if report["spectral_radius"][key] is not None:
-            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{report['growth_rate_per_s'][key]:.4g}",
-                             "stable" if report["stable"][key] else "[bold red]UNSTABLE[/]")
-    out.print(verdicts)
+    _print_verdicts(report)
     if report["not_compensated"]:
         out.print(f"no compensator: {escape(report['not_compensated'])}")
         return
@@ -76,19 +118,20 @@ def _print_analysis(result) -> None:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    from zencosim.manager.analysis.scene_analysis import analyze_scene, write_pole_map
+    from zencosim.manager.analysis.scene_analysis import IdentifiedAnalysis, analyze_scene, write_pole_map
     json_path = check_output_file(args.json, "analysis") if args.json else None
     plot_path = check_output_file(args.plot, "pole map", (".png",)) if args.plot else None
     if plot_path:
         require("plots", f"the pole map {plot_path}")
     scene = load_scene(args.scene, args.overrides)
     result = analyze_scene(scene, args.architecture)
-    _print_analysis(result)
+    (_print_identified if isinstance(result, IdentifiedAnalysis) else _print_analysis)(result)
     control = scene.manager.energy_control
     if scene.manager.step_control == "energy":  # the analysis is of one fixed macro-step: say which
+        longest = step_bounds(control, scene.manager.macro_step_ns)[2] * 1e-9
         warn(f"manager.step_control = 'energy': this is the scheme at a fixed macro-step of "
-             f"{scene.manager.macro_step:g} s; the run varies it up to {control.max_step_size:g} s (analyse that "
-             f"one with --set manager.macro_step={control.max_step_size:g} --set manager.step_control=fixed)")
+             f"{scene.manager.macro_step:g} s; the run varies it up to {longest:g} s (analyse that "
+             f"one with --set manager.macro_step={longest:g} --set manager.step_control=fixed)")
     if json_path:
         json_path.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
     if plot_path:

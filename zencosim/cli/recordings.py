@@ -33,29 +33,44 @@ def cmd_replay(args: argparse.Namespace) -> int:
         if rrd:
             say(f"wrote {rrd}")
     if args.verify:
+        from zencosim.manager.bus.watchdog import model_watch
         from zencosim.recordings.verify import verify
-        result = verify(recording)
-        compared = sum(result.compared.values())
-        held = (f"first divergence at {result.divergence}" if result.divergence is not None
-                else "it holds no messages to verify" if result.empty
-                else f"the {compared} messages it holds up to step {result.last_step} are bit-identical to a re-run")
-        if result.damage:
-            say(f"verify FAILED: the file is damaged: {'; '.join(result.damage)}"
-                + (f"; {result.truncated}" if result.truncated else "") + f"; {held}")
-        elif result.truncated:
-            say(f"verify INCOMPLETE: {result.truncated}; missing: what followed"
-                + (", the end record among it" if recording.end is None else "") + f"; {held}")
-        elif result.divergence is not None:
-            say(f"verify FAILED: first divergence at {result.divergence}")
-        elif result.empty:
-            say(f"verify FAILED: {recording.path} holds no messages to verify")
-        elif not result.passed:
-            say(f"verify FAILED: {result.note}")
-        else:
-            say(f"verify passed: {compared} messages bit-identical to a re-run, up to step {result.last_step}"
-                + (f" ({result.note})" if result.note else ""))
+        # said by a watched command's parent should the re-run, having compared every message, end the process
+        result = verify(recording, lambda so_far: model_watch().say_if_ended(_verdict(so_far, recording)[0]))
+        for line in _verdict(result, recording):
+            say(line)
         status = 0 if result.passed else 1
     return status
+
+
+def _verdict(result, recording) -> list[str]:
+    """What ``replay --verify`` says of ``result`` (``recordings.verify.Verification``) on ``recording``."""
+    compared = sum(result.compared.values())
+    held = (f"first divergence at {result.divergence}" if result.divergence is not None
+            else "it holds no messages to verify" if result.empty
+            else f"the {compared} messages it holds up to step {result.last_step} are bit-identical to a re-run")
+    if result.damage:
+        lines = [f"verify FAILED: the file is damaged: {'; '.join(result.damage)}"
+                 + (f"; {result.truncated}" if result.truncated else "") + f"; {held}"]
+    elif result.truncated:
+        lines = [f"verify INCOMPLETE: {result.truncated}; missing: what followed"
+                 + (", the end record among it" if recording.end is None else "") + f"; {held}"]
+    elif result.divergence is not None:
+        lines = [f"verify FAILED: first divergence at {result.divergence}"]
+    elif result.empty:
+        lines = [f"verify FAILED: {recording.path} holds no messages to verify"]
+    elif result.failure is not None and not result.passed:
+        lines = [f"verify FAILED: the re-run failed before the recording's end ({result.failure}); the {compared} "
+                 f"messages before it are bit-identical; " + (result.note or f"the recorded run: {result.outcome}")]
+    elif not result.passed:
+        lines = [f"verify FAILED: {result.note}"]
+    else:
+        lines = [f"verify passed: {compared} messages bit-identical to a re-run, up to step {result.last_step}"
+                 + (f" ({result.note})" if result.note else "")]
+    if result.failure is not None and result.passed:
+        lines.append(f"the re-run then failed as the run did: {result.failure}" if result.reproduced
+                     else f"the re-run then failed: {result.failure} (the recorded run: {result.outcome or 'unknown'})")
+    return lines
 
 
 def cmd_inspect(args: argparse.Namespace) -> int:

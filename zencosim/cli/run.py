@@ -19,6 +19,7 @@ from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.results.tables import check_table_path, record_tables, write_tables
 from zencosim.manager.run import BUSES, execute, summarize_run
 from zencosim.manager.scene.load import SYSTEM_DESCRIPTIONS, load_scene
+from zencosim.subsystems.models.external.fmi_steps import uncompiled_fmus
 
 DIVERGED = 3  # exit status of a run whose values did not stay finite, or that --strict fails (zencosim.cli.main)
 
@@ -38,11 +39,22 @@ def _print_summary(summary: dict) -> None:
         at = summary["diverged_at_s"]
         row("DIVERGED", "the implicit run's joint opened" if at is None else f"outputs not finite from t = {at:g} s")
     discrete = summary["discrete"]
-    if discrete is None:
+    if discrete is not None:
+        row("stable (exact discrete, as zencosim analyze)", f"{'yes' if summary['stable'] else 'NO'}: spectral radius "
+            f"{discrete['spectral_radius']:.12f}, energy growth 2 ln ρ / T = {discrete['growth_rate_per_s']:.4g} 1/s"
+            + _growth_time_scale(summary))
+    elif summary["stable"] is None:
+        candidates = summary.get("energy_candidates") or []
+        row("stable", "no verdict: no subsystem reports its energy; declare it, as "
+            + (", ".join(f"subsystems.{c.split('.')[0]}.energy = {c.split('.', 1)[1]!r}" for c in candidates)
+               if candidates else "subsystems.<name>.energy = '<its output in J>'"))
+    elif summary["stable_from"] == "measured energy growth":
         row("stable (measured energy growth)", "yes" if summary["stable"] else "NO (energy grows)")
     else:
-        row("stable (exact discrete, as zencosim analyze)", f"{'yes' if summary['stable'] else 'NO'}: spectral radius "
-            f"{discrete['spectral_radius']:.12f}, energy growth 2 ln ρ / T = {discrete['growth_rate_per_s']:.4g} 1/s")
+        row("stable", "NO (outputs not finite)")
+    control = summary.get("step_control")
+    if control is not None and control["at_limit"] is not None:
+        row("macro-step at a bound", _step_at_limit(control))
     for name, entry in summary["signals"].items():
         if entry.get("nrms") is not None:
             mono = entry.get("nrms_monolithic")
@@ -66,9 +78,14 @@ def _print_summary(summary: dict) -> None:
     for bond, intervals in summary["residual_power_spikes"].items():
         if intervals:
             row(f"δP spikes, bond {bond} [s]", ", ".join(f"{i['start']:.3f}–{i['end']:.3f}" for i in intervals))
-    row("reliable (no δP spike)", "yes" if summary["reliable"] else "NO")
+    row("reliable (no δP spike)", "no verdict (stability unknown)" if summary["reliable"] is None else
+        "yes" if summary["reliable"] else "NO")
     if summary["correction"] is not None:
         row("work injected by correction [J]", f"{summary['correction']['work_injected']:.6g}")
+        for name, point in summary["correction"]["points"].items():
+            if point["adds_energy_error"]:
+                row(f"correction at {name}", f"ADDS ERROR: its work {point['work_injected']:.3g} J against the energy "
+                    f"error {point['energy_error']:.3g} J it was to cancel; compare with the uncorrected run")
     timing = summary["timing"]
     row("wall time [s]", f"{timing['wall_s']:.3f}")
     row("macro-steps per second", f"{timing['steps_per_s']:.0f}")
@@ -94,6 +111,30 @@ def _print_summary(summary: dict) -> None:
     out.print(table)
     if "reference_note" in summary:
         out.print(summary["reference_note"])
+
+
+def _growth_time_scale(summary: dict) -> str:
+    """After an unstable exact verdict: the time the predicted growth takes to double the energy, against the
+    run's duration, and the measured energy when it fell (a mode that starts small)."""
+    doubling = summary["discrete"]["energy_doubling_time_s"]
+    if doubling is None:
+        return ""
+    text = f"; predicted: the energy doubles every {doubling:.3g} s (the run lasts {summary['duration']:g} s)"
+    energy = summary["energy"]
+    growth = None if energy is None else energy["growth_rate_per_s"]
+    if growth is not None and growth < 0.0:
+        text += f"; measured energy falls ({growth:.3g} 1/s): the unstable mode starts small"
+    return text
+
+
+def _step_at_limit(control: dict) -> str:
+    """Which bound an energy-controlled step sat at for most of the run, and what would move it."""
+    p = control["parameters"]
+    if control["at_limit"] == "min_step_size":
+        return (f"smallest, {p['min_step_size']:g} s, {control['time_at_min_step']:.0%} of the run: loosen "
+                f"abs_tolerance ({p['abs_tolerance']:.3g} J) or shorten manager.macro_step")
+    return (f"largest, {p['max_step_size']:g} s, {control['time_at_max_step']:.0%} of the run: raise "
+            f"max_step_size or tighten abs_tolerance ({p['abs_tolerance']:.3g} J)")
 
 
 def _number(value: float | None) -> str:
@@ -143,6 +184,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         from zencosim.recordings.recorder import Recorder
         recorder = Recorder(check_output_file(record_path, "recording") if record_path else None, args.record_host_info,
                             args.rerun, _wait_while_serving if args.rerun == "serve" else None, args.record_lost, warn)
+    slow = uncompiled_fmus({name: s.spec for name, s in scene.subsystems.items()})
+    if slow and not args.quiet:
+        warn(f"no working C compiler ($CC, else cc or gcc): each step of FMU{'s' if len(slow) > 1 else ''} "
+             f"{', '.join(slow)} is a ctypes call per FMI call from Python, several times slower than one compiled "
+             "call (docs/models.md, \"One call per step\"); install a C compiler for the fast path")
     n_steps = scene.manager.duration_ns // scene.manager.macro_step_ns
     bus_options = {}
     if args.bus == "zenoh":
@@ -212,7 +258,7 @@ def _strict_failures(summary: dict, max_missed: float) -> list[str]:
     """What fails a completed run under ``--strict``: an unstable verdict, and a real-time run that missed more
     than ``max_missed`` of its deadlines."""
     failed = []
-    if not summary["stable"]:
+    if summary["stable"] is False:  # None: no verdict (no energy), which --strict does not fail
         failed.append(f"its verdict is unstable ({summary['stable_from']})")
     timing = summary["timing"]
     if timing.get("realtime") and timing["paced_steps"]:

@@ -13,7 +13,9 @@ from zencosim.cli.console import add_scene_arguments, examples, out, say
 from zencosim.manager.assembly import plan_scene
 from zencosim.manager.results.output_files import check_output_file
 from zencosim.manager.scene.load import SceneError, bundled_scene_names, load_scene, scene_from_text
+from zencosim.manager.scheme.energy_step import step_bounds
 from zencosim.subsystems.params import Problem
+from zencosim.subsystems.ports import Port
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -37,8 +39,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     control = scene.manager.energy_control  # read whenever given; used with step_control = "energy" only
     steps = (f"{plan.n_ticks} macro-steps of {scene.manager.macro_step:g} s"
              if scene.manager.step_control != "energy" else
-             f"energy-controlled macro-steps of {control.min_step_size or scene.manager.macro_step:g} … "
-             f"{control.max_step_size:g} s (whole multiples of {scene.manager.macro_step:g} s)")
+             "energy-controlled macro-steps of {:g} … {:g} s".format(
+                 *(ns * 1e-9 for ns in step_bounds(control, scene.manager.macro_step_ns)[::2]))
+             + f" (whole multiples of {scene.manager.macro_step:g} s)")
     out.print(f"{steps}, scheme {scene.manager.scheme}, "
               f"extrapolation order {scene.manager.extrapolation}; bonds: {', '.join(bonds) or 'none'}")
     signals = [c for c in scene.couplings.values() if c.kind == "signal"]
@@ -58,14 +61,25 @@ def cmd_check(args: argparse.Namespace) -> int:
         out.print(f"[bold]{sub.name}[/]: {settings.model}, {settings.integrator}, micro-step {settings.micro_step:g} s, "
                   f"communication step {sub.ratio * scene.manager.macro_step:g} s")
         out.print(escape(f"  inputs:  {', '.join(f'{p.name} [{p.unit}]' for p in sub.inputs) or 'none'}"))
-        out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + (" (feedthrough)" if p.feedthrough else "")
-                                                for p in sub.outputs)))
+        out.print(escape("  outputs: " + ", ".join(f"{p.name} [{p.unit}]" + _feedthrough_mark(p) for p in sub.outputs)))
+        stated = getattr(scene.subsystems[sub.name].spec, "feedthrough", None)
+        if stated is not None:
+            out.print(escape(f"  feedthrough (subsystems.{sub.name}.feedthrough): " + (", ".join(
+                f"{output} <- {', '.join(inputs) or 'none'}" for output, inputs in stated.items())
+                or "no output") + ("; the other outputs: none" if stated else "")))
         out.print(escape(f"  effects: {', '.join(sub.effects) or 'none'}"))
         for key, unit in scene.replaced_units.items():
             if key.startswith(f"{sub.name}."):
                 out.print(escape(f"  unit: {key.removeprefix(sub.name + '.')} [{unit['scene']}], the scene's, replaces "
                                  f"the declared [{unit['declared']}]"), highlight=False)
     return 0
+
+
+def _feedthrough_mark(port: Port) -> str:
+    """How ``check`` marks an output's direct feedthrough: declared, or only FMI's default (``Port.undeclared``)."""
+    if port.undeclared:
+        return " (feedthrough undeclared: every input)"
+    return " (feedthrough)" if port.feedthrough else ""
 
 
 def cmd_convert(args: argparse.Namespace) -> int:

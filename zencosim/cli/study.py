@@ -8,9 +8,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from zencosim.cli.console import UsageError, add_scene_arguments, err, examples, out, say
 from zencosim.extras import require
-from zencosim.manager.scene.load import load_scene
+from zencosim.manager.scene.load import Scene, load_scene
 from zencosim.manager.study.grid import GridError, default_axes, merge_axes, parse_axis
-from zencosim.manager.study.report import check_report_folder, write_report
+from zencosim.manager.study.report import answer_table, check_report_folder, write_report
 from zencosim.manager.study.study import ZENOH_CHOICES, StudyOptions, run_study
 
 _PHASES = {"inproc": "in process", "zenoh": "over Zenoh"}
@@ -38,16 +38,28 @@ class ProgressLines:
         say(f"{self.scene_name}: point {done}/{total} {_PHASES[phase]} done ({elapsed_s:.0f} s)")
 
 
+def _no_signals(scene: Scene) -> str:
+    """What to say of a scene whose ``outputs.signals`` lists nothing: a study needs a signal whose NRMS it measures."""
+    names = sorted({s for c in scene.couplings.values() for s in c.signals()})
+    if not names:
+        return (f"{scene.path}: outputs.signals: the scene lists no signal and has no coupling signal; a study "
+                "measures the NRMS of one")
+    return (f"{scene.path}: outputs.signals: the scene lists no signal; a study measures the NRMS of one: add "
+            f"--set 'outputs.signals=[\"{names[0]}\"]' (its coupling signals: {', '.join(names)})")
+
+
 def cmd_study(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, args.overrides)
     try:
         axes = merge_axes([parse_axis(text) for text in args.vary]) if args.vary else default_axes(scene)
     except GridError as error:
         raise UsageError(str(error)) from None
-    signal_name = args.signal or (scene.outputs.signals[0] if scene.outputs.signals else None)
+    if not scene.outputs.signals:
+        raise UsageError(_no_signals(scene))
+    signal_name = args.signal or scene.outputs.signals[0]
     if signal_name not in scene.outputs.signals:
         raise UsageError(f"--signal {signal_name}: expected one of the scene's outputs.signals: "
-                         f"{', '.join(scene.outputs.signals) or '(none)'}")
+                         f"{', '.join(scene.outputs.signals)}")
     for name, value in (("--repeats", args.repeats), ("--zenoh-repeats", args.zenoh_repeats), ("--workers", args.workers + 1)):
         if value < 1:
             raise UsageError(f"{name}: expected a positive number")
@@ -76,7 +88,8 @@ def cmd_study(args: argparse.Namespace) -> int:
         run = study["run"]
         say(f"{run['points']} points ({run['ran']} measured, {run['cached']} from the cache {args.cache}), "
             f"{run['zenoh_points']} over Zenoh, in {run['wall_s']:.1f} s")
-        say(study["answer"]["text"])
+        for line in answer_table(study):
+            say(line)
         say(f"wrote {', '.join(map(str, written))}")
     return 0
 

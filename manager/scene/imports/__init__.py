@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zencosim.manager.scene.load import SceneError
+from zencosim.manager.scene.load import SceneError, refuse_irregular
+from zencosim.manager.scene.times import NotATime, nanoseconds
 from zencosim.subsystems.params import Problems
 from zencosim.subsystems.units import BASE, Exponents, UnitError, describe, exponents, replaceable, unit_contradiction
 
@@ -75,6 +76,7 @@ def import_system(path: Path, duration: float | None = None, algorithm: str | No
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    refuse_irregular(path, "file")
     if algorithm is not None and algorithm not in ALGORITHMS:
         raise refusal(path, "manager.algorithm", f"expected one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
     if input_table is not None and suffix != ".fmu":
@@ -129,6 +131,15 @@ def local(element: Any) -> str:
 def children(element: Any, name: str | None = None) -> list:
     """The child elements (no comments), those with local name ``name`` if given."""
     return [c for c in element if isinstance(c.tag, str) and (name is None or local(c) == name)]
+
+
+def note_unread(element: Any, read: tuple[str, ...], key: str, notes: list[str]) -> None:
+    """A note naming the attributes of ``element`` that the import does not read (``read``: those it does), which
+    change nothing in the scene: a value's ``unit``, say, is not converted."""
+    unread = [f"{name.rsplit('}', 1)[-1]}={value!r}" for name, value in element.attrib.items() if name not in read]
+    if unread:
+        notes.append(f"{key}: {local(element)} {', '.join(unread)} not read (zencosim reads {', '.join(read)}): "
+                     "ignored, the value is used as written")
 
 
 def where(element: Any, prefix: str = "") -> str:
@@ -559,27 +570,29 @@ def document_path(fmu: Path, scene_directory: Path) -> str:
     return Path(os.path.relpath(os.path.abspath(fmu), os.path.abspath(scene_directory))).as_posix()
 
 
-def _ns(seconds: float) -> int | None:
-    value = seconds * 1e9
-    return round(value) if abs(value - round(value)) <= 1e-3 else None
+def step_ns(seconds: float, key: str, what: str, problems: Problems) -> int | None:
+    """A step size [s] as whole nanoseconds (``manager.scene.times``), or None with a problem naming ``what``."""
+    try:
+        return nanoseconds(seconds)
+    except NotATime as error:
+        problems.add(key, f"{what} {seconds!r} s: {error.expected}")
+        return None
 
 
 def set_timing(base_step: float, base_key: str, components: list[Component], problems: Problems) -> None:
     """Each component's communication ratio: its step over the base step, which must be whole."""
-    base_ns = _ns(base_step)
-    if base_ns is None or base_ns <= 0:
-        problems.add(base_key, f"expected a positive whole number of nanoseconds, got {base_step!r} s")
+    base_ns = step_ns(base_step, base_key, "base step", problems)
+    if base_ns is None:
         return
     for component in components:
-        step_ns = _ns(component.step)
-        if step_ns is None or step_ns <= 0:
-            problems.add(component.key, f"step size {component.step!r} s: expected a positive whole number of "
-                                        "nanoseconds")
-        elif step_ns % base_ns:
+        component_ns = step_ns(component.step, component.key, "step size", problems)
+        if component_ns is None:
+            continue
+        if component_ns % base_ns:
             problems.add(component.key, f"step size {component.step!r} s is not a whole multiple of the base step "
                                         f"{base_step!r} s: zencosim communicates every whole number of base steps")
         else:
-            component.comm_ratio = step_ns // base_ns
+            component.comm_ratio = component_ns // base_ns
 
 
 def settle_duration(requested: float | None, declared: float | None, declared_by: str, base_step: float,
@@ -597,16 +610,14 @@ def settle_duration(requested: float | None, declared: float | None, declared_by
         value, origin = declared, f"from {declared_by}"
     else:
         value, origin = DEFAULT_DURATION, f"assumed ({declared_by}, and no duration was asked for)"
-    longest_s = (2**63 - 1) * 1e-9  # times travel as signed 64-bit nanoseconds (manager.scene.checks)
-    if not 0 < value <= longest_s:  # NaN too
-        problems.add("duration", f"{value!r} s {origin}: expected a positive number of seconds of at most "
-                                 f"{longest_s:.6g} s (times are 64-bit nanoseconds)")
+    try:
+        value_ns = nanoseconds(value, whole=False)
+    except NotATime as error:  # NaN, beyond 64-bit nanoseconds, under 1 ns
+        problems.add("duration", f"{value!r} s {origin}: {error.expected}")
         return None
-    base_ns = _ns(base_step)
-    if not base_ns or base_ns <= 0:
-        return None
+    base_ns = nanoseconds(base_step)  # set_timing refused it unless it is a time
     period = base_ns * math.lcm(*[c.comm_ratio for c in components] or [1])
-    periods = max(1, math.ceil(round(value * 1e9) / period - 1e-9))
+    periods = max(1, math.ceil(value_ns / period - 1e-9))
     duration = periods * period / 1e9
     rounded = (f" ({value!r} s rounded up to a whole number of periods of {period / 1e9!r} s)"
                if duration != value else "")

@@ -11,10 +11,18 @@ is refused: zencosim starts its FMUs at t = 0.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-from zencosim.manager.scene.imports import Component, document_path, read_fmu, refusal, scene_name, settle_duration
+from zencosim.manager.scene.imports import (
+    Component,
+    document_path,
+    read_fmu,
+    refusal,
+    scene_name,
+    number,
+    settle_duration,
+    step_ns,
+)
 from zencosim.manager.scene.load import SceneError
 from zencosim.subsystems.params import Problems
 
@@ -32,21 +40,22 @@ def import_fmu(path: Path, duration: float | None = None, input_table: str | Non
     experiment = model.defaultExperiment
     notes: list[str] = []
     problems = Problems()
-    start = float(experiment.startTime) if experiment is not None and experiment.startTime is not None else 0.0
+    start = _experiment_time(experiment, "startTime", problems) or 0.0
     if start != 0.0:
         problems.add("DefaultExperiment.startTime", f"{start!r} s: zencosim starts its FMUs at t = 0")
-    stop = float(experiment.stopTime) if experiment is not None and experiment.stopTime is not None else None
+    stop = _experiment_time(experiment, "stopTime", problems)
     declared = None if stop is None else stop - start
     fixed = model.coSimulation.fixedInternalStepSize if model.coSimulation is not None else None
     if experiment is not None and experiment.stepSize is not None:
-        step, origin = float(experiment.stepSize), "the DefaultExperiment's stepSize"
+        step, origin = _experiment_time(experiment, "stepSize", problems), "the DefaultExperiment's stepSize"
     elif fixed is not None:
-        step, origin = float(fixed), "the Co-Simulation fixedInternalStepSize"
+        step = number(str(fixed), "CoSimulation.fixedInternalStepSize", "fixedInternalStepSize [s]", problems)
+        origin = "the Co-Simulation fixedInternalStepSize"
     else:
         step = float(auto_interval(duration or declared or DEFAULT_STOP))
         origin = "fmpy's auto_interval of the duration (the FMU gives no step)"
-    if not (math.isfinite(step) and step > 0.0):
-        problems.add("DefaultExperiment.stepSize", f"expected a positive step, got {step!r} s")
+    if step is not None:
+        step_ns(step, "DefaultExperiment.stepSize", f"the step ({origin})", problems)
     if problems:
         raise SceneError(str(path), problems)
     notes.append(f"manager.macro_step = {step!r} s: {origin}")
@@ -64,3 +73,9 @@ def import_fmu(path: Path, duration: float | None = None, input_table: str | Non
             "manager": {"duration": run_for, "macro_step": step},
             "outputs": {"reference": "none"},
             "subsystems": {name: table}}, notes
+
+
+def _experiment_time(experiment, name: str, problems: Problems) -> float | None:
+    """A DefaultExperiment attribute [s] as a finite float; None when absent, or with a problem."""
+    text = getattr(experiment, name, None) if experiment is not None else None
+    return None if text is None else number(text, f"DefaultExperiment.{name}", f"{name} [s]", problems)

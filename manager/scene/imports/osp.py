@@ -51,6 +51,7 @@ from zencosim.manager.scene.imports import (
     document_path,
     link_quantity,
     local,
+    note_unread,
     number,
     orient,
     parse_xml,
@@ -376,6 +377,8 @@ class _Import:
                 continue
             add_start(component, initial.get("variable"), local(typed[0]), typed[0].get("value"), value_key,
                       self.problems)
+            note_unread(initial, ("variable",), value_key, self.notes)
+            note_unread(typed[0], ("value",), value_key, self.notes)
         self.descriptions[raw_name] = self._model_description(fmu_path, fmu.model_name, key)
 
     def _fmu_file(self, source: str, key: str) -> Path | None:

@@ -63,6 +63,7 @@ from zencosim.manager.scene.load import SceneError
 from zencosim.subsystems.params import Problems
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 SSD_MEMBER = "SystemStructure.ssd"
 OSP_ANNOTATION = "com.opensimulationplatform"
 FMU_TYPES = (None, "", "application/x-fmu-sharedlibrary")
@@ -105,6 +106,7 @@ class _Import:
         if not self.archive:
             container = self._wrap(ssd_bytes, root)
         ssd = self._read_ssd(container)
+        self._unread_parameters(root, container)
         systems = children(root, "System")
         if len(systems) != 1:
             raise self._refuse(where(root), "expected one System element")
@@ -174,6 +176,24 @@ class _Import:
                 except OSError:
                     self.problems.add(where(element), f"source {source!r}: no file at {file}")
         return buffer.getvalue()
+
+    def _unread_parameters(self, root, container: bytes) -> None:
+        """A note on each element of a parameter set's ``Parameters`` that is no ``ssv:Parameter``, which fmpy's
+        reader (and so the import) passes over: in the SSD, or in a parameter file it binds."""
+        trees = [(root, "")]
+        with zipfile.ZipFile(io.BytesIO(container)) as archive:
+            members = set(archive.namelist())
+            for binding in root.iter(f"{{{SSD}}}ParameterBinding"):
+                source = binding.get("source")
+                if source in members:
+                    tree = parse_xml(archive.read(source), source, Problems())  # fmpy has read it already
+                    trees += [(tree, f"{source}: ")] if tree is not None else []
+        for tree, prefix in trees:
+            for parameters in tree.iter(f"{{{SSV}}}Parameters"):
+                for child in children(parameters):
+                    if child.tag != f"{{{SSV}}}Parameter":
+                        self.notes.append(f"{where(child, prefix)}: an element of Parameters that is no ssv:Parameter "
+                                          "is not read (as fmpy reads a parameter set): ignored")
 
     def _read_ssd(self, container: bytes):
         try:

@@ -13,6 +13,7 @@ and an FMI 3.0 FMU steps in the scheme's own loop.
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Mapping
 
 from zencosim.subsystems.native import library
 
@@ -40,3 +41,12 @@ def steps_function(version: str):
     function = compiled[f"fmi{version}_steps_run"]
     function.restype = ctypes.c_int
     return function
+
+
+def uncompiled_fmus(specs: Mapping[str, object]) -> list[str]:
+    """The co-simulation FMUs among ``specs`` (subsystem name → spec) whose communication step cannot be one compiled
+    call here (:func:`steps_function` None: no C compiler, or it fails): each of their steps is then a ctypes call
+    per FMI call from Python, several times slower (docs/models.md). Empty where every step is compiled."""
+    fmus = [name for name, spec in specs.items()
+            if getattr(spec, "reference", None) == "fmu" and getattr(spec, "advances_itself", False)]
+    return fmus if fmus and steps_function("2") is None else []

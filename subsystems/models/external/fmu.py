@@ -193,9 +193,10 @@ class _FmuInstance:
         try:
             self.fmu = self._instantiate(model, description, instance_name)
         except Exception as error:  # noqa: BLE001 (fmpy raises a plain Exception, ctypes an OSError)
-            raise FmuError(f"FMU {path.name}: cannot be instantiated ({type(error).__name__}: {error}); a Python "
-                           "FMU (pythonfmu) needs its packages in this interpreter, fmpy's debug log says more "
-                           "(fmpy simulate --debug-logging)") from None
+            python_fmu = "pythonfmu" in (model.generationTool or "").lower()  # a C FMU's cause is not packages
+            hint = "a Python FMU (pythonfmu) needs its packages in this interpreter; " if python_fmu else ""
+            raise FmuError(f"FMU {path.name}: cannot be instantiated ({type(error).__name__}: {error}); {hint}fmpy's "
+                           "debug log says more (fmpy simulate --debug-logging)") from None
         types = {v.name: v.type for v in model.modelVariables}
         # the real inputs and outputs through preallocated ctypes arrays; Integer and Boolean ones apart
         self._real_u = [i for i, n in enumerate(inputs) if types[n] in REAL_TYPES]

@@ -7,7 +7,9 @@ declares none for (``units.<variable> = "unit"``), per point the variables that 
 role (``points.<point> = { role = "<variable>", … }``, ``subsystems.models.external.points``) and the
 output variables it publishes besides (``outputs = ["x", "v"]``, or ``"all"``: every output, as
 ``fmpy simulate`` records them; ports named after the variables) and a table of values over time for
-inputs no coupling feeds (``input_table = "inputs.csv"``, ``subsystems.models.external.table``). The
+inputs no coupling feeds (``input_table = "inputs.csv"``, ``subsystems.models.external.table``) and what its
+outputs depend on at the same instant where the component omits it (``feedthrough = { y = ["u"] }``,
+``subsystems.models.external.feedthrough``). The
 model's ports are then made from
 what the couplings attach to each point, exactly as for a built-in model, and from the variables signal
 connections name; their names are the couplings' signals, their units the roles' SI quantities, and the
@@ -29,6 +31,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from zencosim.subsystems.models.external.component import ComponentDescription, Variable
+from zencosim.subsystems.models.external.feedthrough import apply_feedthrough, read_feedthrough
 from zencosim.subsystems.models.external.fmu import FmuError, describe_fmu, open_fmu
 from zencosim.subsystems.models.external.points import ROLES, PointMap
 from zencosim.subsystems.models.external.python_model import (
@@ -67,6 +70,7 @@ class ExternalSpec:
     point_maps: dict[str, PointMap]
     published: tuple[str, ...] = ()  # output variables published as signals of their own name
     input_table: InputTable | None = None  # inputs given over time
+    feedthrough: dict[str, tuple[str, ...]] | None = None  # the scene's feedthrough key (applied to description)
     provides_force = True  # the component computes its coupling forces
     starts_at_rest = False
     can_project = False  # no projection step (paper 003 Eq. 30): the state is the component's
@@ -126,6 +130,15 @@ class ExternalSpec:
     def linear_problem(self) -> str | None:
         return f"a {self.description.kind} is not known to be linear"
 
+    def feedthrough_origin(self, key: str) -> str | None:
+        """Who says what its outputs depend on at the same instant, for the message of an algebraic loop through
+        them (``key``: its table's); None where its model class does."""
+        if self.feedthrough is not None:
+            return f"as {key}.feedthrough states it"
+        if self.reference == "fmu":
+            return f"as its modelDescription declares it, which {key}.feedthrough overrides"
+        return None
+
     def variable_problem(self, name: str, end: Literal["output", "input"]) -> str | None:
         """Why the variable ``name`` cannot be the ``end`` of a signal connection (None: it can)."""
         variable = self.description.variables.get(name)
@@ -154,7 +167,8 @@ class ExternalModel:
     def read(cls, table: dict, key: str, problems: Problems, directory: Path) -> ExternalSpec | None:
         """The component, its start values, energy variable and points; every problem recorded under ``key``."""
         before = len(problems)
-        settings = read_table(ExternalSettings, table, key, problems, skip=("start", "points", "units", "outputs"))
+        tables = ("start", "points", "units", "outputs", "feedthrough")  # read below
+        settings = read_table(ExternalSettings, table, key, problems, skip=tables)
         if settings is None:
             return None
         try:
@@ -163,6 +177,8 @@ class ExternalModel:
             problems.add(f"{key}.{'fmu' if settings.fmu else 'model'}", str(error))
             return None
         description = apply_units(table.get("units"), description, f"{key}.units", problems)
+        feedthrough = read_feedthrough(table.get("feedthrough"), description, f"{key}.feedthrough", problems)
+        description = apply_feedthrough(feedthrough, description)
         start = read_start(table.get("start", {}), description, f"{key}.start", problems)
         published = read_published(table.get("outputs", ()), description, f"{key}.outputs", problems)
         input_table = None
@@ -185,7 +201,7 @@ class ExternalModel:
         if len(problems) != before:
             return None
         return ExternalSpec(cls.name, description, source, start, settings.energy, point_maps, published,
-                            input_table)
+                            input_table, feedthrough)
 
     def __init__(self, spec: ExternalSpec, attachments: Attachments = Attachments(), expose_all: bool = False) -> None:
         """``expose_all``: a port for every input and output of the component, named after it, whatever the
@@ -522,7 +538,9 @@ class _Ports:
         if variable not in self.component_outputs:
             self.component_outputs.append(variable)
         direct = self._direct_inputs(variable)
-        self.outputs.append(Port(port.name, port.quantity, bool(direct), port.signal_unit, direct))
+        undeclared = bool(direct) and self.spec.description.variables[variable].depends_on is None
+        self.outputs.append(Port(port.name, port.quantity, bool(direct), port.signal_unit, direct,
+                                 undeclared=undeclared))
         unit = self.spec.description.variables[variable]
         self.output_sources.append(("variable", self.component_outputs.index(variable), scale, unit.factor,
                                     unit.offset, shift))

@@ -94,6 +94,9 @@ class PointMap:
         found = []
         if not self.roles():
             found.append(("force", f"expected at least one role: {', '.join(ROLES)}"))
+        for role in self.roles():
+            if getattr(self, role) == ():
+                found.append((role, "expected a variable name, or a list of one per component, got an empty list"))
         sizes = {role: len(self.variables(role)) for role in self.roles() if self.variables(role)}
         if len(set(sizes.values())) > 1:
             found.append(("force", f"every role of a point needs as many variables (one per component), got {sizes}"))
