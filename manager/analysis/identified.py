@@ -1,5 +1,5 @@
 """A subsystem that is not a built-in linear model (an FMU, a user's Python model), identified as a discrete-time
-linear system at its communication step around the initial operating point (issue 41, item 3).
+linear system at its communication step around the initial operating point.
 
 Over one communication step ``H`` the subsystem maps its internal state ``s_k`` and the coefficients ``c_k`` of its
 input polynomial (``w(τ) = Σ_q c_q τ^q``, the extrapolation in force) to ``s_{k+1}`` and to its outputs at the end
@@ -54,7 +54,7 @@ from zencosim.subsystems.subsystem import Subsystem
 HANKEL_ROWS = 16  # r: block rows (and columns) of the Hankel matrix first tried; orders up to r · min(inputs, outputs)
 MAX_HANKEL_ROWS = 256  # the most it grows to (522 steps a probe)
 STATE_GAP = 1e8  # σ_n / σ_{n+1} at which the weakest state stands clear of the probes' error (its relative error
-# ~ σ_{n+1} / σ_n: measured 3.8e-12 on ρ at a gap of 7e9, 1e-8 at 4e6)
+# ~ σ_{n+1} / σ_n)
 VALIDATION_STEPS = 8  # Markov parameters measured beyond the 2r + 1 that ERA uses, to check the fit
 ORDER_TOLERANCE = 1e-10  # σ_i / σ_1 above which a singular value is a state (the probes' rounding is ~1e-14) …
 ERROR_MARGIN = 100.0  # … and above this many times the probes' own error
@@ -246,8 +246,9 @@ def identify(name: str, probe: Probe, n_outputs: int) -> IdentifiedStep:
         except IdentificationError:  # the component fails under probes of its inputs' size: small ones may do
             exact, nonlinearity, count = False, None, 0
         probes += count
-        tolerance = max(ORDER_TOLERANCE, ERROR_MARGIN * error) if exact else LOCAL_ORDER_TOLERANCE
-        if not exact:
+        if exact:
+            tolerance = max(ORDER_TOLERANCE, ERROR_MARGIN * error)
+        else:
             h, local, error, count = markov_parameters(probe, LOCAL_AMPLITUDE, steps, exact=False)
             probes += count
             nonlinearity = local if nonlinearity is None else nonlinearity
@@ -319,7 +320,8 @@ def identified_steps(plan: Plan, subsystems: dict[str, Subsystem], names: set[st
         if s.name not in names:
             continue
         sub = subsystems[s.name]
-        if can_save(s.name):
+        saveable = can_save(s.name)
+        if saveable:
             saved = sub.save()
 
             def restart(sub=sub, saved=saved) -> Subsystem:
@@ -336,6 +338,6 @@ def identified_steps(plan: Plan, subsystems: dict[str, Subsystem], names: set[st
         except IdentificationError as error:
             raise IdentificationError(f"subsystem {s.name} cannot be identified: {error}") from None
         finally:
-            if can_save(s.name):
+            if saveable:
                 sub.restore(saved)
     return result

@@ -1,5 +1,5 @@
 """The largest stable step of a third-party FMU loop, predicted by the identified exact discrete analysis
-(``manager.analysis.stable_step``) and found by bisecting runs (issue 41, item 3).
+(``manager.analysis.stable_step``) and found by bisecting runs.
 
 The loop is ``tests/interop/pythonfmu_pair.py``'s: a PI controller exported with pythonfmu (it cannot save its
 state: each probe instantiates it anew) positioning the example oscillator FMU, through two signal connections,

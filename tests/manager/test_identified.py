@@ -1,11 +1,10 @@
-"""Identified subsystems in the exact discrete analysis (``manager.analysis.identified``, issue 41 item 3).
+"""Identified subsystems in the exact discrete analysis (``manager.analysis.identified``).
 
 The oracle is the built-in model of the same system: its one-step map is composed exactly from its matrices
 (``manager.analysis.discrete.subsystem_map``), the identified one is realised from the responses of the FMU or
 Python model alone. Tolerances: identification by ERA is exact for a linear subsystem up to the rounding of the
-probes' differences (measured: ρ to 2e-15 on the examples, 8e-12 on generated systems and the corners of their
-ranges), so 1e-8 leaves three orders to spare; the largest stable step is bisected to 1e-4 relative on both sides,
-so 1e-3 holds it to the issue's 0.1 %.
+probes' differences, so 1e-8 leaves orders to spare; the largest stable step is bisected to 1e-4 relative on both
+sides, so 1e-3 holds it to 0.1 %.
 """
 from __future__ import annotations
 

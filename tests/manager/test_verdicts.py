@@ -104,7 +104,7 @@ def test_run_reports_the_verdict_of_analyze(scene_name, overrides):
 
 
 def test_the_issues_two_mass_damped_case_is_unstable_in_both_commands(tmp_path):
-    """Unstable (ρ > 1) while the run's energy falls (the damping wins for the 2.3 s run; issue 42): the verdict
+    """Unstable (ρ > 1) while the run's energy falls (the damping wins for the 2.3 s run): the verdict
     comes with the predicted growth's time scale, ln 2 / (2 ln ρ / T), in the JSON and in the text."""
     overrides = ("--set", "manager.macro_step=0.0023", "--set", "subsystems.S1.micro_step=0.0023",
                  "--set", "subsystems.S2.micro_step=0.0023", "--set", "manager.duration=2.3")
@@ -125,7 +125,7 @@ def test_no_verdict_without_energy(tmp_path):
     """The DC motor drive without its ``energy`` keys: no subsystem reports an energy. At a fixed step its
     Python models are identified exactly, so the exact discrete verdict stands; with the energy-controlled step
     (no fixed step to analyse) there is neither a measured verdict nor a reliable run; the summary names the
-    outputs in J that could be declared (issue 42)."""
+    outputs in J that could be declared."""
     source = (resources.files("zencosim.examples") / "scenes" / "dc_motor_drive.toml").read_text()
     scene = tmp_path / "drive.toml"
     scene.write_text(source.replace('energy = "E"\n', ""))
