@@ -67,7 +67,7 @@ class ImplicitSettings:
 
 # the most p_gain + i_gain: a sum of 1/k is the deadbeat gain for an error of order k in the step (k >= 1), more
 # over-corrects (libcosimpy's sum is 0.35); the law raises the error ε, the root of a positive float and so at least
-# 2.2e-162, to minus the sum: at most 4.5e161 at 1, where a gain of 1e308 overflowed
+# 2.2e-162, to minus the sum: at most 4.5e161 at 1, which stays finite
 MOST_GAIN = 1.0
 
 

@@ -1,5 +1,5 @@
 """crane-fmu's own ECCO system (CraneOnOscillatorSystemStructure.xml: its MobileCraneStraight.fmu's torque[0] and
-d_angular[0] bonded to HarmonicOscillator6D.fmu's f[3] and v[3]) with units stated by the scene (issue 41, item 2).
+d_angular[0] bonded to HarmonicOscillator6D.fmu's f[3] and v[3]) with units stated by the scene.
 
 The oscillator declares every variable "dimensionless" and the crane its angular velocity as pint's "radian /
 second" without the radian exponent (s-1): the import refuses the bond until ``--set

@@ -4,7 +4,7 @@
 ``subsystems.X.feedthrough`` states what a modelDescription omits; a loop of declared feedthrough is refused.
 
 Tolerance: ``AGREEMENT`` (1e-12) of each signal's range. The whole difference is the step handed to doStep
-(libcosim's t_{k+1} - t_k of rounded time points, zencosim's exact step; docs/interop.md), 1e-15 measured.
+(libcosim's t_{k+1} - t_k of rounded time points, zencosim's exact step; docs/interop.md).
 """
 from __future__ import annotations
 
@@ -78,9 +78,8 @@ CONTROLLER_DECLARED = 'subsystems.controller.feedthrough={ force = ["position", 
 @pytest.mark.parametrize("rate, stated", [(0, ()), (1, ()), (0, (CONTROLLER_DECLARED,))],
                          ids=["single-rate", "multi-rate", "controller-declared"])
 def test_a_pythonfmu_pd_loop_gives_libcosims_answer(pd_fmus, rate, stated, tmp_path):
-    """The PD controller and the mass–spring: refused before (an algebraic loop); now the same as libcosim, initial
-    values included, which take libcosim's N + 1 = 3 passes (N or N + 2 passes miss it by 15 % and 7 % of the
-    force's range, measured). The loop stays libcosim's with the controller's feedthrough declared by the scene:
+    """The PD controller and the mass–spring: the same as libcosim, initial values included, which take
+    libcosim's N + 1 = 3 passes. The loop stays libcosim's with the controller's feedthrough declared by the scene:
     the plant's is still undeclared."""
     osp = system(tmp_path, pd_fmus, PD_VARIABLES, PD_CONNECTIONS, rate)
     result = run_zencosim(osp, PD_VARIABLES, DURATION, extra=stated)

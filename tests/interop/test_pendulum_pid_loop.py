@@ -1,4 +1,4 @@
-"""A pythonfmu pendulum under a pythonfmu PID controller (issue 41: a loop libcosim runs, refused before because
+"""A pythonfmu pendulum under a pythonfmu PID controller (a loop libcosim runs, though
 neither FMU declares its outputs' ``dependencies``): zencosim gives libcosim's answer on the same OSP file, single-
 and multi-rate, to ``AGREEMENT`` (1e-12) of each signal's range, as tests/interop/test_feedthrough_loops.py checks
 the PD loop (its OSP writer and comparison are reused here).

@@ -75,7 +75,7 @@ def test_a_mutated_scene_is_refused_with_its_key_or_runs(tmp_path_factory, rng):
     ("manager.duration=1e-4", "manager.duration", "at least one macro-step period"),
     ("manager.duration=1e7", "manager.duration", "shorten manager.duration or lengthen manager.macro_step"),
     ("subsystems.S1.micro_step=nan", "subsystems.S1.micro_step", "finite"),
-    ("manager.timeout=1e308", "manager.timeout", "at most 9.223e+09 s"),  # an OverflowError in the watchdog once
+    ("manager.timeout=1e308", "manager.timeout", "at most 9.223e+09 s"),
 ])
 def test_the_issues_overrides_are_refused_naming_the_key(override, key, reason):
     """The findings of issue 14 (a traceback or an accepted scene that cannot run), now scene errors."""
@@ -117,7 +117,7 @@ def load_scene_text(name: str) -> str:
 @pytest.mark.parametrize("point, role", [("S2.points.m2", "position"), ("S1.points.m1", "position_input"),
                                          ("S1.points.m1", "force"), ("S2.points.m2", "velocity")])
 def test_an_empty_list_of_a_points_variables_is_one_line_and_exit_2(point, role):
-    """``position = []`` on a Python model's point (scene fuzz, seed 41004): a KeyError from ``check`` once."""
+    """``position = []`` on a Python model's point: one problem naming the key."""
     from tests.conftest import REPO
     scene = str(REPO / "zencosim" / "examples" / "scenes" / "two_mass_damped_python.toml")
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as errors:

@@ -241,7 +241,7 @@ def test_the_pareto_front_is_non_dominated_and_dominates_the_rest(points):
     (["--signal", "nothing"], "--signal nothing: expected one of the scene's outputs.signals: x2, fc"),
     (["--vary", "manager.macro_step=1e-3", "--out", "/nonexistent/report"], "the directory /nonexistent does not exist"),
     (["--vary", "manager.macro_step=1e308,nan"], "--vary: no point of the grid loads; the first: manager.macro_step: "
-                                                "expected at most 9.223e+09 s"),  # an OverflowError once
+                                                "expected at most 9.223e+09 s"),
     (["--set", "outputs.signals=[]"], "outputs.signals: the scene lists no signal; a study measures the NRMS of one: "
                                       "add --set 'outputs.signals=[\"fc\"]' (its coupling signals: fc, v2, x2)"),
 ])

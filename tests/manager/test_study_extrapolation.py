@@ -1,4 +1,4 @@
-"""A study without an analytic reference (issue 41, item 5): the reference extrapolated from the grid's own finest
+"""A study without an analytic reference: the reference extrapolated from the grid's own finest
 points (Richardson), checked on expansions whose limit is known, against the summary's NRMS, and on
 two_mass_damped_fmu against the analytic NRMS of the built-in two_mass_damped; its report, whatever there is to
 plot."""

@@ -298,7 +298,7 @@ BEYOND_64_BIT = "expected at most 9.223e+09 s (times are counted in signed 64-bi
                                          "nanoseconds)"),
 ])
 def test_osp_times_beyond_64_bit_nanoseconds_are_refused_in_one_line(osp_dir, options, key, reason):
-    """More nanoseconds than times travel as (an OverflowError once, from check and convert): a scene error
+    """More nanoseconds than times travel as: a scene error
     naming the element, and exit status 2 from the command line."""
     assert osp_refusal(osp_dir, osp_system(**options)) == {key: reason}
     assert_one_line_error(["check", str(osp_dir / "OspSystemStructure.xml")], f"{key}: {reason}")
