@@ -34,7 +34,8 @@ def _print_verdicts(report: dict) -> None:
     verdicts.add_column("verdict")
     for key in ("uncompensated", "compensated"):
         if report["spectral_radius"][key] is not None:
-            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{report['growth_rate_per_s'][key] or -math.inf:.4g}",
+            growth = report["growth_rate_per_s"][key]  # None: ρ = 0
+            verdicts.add_row(key, f"{report['spectral_radius'][key]:.12f}", f"{-math.inf if growth is None else growth:.4g}",
                              "stable" if report["stable"][key] else "[bold red]UNSTABLE[/]")
     out.print(verdicts)
     step = report["largest_stable_step"]
