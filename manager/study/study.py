@@ -280,11 +280,12 @@ def _answer(rows: list[dict], target: float, exchanges: Callable[[dict], float])
     ``tie_rule`` are null when no point meets the target. ``report.answer_table`` shows it."""
     best, tied = _cheapest(rows, target, exchanges)
     row = next((r for r in rows if r["key"] == best), None)
-    zenoh = None if row is None else row["zenoh"]
-    return {"target": target, "point": best, "method": None if row is None else row["method"],
-            "macro_step": None if row is None else row["macro_step"], "error": None if row is None else row["error"],
-            "error_bar": None if row is None else row["error_bar"],
-            "inproc_loop_cpu_per_s": None if row is None else _cost(row),
-            "inproc_loop_wall_per_s": None if row is None else row["inproc"]["loop_wall_per_s"],
-            "zenoh_loop_wall_per_s": None if zenoh is None else zenoh["loop_wall_per_s"], "tied": tied,
-            "tie_rule": tradeoffs.TIE_RULE}
+    if row is None:
+        found = dict.fromkeys(("method", "macro_step", "error", "error_bar", "inproc_loop_cpu_per_s",
+                               "inproc_loop_wall_per_s", "zenoh_loop_wall_per_s"))
+    else:
+        found = {"method": row["method"], "macro_step": row["macro_step"], "error": row["error"],
+                 "error_bar": row["error_bar"], "inproc_loop_cpu_per_s": _cost(row),
+                 "inproc_loop_wall_per_s": row["inproc"]["loop_wall_per_s"],
+                 "zenoh_loop_wall_per_s": None if row["zenoh"] is None else row["zenoh"]["loop_wall_per_s"]}
+    return {"target": target, "point": best, **found, "tied": tied, "tie_rule": tradeoffs.TIE_RULE}
