@@ -162,7 +162,7 @@ def analyze_scene(scene: Scene, architecture: str = "full_feedback", pade_order:
         uncompensated = uncompensated_scheme(scene)
     except LinearSceneError as error:
         raise SceneError(scene.path, [Problem("scene", str(error))]) from None
-    stable_step = largest_stable_step(scene)
+    stable_step = largest_stable_step(scene, uncompensated)
     if linear_unavailable(scene):  # identified subsystems
         return IdentifiedAnalysis(scene, uncompensated, stable_step)
     model = linear_model(scene)

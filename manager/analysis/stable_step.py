@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from zencosim.manager.analysis.discrete import LinearSceneError, uncompensated_scheme
+from zencosim.manager.analysis.discrete import DiscreteScheme, LinearSceneError, uncompensated_scheme
 from zencosim.manager.scene.load import Scene
 
 STEP_TOLERANCE = 1e-4  # relative width of the final bracket [largest stable, smallest unstable]
@@ -57,10 +57,12 @@ def scaled_scene(scene: Scene, macro_step_ns: int) -> Scene:
     return replace(scene, manager=replace(scene.manager, macro_step=macro_step_ns * 1e-9), subsystems=subsystems)
 
 
-def largest_stable_step(scene: Scene) -> StableStep:
-    """The bracket of the largest stable macro-step of ``scene`` run without a compensator (see the module text)."""
+def largest_stable_step(scene: Scene, own: DiscreteScheme | None = None) -> StableStep:
+    """The bracket of the largest stable macro-step of ``scene`` run without a compensator (see the module text);
+    ``own``: its ``uncompensated_scheme`` at its own step, where the caller has built it already."""
     quantum = step_quantum_ns(scene)
-    verdicts: dict[int, bool] = {}
+    j = scene.manager.macro_step_ns // quantum
+    verdicts: dict[int, bool] = {} if own is None else {j: own.stable}
     unanalysable = 0
 
     def stable(j: int) -> bool:
@@ -72,7 +74,6 @@ def largest_stable_step(scene: Scene) -> StableStep:
                 verdicts[j], unanalysable = False, unanalysable + 1
         return verdicts[j]
 
-    j = scene.manager.macro_step_ns // quantum
     if stable(j):
         low, high = j, 2 * j
         for _ in range(MAX_DOUBLINGS):
