@@ -271,6 +271,11 @@ def _number(value: float | None, digits: int = 3) -> str:
     return "–" if value is None else f"{value:.{digits}g}"
 
 
+def _nrms_cell(nrms: float | None, bar: float | None) -> str:
+    """An NRMS and, against an extrapolated reference, its error bar."""
+    return _number(nrms) + ("" if bar is None else f" ± {bar:.2g}")
+
+
 def answer_table(study: dict) -> list[str]:
     """The study's answers as Markdown table lines, padded to be read as they are: per NRMS target the setting to
     take, its macro-step, its costs and its NRMS (± its error bar against an extrapolated reference), then a row
@@ -292,7 +297,7 @@ def answer_table(study: dict) -> list[str]:
             if tied:
                 setting += (f" ({'chosen' if key == answer['point'] else 'tied on cost'}, "
                             f"{row['exchanges_per_s']:.4g} exchanges/s)")
-            nrms = _number(row["error"]) + ("" if row.get("error_bar") is None else f" ± {row['error_bar']:.2g}")
+            nrms = _nrms_cell(row["error"], row.get("error_bar"))
             zenoh = "not measured" if row["zenoh"] is None else _ms(row["zenoh"]["loop_wall_per_s"])
             rows.append([target if key == answer["point"] else "", setting, f"{row['macro_step'] * 1e3:g}",
                          _cost_cell(row["inproc"]), zenoh, nrms])
@@ -329,7 +334,7 @@ def points_table(study: dict) -> list[str]:
     for r in sorted(study["points"], key=lambda r: (r["method"], r["macro_step"])):
         inproc, zenoh = r["inproc"] or {}, r["zenoh"] or {}
         nrms, bar = r["nrms"].get(study["signal"]), (r.get("nrms_error_bar") or {}).get(study["signal"])
-        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _number(nrms) + ("" if bar is None else f" ± {bar:.2g}"),
+        cells = [r["method"], f"{r['macro_step'] * 1e3:g}", _nrms_cell(nrms, bar),
                  _number(r["energy_error"]),
                  f"{verdict[r['stable_predicted']]} / {verdict[r['stable_run']]}" + (" (failed)" if r["failed"] else ""),
                  _cost_cell(inproc), _ms(inproc.get("loop_wall_per_s")), _ms(zenoh.get("loop_wall_per_s")),
