@@ -170,11 +170,10 @@ def _exact_dc_motor(scene, result) -> dict:
 
 
 # every bundled or example scene the correction runs on, at its own step; durations (s) shortened where the
-# correction's effect is already the whole run's (None: the scene's own): coupled_pendula needs 2 s (at 1 s the
-# correction is 1.2 % worse: its gain builds over the pendula's periods; four_mass likewise 2 s, 17 % worse at
-# 1 s), two_mass_chirp its 10 s (at 2 s, before
-# the sweep reaches the frequencies where the coupling error grows, 3.8 times worse). hydraulic_crane_11_5ms is
-# left out: unstable either way (NRMS 4.8 plain, 5.0 corrected; paper 002 Fig. 36, Gauss–Seidel alone tames it).
+# correction's effect is already the whole run's (None: the scene's own; coupled_pendula and four_mass need 2 s,
+# the correction's gain building over the pendula's periods; two_mass_chirp its whole run, the coupling error
+# growing only where the sweep reaches higher frequencies). hydraulic_crane_11_5ms is left out: unstable with and
+# without the correction (paper 002 Fig. 36: Gauss–Seidel alone tames it).
 SCENES = [("coupled_pendula", 2.0), ("double_oscillator", 1.0), ("four_mass", 2.001), ("mass_chain", 1.0),
           ("multiple_oscillator_n3", 1.0), ("multiple_oscillator_n5", 1.0), ("nonlinear_oscillator_case1", 1.0),
           ("nonlinear_oscillator_case2", 1.0), ("two_mass_damped", 1.0), ("two_mass_undamped", 1.0),

@@ -276,7 +276,7 @@ def _zencosim(env: dict[str, str], *args: str) -> subprocess.CompletedProcess:
                           timeout=120)
 
 
-CRASH_T_S = 1.5  # [s] the recorded model ends its process in its first step that reaches this (issue 42)
+CRASH_T_S = 1.5  # [s] the recorded model ends its process in its first step that reaches this
 COMPUTED_STEPS = 1499  # the macro-steps of 1 ms the run completes before: its step from t = 1.499 s never ends
 
 
@@ -288,8 +288,7 @@ def test_a_recorded_run_whose_model_ends_its_process_keeps_what_it_computed(proc
     the run completed (in process the loop hands over what it holds every max(16, a 32nd of its steps), and the
     recorder records what was in its pipe; over Zenoh each subsystem's batches for the manager are as small early in a
     run), the command returns once the file is finished (inspect, run at once, reads it whole), and inspect and
-    replay --verify agree on its last step. Before (issue 42): 0–511 steps in process, and inspect said "steps 0 …
-    the recorder did not finish" while verify passed up to step 511."""
+    replay --verify agree on its last step."""
     mcap = tmp_path / "crash.mcap"
     status, stderr = _faulty_run(processes, tmp_path, fault, bus, "--record", str(mcap), duration=2 * CRASH_T_S,
                                  fault_t=CRASH_T_S)
@@ -318,7 +317,7 @@ def test_the_replay_of_a_run_that_failed_in_its_model_gives_a_verdict_then_the_r
     """A model that fails (sys.exit) at t = 0.3 s: replay --verify compares every message the file holds, then says
     that the re-run failed as the run did (exit status 0: the recording verified). The same model ending the process
     there instead (os._exit) ends the re-run's too: the verdict is said before, then how the process ended (1). One
-    that fails sooner than the recorded run did fails the verification (1). Before (issue 42): only the failure."""
+    that fails sooner than the recorded run did fails the verification (1)."""
     mcap, fault_t = tmp_path / "failed.mcap", 0.3
     status, stderr = _faulty_run(processes, tmp_path, "exit", "inproc", "--record", str(mcap), duration=0.6,
                                  fault_t=fault_t)

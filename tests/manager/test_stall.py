@@ -1,4 +1,4 @@
-"""A stall is a stall (issue 44): a run waits for processes starved of CPU and fails for one that is stopped, hangs,
+"""A stall is a stall: a run waits for processes starved of CPU and fails for one that is stopped, hangs,
 or had CPU and answered nothing (manager.bus.stall).
 
 The decision is tested on /proc-like readings fed to the clock (a starved process cannot be simulated reliably on a
