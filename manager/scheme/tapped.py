@@ -238,7 +238,7 @@ class TakenSteps(_InBlocks):
         initialisation."""
         taken = cls.__new__(cls)
         taken.tap = tap
-        taken._follow(StepsSchedule(*schedule))
+        taken._follow(schedule)
         return taken
 
     def _follow(self, schedule: StepsSchedule) -> None:
